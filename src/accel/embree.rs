@@ -1,0 +1,521 @@
+//! The safe wrapper over Embree (3.13 or 4.x, chosen at build time as `cfg(embree4)`): the only
+//! `unsafe` outside `sys/`. It owns device, scene and geometry lifetimes, turns Embree's error
+//! callback into Rust errors, and separates a scene under construction ([`SceneBuilder`]) from a
+//! committed one ([`CommittedScene`]): only the committed one is `Send + Sync`, because Embree
+//! allows concurrent queries on a committed scene and nothing else.
+#![allow(unsafe_code)]
+
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::sync::{Arc, Mutex};
+
+use embree_sys as sys;
+use glam::{Vec3A, Vec4};
+
+use super::{Accel, Hit, Ray};
+
+/// `RTC_INVALID_GEOMETRY_ID` is a cast macro in the header, which bindgen cannot evaluate.
+const INVALID_ID: u32 = u32::MAX;
+
+/// An error reported by Embree, or by the wrapper about Embree.
+#[derive(Debug, thiserror::Error)]
+pub enum EmbreeError {
+    #[error("Embree error {code}: {message}")]
+    Api { code: u32, message: String },
+    #[error("cannot create an Embree device: {0}")]
+    Device(String),
+    #[error("Embree library {library} does not match the header {header} it was built against")]
+    Version { library: i64, header: i64 },
+}
+
+/// What the error callback writes: the first error since the last check.
+type ErrorSlot = Mutex<Option<EmbreeError>>;
+
+struct DeviceInner {
+    raw: sys::RTCDevice,
+    // Boxed so its address, handed to Embree as the callback's user pointer, never moves.
+    errors: Box<ErrorSlot>,
+}
+
+// SAFETY: an RTCDevice may be used from any thread (Embree's device calls are thread-safe), and
+// the error slot is behind a Mutex.
+unsafe impl Send for DeviceInner {}
+// SAFETY: as above: shared references only reach thread-safe Embree calls and the Mutex.
+unsafe impl Sync for DeviceInner {}
+
+impl Drop for DeviceInner {
+    fn drop(&mut self) {
+        // SAFETY: `raw` came from rtcNewDevice and this is the wrapper's only reference; every
+        // scene holds an Arc<DeviceInner>, so none outlives this release.
+        unsafe { sys::rtcReleaseDevice(self.raw) };
+    }
+}
+
+impl DeviceInner {
+    /// Takes the first error the callback recorded, if any.
+    fn take_error(&self) -> Result<(), EmbreeError> {
+        let mut slot = self.errors.lock().unwrap_or_else(|e| e.into_inner());
+        match slot.take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+}
+
+unsafe extern "C" fn error_callback(user: *mut c_void, code: sys::RTCError, message: *const c_char) {
+    if user.is_null() {
+        return;
+    }
+    // SAFETY: `user` is the address of the device's boxed ErrorSlot, registered in Device::new
+    // and alive for as long as the device is; Embree passes a NUL-terminated message or null.
+    let (slot, message) = unsafe {
+        let slot = &*(user as *const ErrorSlot);
+        let message = if message.is_null() {
+            String::new()
+        } else {
+            CStr::from_ptr(message).to_string_lossy().into_owned()
+        };
+        (slot, message)
+    };
+    let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+    if slot.is_none() {
+        *slot = Some(EmbreeError::Api { code, message });
+    }
+}
+
+/// An Embree device. Cheap to clone; scenes keep it alive.
+#[derive(Clone)]
+pub struct Device {
+    inner: Arc<DeviceInner>,
+}
+
+impl Device {
+    /// A device with Embree's default configuration.
+    pub fn new() -> Result<Self, EmbreeError> {
+        Self::with_config("")
+    }
+
+    /// A device with an Embree configuration string, e.g. `"threads=2"` (the build threads).
+    pub fn with_config(config: &str) -> Result<Self, EmbreeError> {
+        let config = CString::new(config)
+            .map_err(|_| EmbreeError::Device("configuration contains a NUL byte".into()))?;
+        // SAFETY: `config` is a valid NUL-terminated string that outlives the call.
+        let raw = unsafe { sys::rtcNewDevice(config.as_ptr()) };
+        if raw.is_null() {
+            // SAFETY: rtcGetDeviceError accepts a null device and reports the creation error.
+            let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
+            return Err(EmbreeError::Device(format!("rtcNewDevice failed with error {code}")));
+        }
+        let inner = Arc::new(DeviceInner { raw, errors: Box::new(Mutex::new(None)) });
+        let user = &*inner.errors as *const ErrorSlot as *mut c_void;
+        // SAFETY: `raw` is a live device; `user` points to the boxed slot owned by `inner`, which
+        // lives until after rtcReleaseDevice in Drop.
+        unsafe { sys::rtcSetDeviceErrorFunction(raw, Some(error_callback), user) };
+        let device = Device { inner };
+        device.check_version()?;
+        Ok(device)
+    }
+
+    /// The header we were built against and the library we loaded must share a major version
+    /// and the library must be at least as new as the header.
+    fn check_version(&self) -> Result<(), EmbreeError> {
+        // SAFETY: `raw` is a live device and the property is a plain integer query.
+        let library = unsafe {
+            sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION)
+        } as i64;
+        let header = sys::RTC_VERSION as i64;
+        if library / 10000 != header / 10000 || library < header / 100 * 100 {
+            return Err(EmbreeError::Version { library, header });
+        }
+        Ok(())
+    }
+
+    /// The Embree version of the loaded library, as `major * 10000 + minor * 100 + patch`.
+    pub fn version(&self) -> i64 {
+        // SAFETY: `raw` is a live device and the property is a plain integer query.
+        unsafe { sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) as i64 }
+    }
+
+    /// A new, empty scene to fill and commit.
+    pub fn scene(&self) -> Result<SceneBuilder, EmbreeError> {
+        // SAFETY: `raw` is a live device.
+        let raw = unsafe { sys::rtcNewScene(self.inner.raw) };
+        self.inner.take_error()?;
+        if raw.is_null() {
+            return Err(EmbreeError::Device("rtcNewScene returned null".into()));
+        }
+        let scene = SceneBuilder {
+            raw,
+            device: self.inner.clone(),
+            meshes: Vec::new(),
+        };
+        // SAFETY: `raw` is a live scene; these are plain setters.
+        unsafe {
+            sys::rtcSetSceneFlags(raw, sys::RTC_SCENE_FLAG_ROBUST);
+            sys::rtcSetSceneBuildQuality(raw, sys::RTC_BUILD_QUALITY_HIGH);
+        }
+        self.inner.take_error()?;
+        Ok(scene)
+    }
+}
+
+/// Triangle data shared with Embree without copying: kept alive for the scene's whole life.
+struct SharedMesh {
+    _positions: Arc<[Vec3A]>,
+    _indices: Arc<[[u32; 3]]>,
+}
+
+/// A scene under construction. Not `Send` or `Sync`: Embree's build calls are not thread-safe on
+/// one scene. [`SceneBuilder::commit`] consumes it and returns the queryable scene.
+pub struct SceneBuilder {
+    raw: sys::RTCScene,
+    device: Arc<DeviceInner>,
+    meshes: Vec<SharedMesh>,
+}
+
+impl Drop for SceneBuilder {
+    fn drop(&mut self) {
+        if !self.raw.is_null() {
+            // SAFETY: `raw` came from rtcNewScene and was not handed to a CommittedScene (commit
+            // sets it to null).
+            unsafe { sys::rtcReleaseScene(self.raw) };
+        }
+    }
+}
+
+impl SceneBuilder {
+    fn attach(&mut self, geometry: sys::RTCGeometry, id: u32) -> Result<(), EmbreeError> {
+        // SAFETY: `geometry` is a live geometry with its buffers set; the scene takes its own
+        // reference on attach, so releasing ours afterwards is correct.
+        unsafe {
+            sys::rtcCommitGeometry(geometry);
+            sys::rtcAttachGeometryByID(self.raw, geometry, id);
+            sys::rtcReleaseGeometry(geometry);
+        }
+        self.device.take_error()
+    }
+
+    fn new_geometry(&self, kind: sys::RTCGeometryType) -> Result<sys::RTCGeometry, EmbreeError> {
+        // SAFETY: the device is live; the type is one of the header's constants.
+        let geometry = unsafe { sys::rtcNewGeometry(self.device.raw, kind) };
+        self.device.take_error()?;
+        if geometry.is_null() {
+            return Err(EmbreeError::Device("rtcNewGeometry returned null".into()));
+        }
+        Ok(geometry)
+    }
+
+    /// Adds a triangle mesh with geometry ID `id`. The buffers are shared, not copied: Embree
+    /// reads them in place for as long as the scene lives. Vertices are 16 bytes apart (`Vec3A`),
+    /// which also gives Embree the readable padding it needs after the last vertex.
+    pub fn add_triangles(
+        &mut self,
+        id: u32,
+        positions: Arc<[Vec3A]>,
+        indices: Arc<[[u32; 3]]>,
+    ) -> Result<(), EmbreeError> {
+        const _: () = assert!(std::mem::size_of::<Vec3A>() == 16);
+        let geometry = self.new_geometry(sys::RTC_GEOMETRY_TYPE_TRIANGLE)?;
+        // SAFETY: both pointers stay valid (the Arcs are stored in `self.meshes` and moved into
+        // the committed scene); strides and counts describe the slices exactly; Vec3A is 16-byte
+        // aligned and [u32; 3] 4-byte aligned, as Embree requires.
+        unsafe {
+            sys::rtcSetSharedGeometryBuffer(
+                geometry,
+                sys::RTC_BUFFER_TYPE_VERTEX,
+                0,
+                sys::RTC_FORMAT_FLOAT3,
+                positions.as_ptr() as *const c_void,
+                0,
+                16,
+                positions.len(),
+            );
+            sys::rtcSetSharedGeometryBuffer(
+                geometry,
+                sys::RTC_BUFFER_TYPE_INDEX,
+                0,
+                sys::RTC_FORMAT_UINT3,
+                indices.as_ptr() as *const c_void,
+                0,
+                12,
+                indices.len(),
+            );
+        }
+        self.meshes.push(SharedMesh { _positions: positions, _indices: indices });
+        self.attach(geometry, id)
+    }
+
+    /// Adds analytic spheres (`RTC_GEOMETRY_TYPE_SPHERE_POINT`) with geometry ID `id`; each
+    /// sphere is `(x, y, z, radius)` and its primitive index is its place in `spheres`.
+    pub fn add_spheres(&mut self, id: u32, spheres: &[Vec4]) -> Result<(), EmbreeError> {
+        let geometry = self.new_geometry(sys::RTC_GEOMETRY_TYPE_SPHERE_POINT)?;
+        // SAFETY: Embree allocates a buffer of `spheres.len()` FLOAT4 items (with its own padding)
+        // and returns it; we write exactly that many items before committing.
+        unsafe {
+            let buffer = sys::rtcSetNewGeometryBuffer(
+                geometry,
+                sys::RTC_BUFFER_TYPE_VERTEX,
+                0,
+                sys::RTC_FORMAT_FLOAT4,
+                16,
+                spheres.len(),
+            ) as *mut [f32; 4];
+            if buffer.is_null() {
+                sys::rtcReleaseGeometry(geometry);
+                self.device.take_error()?;
+                return Err(EmbreeError::Device("rtcSetNewGeometryBuffer returned null".into()));
+            }
+            for (i, s) in spheres.iter().enumerate() {
+                buffer.add(i).write(s.to_array());
+            }
+        }
+        self.attach(geometry, id)
+    }
+
+    /// Builds the BVH and returns the scene, now immutable and shareable across threads.
+    pub fn commit(mut self) -> Result<CommittedScene, EmbreeError> {
+        // SAFETY: `raw` is a live scene with all geometry attached.
+        unsafe { sys::rtcCommitScene(self.raw) };
+        self.device.take_error()?;
+        let raw = std::mem::replace(&mut self.raw, std::ptr::null_mut());
+        Ok(CommittedScene {
+            raw,
+            _device: self.device.clone(),
+            _meshes: std::mem::take(&mut self.meshes),
+        })
+    }
+}
+
+/// A committed scene: immutable, queried from any number of threads at once.
+pub struct CommittedScene {
+    raw: sys::RTCScene,
+    _device: Arc<DeviceInner>,
+    _meshes: Vec<SharedMesh>,
+}
+
+// SAFETY: a committed Embree scene is never modified again (no method takes &mut or rebuilds it),
+// and Embree documents rtcIntersect1/rtcOccluded1 on a committed scene as thread-safe.
+unsafe impl Send for CommittedScene {}
+// SAFETY: as above; shared references only reach the thread-safe query functions.
+unsafe impl Sync for CommittedScene {}
+
+impl Drop for CommittedScene {
+    fn drop(&mut self) {
+        // SAFETY: `raw` is the scene handed over by commit, released exactly once here.
+        unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+fn ray_to_sys(ray: &Ray) -> sys::RTCRay {
+    sys::RTCRay {
+        org_x: ray.origin.x,
+        org_y: ray.origin.y,
+        org_z: ray.origin.z,
+        tnear: 0.0,
+        dir_x: ray.dir.x,
+        dir_y: ray.dir.y,
+        dir_z: ray.dir.z,
+        time: 0.0,
+        tfar: ray.t_max,
+        // Embree 4 masks rays by default: a zero mask would miss everything.
+        mask: u32::MAX,
+        id: 0,
+        flags: 0,
+    }
+}
+
+impl CommittedScene {
+    /// The closest hit along `ray`.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rayhit = sys::RTCRayHit {
+            ray: ray_to_sys(ray),
+            hit: sys::RTCHit {
+                geomID: INVALID_ID,
+                primID: INVALID_ID,
+                instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+                ..Default::default()
+            },
+        };
+        intersect1(self.raw, &mut rayhit);
+        (rayhit.hit.geomID != INVALID_ID).then_some(Hit {
+            t: rayhit.ray.tfar,
+            shape: rayhit.hit.geomID,
+            prim: rayhit.hit.primID,
+            u: rayhit.hit.u,
+            v: rayhit.hit.v,
+        })
+    }
+
+    /// Whether anything blocks `ray` within `[0, ray.t_max]`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let mut sys_ray = ray_to_sys(ray);
+        occluded1(self.raw, &mut sys_ray);
+        // Embree marks an occluded ray by setting tfar to -inf.
+        sys_ray.tfar == f32::NEG_INFINITY
+    }
+}
+
+impl Accel for CommittedScene {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        CommittedScene::intersect(self, ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        CommittedScene::occluded(self, ray)
+    }
+}
+
+// The two functions where Embree 3 and 4 differ: Embree 3 passes an RTCIntersectContext
+// (initialised by the header-inline rtcInitIntersectContext, written here in Rust), Embree 4 an
+// optional RTCIntersectArguments / RTCOccludedArguments after the ray.
+
+#[cfg(not(embree4))]
+fn context() -> sys::RTCIntersectContext {
+    sys::RTCIntersectContext {
+        flags: sys::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+        filter: None,
+        instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+        ..Default::default()
+    }
+}
+
+#[cfg(not(embree4))]
+fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
+    let mut ctx = context();
+    // SAFETY: `scene` is a live committed scene; `ctx` and `rayhit` are valid for the call and
+    // `rayhit` is 16-byte aligned (RTCRayHit carries align(16)).
+    unsafe { sys::rtcIntersect1(scene, &mut ctx, rayhit) }
+}
+
+#[cfg(not(embree4))]
+fn occluded1(scene: sys::RTCScene, ray: &mut sys::RTCRay) {
+    let mut ctx = context();
+    // SAFETY: `scene` is a live committed scene; `ctx` and `ray` are valid for the call and `ray`
+    // is 16-byte aligned.
+    unsafe { sys::rtcOccluded1(scene, &mut ctx, ray) }
+}
+
+#[cfg(embree4)]
+fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
+    // rtcInitIntersectArguments, which is header-inline.
+    let mut args = sys::RTCIntersectArguments {
+        flags: sys::RTC_RAY_QUERY_FLAG_INCOHERENT,
+        feature_mask: sys::RTC_FEATURE_FLAG_ALL,
+        ..Default::default()
+    };
+    // SAFETY: `scene` is a live committed scene; `rayhit` and `args` are valid for the call and
+    // `rayhit` is 16-byte aligned.
+    unsafe { sys::rtcIntersect1(scene, rayhit, &mut args) }
+}
+
+#[cfg(embree4)]
+fn occluded1(scene: sys::RTCScene, ray: &mut sys::RTCRay) {
+    // rtcInitOccludedArguments, which is header-inline.
+    let mut args = sys::RTCOccludedArguments {
+        flags: sys::RTC_RAY_QUERY_FLAG_INCOHERENT,
+        feature_mask: sys::RTC_FEATURE_FLAG_ALL,
+        ..Default::default()
+    };
+    // SAFETY: `scene` is a live committed scene; `ray` and `args` are valid for the call and
+    // `ray` is 16-byte aligned.
+    unsafe { sys::rtcOccluded1(scene, ray, &mut args) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn triangle_scene() -> CommittedScene {
+        let device = Device::new().expect("device");
+        let mut scene = device.scene().expect("scene");
+        let positions: Arc<[Vec3A]> = Arc::from(vec![
+            Vec3A::new(0.0, 0.0, 0.0),
+            Vec3A::new(1.0, 0.0, 0.0),
+            Vec3A::new(0.0, 1.0, 0.0),
+        ]);
+        let indices: Arc<[[u32; 3]]> = Arc::from(vec![[0u32, 1, 2]]);
+        scene.add_triangles(3, positions, indices).expect("mesh");
+        scene.add_spheres(5, &[Vec4::new(0.0, 0.0, 10.0, 2.0)]).expect("spheres");
+        scene.commit().expect("commit")
+    }
+
+    #[test]
+    fn triangle_hit_has_expected_t_and_barycentrics() {
+        let scene = triangle_scene();
+        let hit = scene
+            .intersect(&Ray::new(Vec3::new(0.25, 0.5, -2.0), Vec3::Z))
+            .expect("hit");
+        assert_eq!((hit.shape, hit.prim), (3, 0));
+        assert!((hit.t - 2.0).abs() < 1e-6, "t = {}", hit.t);
+        // p = (1-u-v) p0 + u p1 + v p2 = (u, v, 0)
+        assert!((hit.u - 0.25).abs() < 1e-6 && (hit.v - 0.5).abs() < 1e-6, "{hit:?}");
+    }
+
+    #[test]
+    fn triangle_miss_and_t_max() {
+        let scene = triangle_scene();
+        assert!(scene.intersect(&Ray::new(Vec3::new(1.5, 1.5, -2.0), Vec3::Z)).is_none());
+        let short = Ray { t_max: 1.5, ..Ray::new(Vec3::new(0.25, 0.25, -2.0), Vec3::Z) };
+        assert!(scene.intersect(&short).is_none());
+        assert!(!scene.occluded(&short));
+        let long = Ray { t_max: 2.5, ..short };
+        assert!(scene.occluded(&long));
+    }
+
+    #[test]
+    fn sphere_hit_from_outside_and_inside() {
+        let scene = triangle_scene();
+        let hit = scene
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 20.0), -Vec3::Z))
+            .expect("hit");
+        assert_eq!((hit.shape, hit.prim), (5, 0));
+        assert!((hit.t - 8.0).abs() < 1e-5, "t = {}", hit.t);
+        // From the centre the far side is 2 away.
+        let inside = scene
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 10.0), Vec3::X))
+            .expect("hit from inside");
+        assert!((inside.t - 2.0).abs() < 1e-5, "t = {}", inside.t);
+        assert!(scene.intersect(&Ray::new(Vec3::new(3.0, 0.0, 20.0), -Vec3::Z)).is_none());
+    }
+
+    #[test]
+    fn queries_from_many_threads_agree() {
+        let scene = triangle_scene();
+        let expected: Vec<Option<Hit>> = (0..1000)
+            .map(|i| {
+                let x = (i % 40) as f32 / 40.0;
+                let y = (i / 40) as f32 / 25.0;
+                scene.intersect(&Ray::new(Vec3::new(x, y, -1.0), Vec3::Z))
+            })
+            .collect();
+        assert!(expected.iter().filter(|h| h.is_some()).count() > 300);
+        std::thread::scope(|s| {
+            for _ in 0..4 {
+                s.spawn(|| {
+                    for (i, want) in expected.iter().enumerate() {
+                        let x = (i % 40) as f32 / 40.0;
+                        let y = (i / 40) as f32 / 25.0;
+                        let got = scene.intersect(&Ray::new(Vec3::new(x, y, -1.0), Vec3::Z));
+                        assert_eq!(&got, want);
+                    }
+                });
+            }
+        });
+    }
+
+    #[test]
+    fn device_errors_become_rust_errors() {
+        let device = Device::new().expect("device");
+        assert!(device.version() >= 31300);
+        // An unknown geometry type is an Embree error, reported through the callback.
+        let scene = device.scene().expect("scene");
+        let err = scene.new_geometry(9999).expect_err("an unknown type must fail");
+        assert!(matches!(err, EmbreeError::Api { .. }), "{err}");
+    }
+
+    fn assert_send_sync<T: Send + Sync>() {}
+    #[test]
+    fn committed_scene_is_send_and_sync() {
+        assert_send_sync::<CommittedScene>();
+    }
+}

@@ -1,0 +1,63 @@
+//! The one interface the renderer traces rays through. The integrator is generic over [`Accel`]
+//! (monomorphised, no dynamic dispatch per ray) and never knows which backend it has.
+
+pub mod embree;
+
+use glam::Vec3;
+
+/// A ray from `origin` along `dir` (not necessarily unit length), valid for `t` in `[0, t_max]`.
+/// Secondary rays get their origin offset off the surface instead of a `t_min`.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray with no far limit.
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Ray { origin, dir, t_max: f32::INFINITY }
+    }
+
+    /// The point at parameter `t`.
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// A closest hit, in the same convention on every backend: `shape` is the scene's shape index,
+/// `prim` the triangle index within that shape (0 for a sphere), and `(u, v)` the barycentric
+/// weights of the triangle's second and third vertices (unused for spheres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub shape: u32,
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// A ray tracing backend over a committed, immutable scene. Queries are safe from many threads.
+pub trait Accel: Send + Sync {
+    /// The closest hit along `ray` within `[0, ray.t_max]`, if any.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+    /// Whether anything lies along `ray` within `[0, ray.t_max]` (a shadow ray: any hit stops it).
+    fn occluded(&self, ray: &Ray) -> bool;
+}
+
+/// The backends a render can choose at run time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// Intel Embree through FFI.
+    Embree,
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Backend::Embree => f.write_str("embree"),
+        }
+    }
+}

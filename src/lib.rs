@@ -1,0 +1,6 @@
+//! lightsplit: a path tracer that splits each pixel's radiance into light-path components and
+//! low-pass filters only the indirect diffuse part (Jensen & Christensen, "Optimizing Path
+//! Tracing using Noise Reduction Filters"). Rays go through Embree or the project's own BVH.
+#![deny(unsafe_code)]
+
+pub mod accel;
