@@ -4,3 +4,5 @@
 #![deny(unsafe_code)]
 
 pub mod accel;
+pub mod math;
+pub mod scene;

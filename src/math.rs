@@ -1,0 +1,229 @@
+//! Small geometric and sampling helpers shared by the scene, the integrator and the lights.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{PI, TAU};
+
+/// An orthonormal frame around a unit normal (Duff et al. 2017, "Building an Orthonormal Basis,
+/// Revisited"): continuous and without a division by a small number.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub s: Vec3,
+    pub t: Vec3,
+    pub n: Vec3,
+}
+
+impl Frame {
+    pub fn new(n: Vec3) -> Self {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { s, t, n }
+    }
+
+    /// From frame coordinates to world.
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Cosine-weighted direction on the hemisphere around +z; pdf = cos(theta) / pi.
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Shirley-Chiu concentric map of the unit square onto the unit disk.
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, (PI / 4.0) * (o.y / o.x))
+    } else {
+        (o.y, PI / 2.0 - (PI / 4.0) * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform direction on the unit sphere; pdf = 1 / (4 pi).
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Uniform direction in the cone around +z whose solid angle is `2 pi one_minus_cos`. Taking
+/// 1 - cos(theta_max) rather than cos(theta_max) keeps tiny cones (the sun: about 2e-5) exact in
+/// f32. pdf = 1 / (2 pi one_minus_cos).
+pub fn uniform_cone(u: Vec2, one_minus_cos: f32) -> Vec3 {
+    let omc = u.x * one_minus_cos; // 1 - cos(theta), exact for small angles
+    let cos_theta = 1.0 - omc;
+    let sin_theta = (omc * (2.0 - omc)).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// 1 - cos of the angle between two unit vectors, accurate near 0 (|a - b|^2 = 2 (1 - cos)).
+pub fn one_minus_cos_between(a: Vec3, b: Vec3) -> f32 {
+    0.5 * (a - b).length_squared()
+}
+
+/// Uniform barycentric weights of a triangle's second and third vertices (pbrt-v4's
+/// equal-area square-to-triangle map).
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    if u.x < u.y {
+        let b0 = u.x / 2.0;
+        Vec2::new(b0, u.y - b0)
+    } else {
+        let b1 = u.y / 2.0;
+        Vec2::new(u.x - b1, b1)
+    }
+}
+
+/// Moves a ray origin off the surface at `p` with geometric normal `n`, to the side of `n`,
+/// by a few float ulps scaled with the magnitude of `p` (Wächter & Binder, "A Fast and Robust
+/// Method for Avoiding Self-Intersection", Ray Tracing Gems, ch. 6). No epsilon in t.
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let of_i = (n * INT_SCALE).as_ivec3();
+    let step = |p: f32, o: i32| {
+        let bits = p.to_bits() as i32;
+        f32::from_bits((if p < 0.0 { bits - o } else { bits + o }) as u32)
+    };
+    let p_i = Vec3::new(step(p.x, of_i.x), step(p.y, of_i.y), step(p.z, of_i.z));
+    let pick = |p: f32, pi: f32, n: f32| {
+        if p.abs() < ORIGIN {
+            p + FLOAT_SCALE * n
+        } else {
+            pi
+        }
+    };
+    Vec3::new(pick(p.x, p_i.x, n.x), pick(p.y, p_i.y, n.y), pick(p.z, p_i.z, n.z))
+}
+
+/// Rec. 709 luminance of a linear RGB value.
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// A discrete distribution over `n` items by weight, sampled by inverting its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    cdf: Vec<f32>,
+    pdf: Vec<f32>,
+}
+
+impl Distribution1D {
+    /// A distribution proportional to `weights` (negative or non-finite weights count as zero).
+    /// Returns `None` when no weight is positive.
+    pub fn new(weights: &[f32]) -> Option<Self> {
+        let clean = |w: f32| if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 };
+        let total: f64 = weights.iter().map(|&w| clean(w)).sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let mut acc = 0.0f64;
+        let mut cdf = Vec::with_capacity(weights.len());
+        let mut pdf = Vec::with_capacity(weights.len());
+        for &w in weights {
+            acc += clean(w);
+            cdf.push((acc / total) as f32);
+            pdf.push((clean(w) / total) as f32);
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Some(Distribution1D { cdf, pdf })
+    }
+
+    /// Picks an item for `u` in [0, 1); returns its index and probability.
+    pub fn sample(&self, u: f32) -> (usize, f32) {
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1);
+        // Skip zero-probability items that share a CDF value with their neighbour.
+        let i = (i..self.pdf.len()).find(|&j| self.pdf[j] > 0.0).unwrap_or(i);
+        (i, self.pdf[i])
+    }
+
+    /// The probability of item `i`.
+    pub fn pdf(&self, i: usize) -> f32 {
+        self.pdf.get(i).copied().unwrap_or(0.0)
+    }
+
+    pub fn len(&self) -> usize {
+        self.pdf.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pdf.is_empty()
+    }
+}
+
+/// The solid angle of the unit sphere.
+pub const FOUR_PI: f32 = 4.0 * PI;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_is_orthonormal() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+            let f = Frame::new(n);
+            assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);
+            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5);
+            assert!((f.s.cross(f.t) - n).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn cone_keeps_tiny_angles() {
+        // The sun: 0.53 degrees across. In f32, cos(half angle) rounds; 1 - cos must not.
+        let half = (0.53f64 / 2.0).to_radians();
+        let omc = (2.0 * (half / 2.0).sin().powi(2)) as f32;
+        for u in [Vec2::new(0.0, 0.3), Vec2::new(0.999, 0.7), Vec2::new(0.5, 0.1)] {
+            let d = uniform_cone(u, omc);
+            assert!((d.length() - 1.0).abs() < 1e-6);
+            let got = one_minus_cos_between(d, Vec3::Z);
+            assert!(got <= omc * 1.0001, "{got} > {omc}");
+            assert!((got - u.x * omc).abs() <= 1e-3 * omc, "{got} vs {}", u.x * omc);
+        }
+    }
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_normal_side() {
+        for p in [Vec3::ZERO, Vec3::new(1e6, -3.0, 0.01), Vec3::new(-123.4, 5e-3, 7e4)] {
+            for n in [Vec3::Y, -Vec3::Y, Vec3::new(0.6, 0.0, -0.8)] {
+                let o = offset_ray_origin(p, n);
+                assert!((o - p).dot(n) > 0.0, "{p} {n} -> {o}");
+                assert!((o - p).length() <= 1e-3 * (1.0 + p.abs().max_element()));
+            }
+        }
+    }
+
+    #[test]
+    fn distribution_matches_weights() {
+        let d = Distribution1D::new(&[1.0, 0.0, 3.0]).expect("positive weights");
+        assert_eq!(d.pdf(0), 0.25);
+        assert_eq!(d.pdf(1), 0.0);
+        assert_eq!(d.sample(0.1), (0, 0.25));
+        assert_eq!(d.sample(0.25), (2, 0.75));
+        assert_eq!(d.sample(0.999_999), (2, 0.75));
+        assert!(Distribution1D::new(&[0.0, f32::NAN]).is_none());
+    }
+
+    #[test]
+    fn triangle_samples_stay_inside() {
+        for i in 0..100 {
+            let u = Vec2::new((i % 10) as f32 / 10.0 + 0.05, (i / 10) as f32 / 10.0 + 0.05);
+            let b = uniform_triangle(u);
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6, "{b}");
+        }
+    }
+}

@@ -1,0 +1,189 @@
+//! The scene: what a scene file describes, resolved into flat arrays the renderer reads
+//! (camera, materials, shapes with their triangles or spheres, lights). Loading lives in
+//! [`file`] (TOML) and [`obj`] (Wavefront OBJ meshes).
+
+pub mod file;
+pub mod obj;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Vec3, Vec3A};
+
+pub use file::load;
+
+/// A bad scene file: one message naming the file and, where known, the line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError {
+    pub file: PathBuf,
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+impl SceneError {
+    pub fn new(file: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
+        SceneError { file: file.to_path_buf(), line, message: message.into() }
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}: {}", self.file.display(), line, self.message),
+            None => write!(f, "{}: {}", self.file.display(), self.message),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug)]
+pub struct Camera {
+    pub position: Vec3,
+    pub look_at: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+}
+
+/// Image size and samples per pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct FilmSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+}
+
+/// Path length limit and the random seed.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    /// The most scattering events a path may have (1 = direct light only).
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+/// How a surface scatters light.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Material {
+    /// Lambertian reflection with the given albedo (a D vertex in the paper's notation).
+    Diffuse { albedo: Vec3 },
+}
+
+/// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex
+/// (`Vec3A`), the layout Embree reads in place.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub positions: Arc<[Vec3A]>,
+    pub indices: Arc<[[u32; 3]]>,
+    /// Per-vertex shading normals, when the mesh file has them.
+    pub normals: Option<Arc<[Vec3]>>,
+}
+
+impl Mesh {
+    /// The three corners of triangle `prim`.
+    pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.indices[prim as usize];
+        [
+            self.positions[a as usize].into(),
+            self.positions[b as usize].into(),
+            self.positions[c as usize].into(),
+        ]
+    }
+
+    /// Twice the area of each triangle would do for sampling; this is the area itself.
+    pub fn triangle_area(&self, prim: u32) -> f32 {
+        let [a, b, c] = self.triangle(prim);
+        0.5 * (b - a).cross(c - a).length()
+    }
+}
+
+/// A shape's geometry: an analytic sphere or a triangle mesh.
+#[derive(Clone, Debug)]
+pub enum Geometry {
+    Sphere { center: Vec3, radius: f32 },
+    Triangles(Mesh),
+}
+
+/// One shape of the scene: geometry, material, optional emission and the object it belongs to.
+#[derive(Clone, Debug)]
+pub struct Shape {
+    pub name: String,
+    pub geometry: Geometry,
+    pub material: u32,
+    /// Emitted radiance on the front side (zero when the shape is not a light).
+    pub emission: Vec3,
+    /// Index into [`Scene::objects`]: what the object-ID buffer shows.
+    pub object: u32,
+}
+
+impl Shape {
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// A light that is not a shape.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Light {
+    /// Radiant intensity `intensity` (W/sr) from a point.
+    Point { position: Vec3, intensity: Vec3 },
+    /// A distant disc of directions around `direction` (unit, towards the sun) whose solid angle
+    /// is `2 pi one_minus_cos`; `radiance` gives the irradiance the scene file asked for.
+    Sun { direction: Vec3, radiance: Vec3, one_minus_cos: f32, diffuse_source: bool },
+    /// Constant radiance from every direction at infinity.
+    Sky { radiance: Vec3, diffuse_source: bool },
+}
+
+/// A loaded scene, ready to be traced.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub path: PathBuf,
+    pub camera: Camera,
+    pub film: FilmSettings,
+    pub render: RenderSettings,
+    pub materials: Vec<Material>,
+    pub shapes: Vec<Shape>,
+    pub lights: Vec<Light>,
+    /// Object names; a shape's `object` indexes this.
+    pub objects: Vec<String>,
+}
+
+impl Scene {
+    /// The number of triangles over all meshes.
+    pub fn triangle_count(&self) -> usize {
+        self.shapes
+            .iter()
+            .map(|s| match &s.geometry {
+                Geometry::Triangles(m) => m.indices.len(),
+                Geometry::Sphere { .. } => 0,
+            })
+            .sum()
+    }
+
+    /// Axis-aligned bounds of all shapes, `(min, max)`; a point at the origin when empty.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for shape in &self.shapes {
+            match &shape.geometry {
+                Geometry::Sphere { center, radius } => {
+                    lo = lo.min(*center - Vec3::splat(*radius));
+                    hi = hi.max(*center + Vec3::splat(*radius));
+                }
+                Geometry::Triangles(mesh) => {
+                    for p in mesh.positions.iter() {
+                        lo = lo.min(Vec3::from(*p));
+                        hi = hi.max(Vec3::from(*p));
+                    }
+                }
+            }
+        }
+        if lo.x > hi.x {
+            (Vec3::ZERO, Vec3::ZERO)
+        } else {
+            (lo, hi)
+        }
+    }
+}
