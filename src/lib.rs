@@ -6,3 +6,5 @@
 pub mod accel;
 pub mod math;
 pub mod scene;
+pub mod film;
+pub mod render;

@@ -1,1 +1,197 @@
-fn main() {}
+//! The `lightsplit` command line: parse, call the library, print. No rendering logic here.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use lightsplit::accel::Backend;
+use lightsplit::film;
+use lightsplit::render::{self, RenderOptions};
+use lightsplit::scene;
+
+/// Bad input: a scene file, an argument or an output path that cannot work.
+const EXIT_INPUT: u8 = 2;
+/// A failure while working on valid input.
+const EXIT_FAILURE: u8 = 1;
+
+#[derive(Parser)]
+#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene file to an image.
+    Render(RenderArgs),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Output image: .exr (32-bit float), .png (8-bit sRGB) or .hdr (Radiance RGBE).
+    /// Default: the scene's name with .exr, in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Samples per pixel (default: the scene file's).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Ray tracing backend.
+    #[arg(long, value_enum, default_value_t = Backend::Embree)]
+    accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Random seed (default: the scene file's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Image width (default: the scene file's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (default: the scene file's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Most scattering events per path (default: the scene file's).
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// Exposure in stops for PNG output.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Print one JSON object on stdout instead of the summary line.
+    #[arg(long)]
+    json: bool,
+}
+
+/// A failure with its exit status.
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+impl Failure {
+    fn input(message: impl ToString) -> Self {
+        Failure { code: EXIT_INPUT, message: message.to_string() }
+    }
+    fn failed(message: impl ToString) -> Self {
+        Failure { code: EXIT_FAILURE, message: message.to_string() }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render_command(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("error: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    if quiet || !std::io::stderr().is_terminal() {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    } else if let Ok(style) =
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
+}
+
+fn render_command(args: RenderArgs) -> Result<(), Failure> {
+    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
+    film::check_output(&output).map_err(Failure::input)?;
+
+    let mut options = RenderOptions::from_scene(&scene);
+    options.accel = args.accel;
+    options.threads = args.threads;
+    if let Some(v) = args.spp {
+        options.spp = v;
+    }
+    if let Some(v) = args.seed {
+        options.seed = v;
+    }
+    if let Some(v) = args.width {
+        options.width = v;
+    }
+    if let Some(v) = args.height {
+        options.height = v;
+    }
+    if let Some(v) = args.max_depth {
+        options.max_depth = v;
+    }
+    for (name, value) in [("spp", options.spp), ("width", options.width), ("height", options.height), ("max-depth", options.max_depth)] {
+        if value == 0 {
+            return Err(Failure::input(format!("--{name} must be at least 1")));
+        }
+    }
+    if args.threads == Some(0) {
+        return Err(Failure::input("--threads must be at least 1"));
+    }
+    if !args.exposure.is_finite() {
+        return Err(Failure::input("--exposure must be a finite number"));
+    }
+
+    let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
+    let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
+    bar.finish_and_clear();
+    film::write(&out.image, &output, args.exposure).map_err(Failure::failed)?;
+
+    let s = out.stats;
+    let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
+    let rays_per_second = s.rays as f64 / s.seconds.max(1e-9);
+    if args.json {
+        let json = serde_json::json!({
+            "scene": args.scene,
+            "seconds": s.seconds,
+            "build_seconds": s.build_seconds,
+            "spp": options.spp,
+            "width": options.width,
+            "height": options.height,
+            "accel": options.accel,
+            "threads": rayon_threads(options.threads),
+            "samples": s.samples,
+            "rays": s.rays,
+            "samples_per_second": samples_per_second,
+            "rays_per_second": rays_per_second,
+            "nonfinite_samples": s.nonfinite_samples,
+            "outputs": [output],
+        });
+        println!("{json}");
+    } else {
+        eprintln!(
+            "{}: {}x{} at {} spp in {:.2} s ({:.3} s build): {:.3} M samples/s, {:.2} M rays/s{}; wrote {}",
+            args.scene.display(),
+            options.width,
+            options.height,
+            options.spp,
+            s.seconds,
+            s.build_seconds,
+            samples_per_second / 1e6,
+            rays_per_second / 1e6,
+            if s.nonfinite_samples > 0 { format!(", {} non-finite samples dropped", s.nonfinite_samples) } else { String::new() },
+            output.display()
+        );
+    }
+    Ok(())
+}
+
+fn rayon_threads(threads: Option<usize>) -> usize {
+    threads.unwrap_or_else(rayon::current_num_threads)
+}
+
+fn default_output(scene: &Path) -> PathBuf {
+    let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());
+    PathBuf::from(format!("{stem}.exr"))
+}

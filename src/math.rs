@@ -151,6 +151,14 @@ impl Distribution1D {
         (i, self.pdf[i])
     }
 
+    /// Like [`Distribution1D::sample`], and also returns `u` rescaled to [0, 1) within the
+    /// chosen item's CDF interval, so that one uniform number can drive a second choice.
+    pub fn sample_reuse(&self, u: f32) -> (usize, f32, f32) {
+        let (i, p) = self.sample(u);
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (i, p, ((u - lo) / p).clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    }
+
     /// The probability of item `i`.
     pub fn pdf(&self, i: usize) -> f32 {
         self.pdf.get(i).copied().unwrap_or(0.0)

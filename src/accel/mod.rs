@@ -61,3 +61,26 @@ impl std::fmt::Display for Backend {
         }
     }
 }
+
+/// Builds Embree's BVH over every shape of `scene`; geometry IDs are shape indices. Meshes are
+/// shared with Embree, not copied. `threads` limits Embree's build threads.
+pub fn build_embree(
+    scene: &crate::scene::Scene,
+    threads: Option<usize>,
+) -> Result<embree::CommittedScene, embree::EmbreeError> {
+    use crate::scene::Geometry;
+    let config = threads.map(|n| format!("threads={n}")).unwrap_or_default();
+    let device = embree::Device::with_config(&config)?;
+    let mut builder = device.scene()?;
+    for (id, shape) in scene.shapes.iter().enumerate() {
+        match &shape.geometry {
+            Geometry::Sphere { center, radius } => {
+                builder.add_spheres(id as u32, &[center.extend(*radius)])?;
+            }
+            Geometry::Triangles(mesh) => {
+                builder.add_triangles(id as u32, mesh.positions.clone(), mesh.indices.clone())?;
+            }
+        }
+    }
+    builder.commit()
+}

@@ -1,0 +1,357 @@
+//! Light sampling for next-event estimation, and the matching densities for multiple importance
+//! sampling: point lights, the sun (a cone of directions), a uniform sky, and emissive shapes
+//! (triangle meshes sampled by area, spheres by the cone they subtend). A light is picked in
+//! proportion to its power.
+
+use std::f32::consts::PI;
+
+use glam::{Vec2, Vec3};
+
+use crate::math::{
+    luminance, offset_ray_origin, one_minus_cos_between, uniform_cone, uniform_sphere,
+    uniform_triangle, Distribution1D, Frame, FOUR_PI,
+};
+use crate::scene::{Geometry, Light, Mesh, Scene};
+
+/// No light on this shape.
+const NONE: u32 = u32::MAX;
+
+/// One light, ready to sample.
+#[derive(Clone, Debug)]
+pub enum Emitter {
+    Point { position: Vec3, intensity: Vec3 },
+    Sun { frame: Frame, radiance: Vec3, one_minus_cos: f32 },
+    Sky { radiance: Vec3 },
+    Mesh { shape: u32, triangles: Distribution1D, area: f32, emission: Vec3 },
+    Sphere { shape: u32, center: Vec3, radius: f32, emission: Vec3 },
+}
+
+/// Where a shadow ray toward a light sample ends.
+#[derive(Clone, Copy, Debug)]
+pub enum ShadowEnd {
+    /// A point (already moved off the light's surface toward the receiver).
+    Point(Vec3),
+    /// Infinitely far along the sampled direction.
+    Infinite,
+}
+
+/// A sampled light direction at a receiving point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Incident radiance along `wi` if unoccluded (intensity / r^2 for a point light).
+    pub radiance: Vec3,
+    pub wi: Vec3,
+    /// Solid-angle density including the light's selection probability (the selection
+    /// probability alone for a point light).
+    pub pdf: f32,
+    /// Point lights cannot be hit by a BSDF sample, so they take no MIS weight.
+    pub delta: bool,
+    pub end: ShadowEnd,
+    /// Which light: for the component split's diffuse-source test.
+    pub light: u32,
+}
+
+/// Every light of a scene and how to pick one.
+#[derive(Clone, Debug, Default)]
+pub struct Lights {
+    pub emitters: Vec<Emitter>,
+    /// Whether light `i` is a diffuse source (its light counts as already diffusely reflected).
+    pub diffuse_source: Vec<bool>,
+    select: Option<Distribution1D>,
+    /// For each shape, the index of its emitter, or NONE.
+    shape_light: Vec<u32>,
+    /// The emitters at infinity (sun, sky), which a ray that escapes the scene sees.
+    pub distant: Vec<u32>,
+}
+
+impl Lights {
+    pub fn new(scene: &Scene) -> Self {
+        let (lo, hi) = scene.bounds();
+        let radius = 0.5 * (hi - lo).length().max(1e-3);
+        let disc = PI * radius * radius;
+        let mut lights = Lights { shape_light: vec![NONE; scene.shapes.len()], ..Default::default() };
+        let mut power = Vec::new();
+
+        for light in &scene.lights {
+            let (emitter, phi, diffuse_source) = match *light {
+                Light::Point { position, intensity } => {
+                    (Emitter::Point { position, intensity }, FOUR_PI * luminance(intensity), false)
+                }
+                Light::Sun { direction, radiance, one_minus_cos, diffuse_source } => {
+                    let irradiance = radiance * (2.0 * PI * one_minus_cos);
+                    let emitter = Emitter::Sun { frame: Frame::new(direction), radiance, one_minus_cos };
+                    (emitter, disc * luminance(irradiance), diffuse_source)
+                }
+                Light::Sky { radiance, diffuse_source } => {
+                    (Emitter::Sky { radiance }, FOUR_PI * disc * luminance(radiance), diffuse_source)
+                }
+            };
+            if !light_is_dark(&emitter) {
+                if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. }) {
+                    lights.distant.push(lights.emitters.len() as u32);
+                }
+                lights.emitters.push(emitter);
+                lights.diffuse_source.push(diffuse_source);
+                power.push(phi);
+            }
+        }
+
+        for (i, shape) in scene.shapes.iter().enumerate() {
+            if !shape.is_emissive() {
+                continue;
+            }
+            let (emitter, area) = match &shape.geometry {
+                Geometry::Triangles(mesh) => {
+                    let areas: Vec<f32> =
+                        (0..mesh.indices.len() as u32).map(|t| mesh.triangle_area(t)).collect();
+                    let area: f32 = areas.iter().sum();
+                    let Some(triangles) = Distribution1D::new(&areas) else { continue };
+                    let emitter =
+                        Emitter::Mesh { shape: i as u32, triangles, area, emission: shape.emission };
+                    (emitter, area)
+                }
+                Geometry::Sphere { center, radius } => {
+                    if *radius <= 0.0 {
+                        continue;
+                    }
+                    let emitter = Emitter::Sphere {
+                        shape: i as u32,
+                        center: *center,
+                        radius: *radius,
+                        emission: shape.emission,
+                    };
+                    (emitter, FOUR_PI * radius * radius)
+                }
+            };
+            lights.shape_light[i] = lights.emitters.len() as u32;
+            lights.emitters.push(emitter);
+            lights.diffuse_source.push(false);
+            power.push(PI * area * luminance(shape.emission));
+        }
+        lights.select = Distribution1D::new(&power);
+        lights
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.select.is_none()
+    }
+
+    /// The emitter index of a shape, if it is a light.
+    pub fn of_shape(&self, shape: u32) -> Option<u32> {
+        match self.shape_light.get(shape as usize) {
+            Some(&i) if i != NONE => Some(i),
+            _ => None,
+        }
+    }
+
+    /// The probability of picking light `i`.
+    pub fn select_pdf(&self, i: u32) -> f32 {
+        self.select.as_ref().map_or(0.0, |d| d.pdf(i as usize))
+    }
+
+    /// Samples a light as seen from `p`, with uniform numbers `u_select` and `u`.
+    pub fn sample(&self, scene: &Scene, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
+        let (i, select) = self.select.as_ref()?.sample(u_select);
+        let light = i as u32;
+        match &self.emitters[i] {
+            Emitter::Point { position, intensity } => {
+                let d = *position - p;
+                let dist2 = d.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    radiance: *intensity / dist2,
+                    wi: d / dist2.sqrt(),
+                    pdf: select,
+                    delta: true,
+                    end: ShadowEnd::Point(*position),
+                    light,
+                })
+            }
+            Emitter::Sun { frame, radiance, one_minus_cos } => Some(LightSample {
+                radiance: *radiance,
+                wi: frame.to_world(uniform_cone(u, *one_minus_cos)),
+                pdf: select / (2.0 * PI * one_minus_cos),
+                delta: false,
+                end: ShadowEnd::Infinite,
+                light,
+            }),
+            Emitter::Sky { radiance } => Some(LightSample {
+                radiance: *radiance,
+                wi: uniform_sphere(u),
+                pdf: select / FOUR_PI,
+                delta: false,
+                end: ShadowEnd::Infinite,
+                light,
+            }),
+            Emitter::Mesh { shape, triangles, area, emission } => {
+                let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
+                    return None;
+                };
+                // u.x picks the triangle, then, rescaled, the point within it.
+                let (t, _, ux) = triangles.sample_reuse(u.x);
+                let (q, n) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
+                area_sample(p, q, n, *emission, select / area, light)
+            }
+            Emitter::Sphere { center, radius, emission, .. } => {
+                let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
+                let cos_l = n.dot(p - q);
+                if cos_l <= 0.0 {
+                    return None;
+                }
+                let d = q - p;
+                Some(LightSample {
+                    radiance: *emission,
+                    wi: d.normalize(),
+                    pdf: select * pdf,
+                    delta: false,
+                    end: ShadowEnd::Point(offset_ray_origin(q, n)),
+                    light,
+                })
+            }
+        }
+    }
+
+    /// The NEE density (selection included) of reaching emissive shape `light` at point `q`
+    /// (geometric normal `n`) from `p`: what a BSDF-sampled hit needs for its MIS weight.
+    pub fn pdf_shape(&self, light: u32, p: Vec3, q: Vec3, n: Vec3) -> f32 {
+        let select = self.select_pdf(light);
+        match &self.emitters[light as usize] {
+            Emitter::Mesh { area, .. } => {
+                let d = q - p;
+                let dist2 = d.length_squared();
+                let cos = n.dot(d).abs() / dist2.sqrt();
+                if cos <= 0.0 {
+                    return 0.0;
+                }
+                select * dist2 / (area * cos)
+            }
+            Emitter::Sphere { center, radius, .. } => {
+                let dc2 = (*center - p).length_squared();
+                let r2 = radius * radius;
+                if dc2 <= r2 {
+                    return 0.0;
+                }
+                select / (2.0 * PI * cone_one_minus_cos(r2 / dc2))
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The radiance of distant light `light` along direction `dir` and its NEE density
+    /// (selection included).
+    pub fn distant(&self, light: u32, dir: Vec3) -> (Vec3, f32) {
+        let select = self.select_pdf(light);
+        match &self.emitters[light as usize] {
+            Emitter::Sky { radiance } => (*radiance, select / FOUR_PI),
+            Emitter::Sun { frame, radiance, one_minus_cos } => {
+                if one_minus_cos_between(dir, frame.n) <= *one_minus_cos {
+                    (*radiance, select / (2.0 * PI * one_minus_cos))
+                } else {
+                    (Vec3::ZERO, 0.0)
+                }
+            }
+            _ => (Vec3::ZERO, 0.0),
+        }
+    }
+}
+
+fn light_is_dark(e: &Emitter) -> bool {
+    match e {
+        Emitter::Point { intensity, .. } => intensity.max_element() <= 0.0,
+        Emitter::Sun { radiance, .. } | Emitter::Sky { radiance } => radiance.max_element() <= 0.0,
+        Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => emission.max_element() <= 0.0,
+    }
+}
+
+/// A point uniformly on triangle `t` and its geometric normal (by winding).
+fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3) {
+    let [a, b, c] = mesh.triangle(t);
+    let bary = uniform_triangle(u);
+    let q = a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y;
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    (q, n)
+}
+
+/// Turns an area sample `q` (normal `n`, one-sided emission `emission`, area density
+/// `pdf_area`) into a solid-angle sample at `p`.
+fn area_sample(p: Vec3, q: Vec3, n: Vec3, emission: Vec3, pdf_area: f32, light: u32) -> Option<LightSample> {
+    let d = q - p;
+    let dist2 = d.length_squared();
+    if dist2 == 0.0 {
+        return None;
+    }
+    let wi = d / dist2.sqrt();
+    let cos_l = -n.dot(wi);
+    if cos_l <= 0.0 {
+        return None; // the back of a one-sided emitter
+    }
+    Some(LightSample {
+        radiance: emission,
+        wi,
+        pdf: pdf_area * dist2 / cos_l,
+        delta: false,
+        end: ShadowEnd::Point(offset_ray_origin(q, n)),
+        light,
+    })
+}
+
+/// 1 - cos(theta_max) of the cone a sphere subtends, from sin^2(theta_max), accurate when small.
+fn cone_one_minus_cos(sin2: f32) -> f32 {
+    let cos = (1.0 - sin2).max(0.0).sqrt();
+    sin2 / (1.0 + cos)
+}
+
+/// Samples the cone a sphere subtends from outside: solid-angle density, point and normal.
+fn sample_sphere_cone(p: Vec3, c: Vec3, r: f32, u: Vec2) -> Option<(f32, Vec3, Vec3)> {
+    let to_c = c - p;
+    let dc2 = to_c.length_squared();
+    let r2 = r * r;
+    if dc2 <= r2 {
+        return None; // inside a one-sided (outward) emitter: nothing to see
+    }
+    let dc = dc2.sqrt();
+    let omc = cone_one_minus_cos(r2 / dc2);
+    let frame = Frame::new(to_c / dc);
+    let local = uniform_cone(u, omc);
+    let wi = frame.to_world(local);
+    // The nearer intersection of the ray p + t wi with the sphere.
+    let cos_t = local.z;
+    let sin2_t = (1.0 - cos_t * cos_t).max(0.0);
+    let t = dc * cos_t - (r2 - dc2 * sin2_t).max(0.0).sqrt();
+    let q0 = p + wi * t;
+    let n = (q0 - c).normalize_or_zero();
+    let q = c + n * r;
+    Some((1.0 / (2.0 * PI * omc), q, n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sampler::Sampler;
+
+    #[test]
+    fn sphere_cone_pdf_integrates_to_one_over_its_solid_angle() {
+        // Monte Carlo estimate of the cone's solid angle from uniform sphere directions.
+        let (p, c, r) = (Vec3::ZERO, Vec3::new(0.0, 0.0, 3.0), 1.0);
+        let mut s = Sampler::new(3, 0, 0);
+        let n = 200_000;
+        let mut inside = 0;
+        for _ in 0..n {
+            let d = uniform_sphere(s.next_2d());
+            // Does the ray hit the sphere?
+            let b = d.dot(c - p);
+            if b > 0.0 && (c - p).length_squared() - b * b <= r * r {
+                inside += 1;
+            }
+        }
+        let solid_angle = FOUR_PI * inside as f32 / n as f32;
+        let (pdf, q, _) = sample_sphere_cone(p, c, r, Vec2::new(0.3, 0.6)).expect("outside");
+        // Standard error of the fraction estimate, times 4 pi; 5 sigma.
+        let frac = inside as f32 / n as f32;
+        let sigma = FOUR_PI * (frac * (1.0 - frac) / n as f32).sqrt();
+        assert!((1.0 / pdf - solid_angle).abs() < 5.0 * sigma, "{} vs {solid_angle}", 1.0 / pdf);
+        assert!(((q - c).length() - r).abs() < 1e-5);
+    }
+}
