@@ -4,7 +4,7 @@
 #![deny(unsafe_code)]
 
 pub mod accel;
-pub mod math;
-pub mod scene;
 pub mod film;
+pub mod math;
 pub mod render;
+pub mod scene;

@@ -18,7 +18,11 @@ const EXIT_INPUT: u8 = 2;
 const EXIT_FAILURE: u8 = 1;
 
 #[derive(Parser)]
-#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
+#[command(
+    name = "lightsplit",
+    version,
+    about = "A path tracer that filters only the indirect diffuse light"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -75,10 +79,16 @@ struct Failure {
 
 impl Failure {
     fn input(message: impl ToString) -> Self {
-        Failure { code: EXIT_INPUT, message: message.to_string() }
+        Failure {
+            code: EXIT_INPUT,
+            message: message.to_string(),
+        }
     }
     fn failed(message: impl ToString) -> Self {
-        Failure { code: EXIT_FAILURE, message: message.to_string() }
+        Failure {
+            code: EXIT_FAILURE,
+            message: message.to_string(),
+        }
     }
 }
 
@@ -100,9 +110,9 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::new(total);
     if quiet || !std::io::stderr().is_terminal() {
         bar.set_draw_target(ProgressDrawTarget::hidden());
-    } else if let Ok(style) =
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})")
-    {
+    } else if let Ok(style) = ProgressStyle::with_template(
+        "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})",
+    ) {
         bar.set_style(style);
     }
     bar
@@ -110,7 +120,10 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 
 fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
-    let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| default_output(&args.scene));
     film::check_output(&output).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
@@ -131,7 +144,12 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(v) = args.max_depth {
         options.max_depth = v;
     }
-    for (name, value) in [("spp", options.spp), ("width", options.width), ("height", options.height), ("max-depth", options.max_depth)] {
+    for (name, value) in [
+        ("spp", options.spp),
+        ("width", options.width),
+        ("height", options.height),
+        ("max-depth", options.max_depth),
+    ] {
         if value == 0 {
             return Err(Failure::input(format!("--{name} must be at least 1")));
         }
@@ -192,6 +210,9 @@ fn rayon_threads(threads: Option<usize>) -> usize {
 }
 
 fn default_output(scene: &Path) -> PathBuf {
-    let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());
+    let stem = scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "render".into());
     PathBuf::from(format!("{stem}.exr"))
 }

@@ -11,7 +11,11 @@ struct Found {
     api: u32,
 }
 
-const SYSTEM_INCLUDES: &[&str] = &["/usr/include", "/usr/local/include", "/opt/homebrew/include"];
+const SYSTEM_INCLUDES: &[&str] = &[
+    "/usr/include",
+    "/usr/local/include",
+    "/opt/homebrew/include",
+];
 
 fn find_in(include: &Path) -> Option<u32> {
     [4, 3]
@@ -30,7 +34,11 @@ fn find() -> Result<Found, String> {
                     .map(|l| dir.join(l))
                     .find(|l| l.is_dir())
                     .unwrap_or_else(|| dir.join("lib"));
-                Ok(Found { include, lib: Some(lib), api })
+                Ok(Found {
+                    include,
+                    lib: Some(lib),
+                    api,
+                })
             }
             None => Err(format!(
                 "EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h",

@@ -50,7 +50,11 @@ impl<A: Accel> Integrator<'_, A> {
                 for &i in &lights.distant {
                     let (le, light_pdf) = lights.distant(i, ray.dir);
                     if le != Vec3::ZERO {
-                        let w = if specular { 1.0 } else { power_heuristic(bsdf_pdf, light_pdf) };
+                        let w = if specular {
+                            1.0
+                        } else {
+                            power_heuristic(bsdf_pdf, light_pdf)
+                        };
                         l += beta * le * w;
                     }
                 }
@@ -86,13 +90,21 @@ impl<A: Accel> Integrator<'_, A> {
                     let origin = offset_ray_origin(s.p, ng);
                     let shadow = match ls.end {
                         // Unnormalised direction: t in [0, 1] ends exactly at the light point.
-                        ShadowEnd::Point(q) => Ray { origin, dir: q - origin, t_max: 1.0 },
+                        ShadowEnd::Point(q) => Ray {
+                            origin,
+                            dir: q - origin,
+                            t_max: 1.0,
+                        },
                         ShadowEnd::Infinite => Ray::new(origin, ls.wi),
                     };
                     *rays += 1;
                     if !self.accel.occluded(&shadow) {
                         let f = albedo * FRAC_1_PI;
-                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
+                        let w = if ls.delta {
+                            1.0
+                        } else {
+                            power_heuristic(ls.pdf, cos * FRAC_1_PI)
+                        };
                         l += beta * f * ls.radiance * (cos * w / ls.pdf);
                     }
                 }

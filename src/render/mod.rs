@@ -90,7 +90,10 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
-    if options.width == 0 || options.height == 0 || options.width as u64 * options.height as u64 > 1 << 30 {
+    if options.width == 0
+        || options.height == 0
+        || options.width as u64 * options.height as u64 > 1 << 30
+    {
         return Err(RenderError::Size(options.width, options.height));
     }
     let run = || -> Result<RenderOutput, RenderError> {
@@ -137,7 +140,12 @@ pub fn render_with<A: Accel>(
     let (width, height) = (options.width, options.height);
     let camera = PinholeCamera::new(&scene.camera, width, height);
     let lights = Lights::new(scene);
-    let integrator = Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
+    let integrator = Integrator {
+        scene,
+        accel,
+        lights: &lights,
+        max_depth: options.max_depth,
+    };
     let spp = options.spp.max(1);
 
     let tiles: Vec<(u32, u32)> = (0..height.div_ceil(TILE))
@@ -147,7 +155,14 @@ pub fn render_with<A: Accel>(
         .par_iter()
         .map(|&(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            let mut tile = Tile { x0, y0, w, pixels: Vec::with_capacity((w * h) as usize), rays: 0, nonfinite: 0 };
+            let mut tile = Tile {
+                x0,
+                y0,
+                w,
+                pixels: Vec::with_capacity((w * h) as usize),
+                rays: 0,
+                nonfinite: 0,
+            };
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
                     let pixel = y as u64 * width as u64 + x as u64;
@@ -171,7 +186,10 @@ pub fn render_with<A: Accel>(
         .collect();
 
     let mut image = Image::new(width, height);
-    let mut stats = RenderStats { samples: width as u64 * height as u64 * spp as u64, ..Default::default() };
+    let mut stats = RenderStats {
+        samples: width as u64 * height as u64 * spp as u64,
+        ..Default::default()
+    };
     for tile in done {
         for (i, p) in tile.pixels.iter().enumerate() {
             let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);

@@ -1,0 +1,164 @@
+//! Renders with a known answer: a white furnace and a diffuse plane under a point light.
+
+use std::path::Path;
+
+use glam::Vec2;
+use lightsplit::render::camera::PinholeCamera;
+use lightsplit::render::{render, RenderOptions};
+use lightsplit::scene::file::parse;
+
+fn render_text(text: &str, spp: u32) -> lightsplit::render::RenderOutput {
+    let scene = parse(Path::new("test.toml"), text).expect("scene parses");
+    let mut options = RenderOptions::from_scene(&scene);
+    options.spp = spp;
+    render(&scene, &options, &|_| {}).expect("renders")
+}
+
+/// An albedo-1 sphere under a uniform sky reflects exactly the sky: every pixel's expectation is
+/// the sky radiance, so the image mean must be too.
+#[test]
+fn white_furnace_mean_equals_sky_radiance() {
+    let text = r#"
+        [camera]
+        position = [0, 0, -4]
+        look_at = [0, 0, 0]
+        fov = 40
+        [film]
+        width = 48
+        height = 48
+        [render]
+        max_depth = 16
+        [[material]]
+        name = "white"
+        type = "diffuse"
+        color = [1, 1, 1]
+        [[shape]]
+        type = "sphere"
+        material = "white"
+        radius = 1
+        [[light]]
+        type = "sky"
+        radiance = [0.5, 1.0, 2.0]
+    "#;
+    let out = render_text(text, 32);
+    let mean = out.image.mean();
+    for (got, want) in mean.to_array().into_iter().zip([0.5f32, 1.0, 2.0]) {
+        assert!((got / want - 1.0).abs() < 0.01, "mean {mean} vs sky");
+    }
+    // The sphere covers much of the image, so this is not just the background.
+    let centre = out.image.get(24, 24);
+    assert!((centre.y - 1.0).abs() < 0.35, "centre pixel {centre}");
+}
+
+/// A diffuse plane under a point light, seen from above: the only light path is the direct one,
+/// so each pixel is albedo / pi * I cos(theta) / r^2 averaged over the points the pixel sees.
+/// The only noise is the camera's jitter within the pixel; the tolerance is five standard errors
+/// of that jitter, from the formula's spread across the pixel.
+#[test]
+fn diffuse_plane_under_point_light_matches_the_formula() {
+    let text = r#"
+        [camera]
+        position = [0, 3, 0.001]
+        look_at = [0, 0, 0]
+        fov = 50
+        [film]
+        width = 32
+        height = 32
+        [[material]]
+        name = "grey"
+        type = "diffuse"
+        color = [0.6, 0.6, 0.6]
+        [[shape]]
+        type = "quad"
+        material = "grey"
+        vertices = [[-20, 0, -20], [-20, 0, 20], [20, 0, 20], [20, 0, -20]]
+        [[light]]
+        type = "point"
+        position = [0.7, 1.5, -0.4]
+        intensity = [10, 10, 10]
+    "#;
+    let scene = parse(Path::new("test.toml"), text).expect("scene parses");
+    let spp = 16;
+    let out = render_text(text, spp);
+    let camera = PinholeCamera::new(&scene.camera, 32, 32);
+    let light = glam::Vec3::new(0.7, 1.5, -0.4);
+    let mut worst = 0.0f32;
+    for y in 0..32 {
+        for x in 0..32 {
+            // The formula on an 8x8 grid inside the pixel: its mean and spread.
+            let values: Vec<f32> = (0..64)
+                .map(|j| {
+                    let offset = Vec2::new((j % 8) as f32 + 0.5, (j / 8) as f32 + 0.5) / 8.0;
+                    let ray = camera.ray(x, y, offset);
+                    let p = ray.at(-ray.origin.y / ray.dir.y);
+                    let d = light - p;
+                    0.6 / std::f32::consts::PI * 10.0 * (d.y / d.length()) / d.length_squared()
+                })
+                .collect();
+            let mean = values.iter().sum::<f32>() / 64.0;
+            let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / 63.0;
+            let tolerance = 5.0 * (var / spp as f32).sqrt() + 2e-3 * mean;
+            let got = out.image.get(x, y).x;
+            assert!(
+                (got - mean).abs() <= tolerance,
+                "pixel ({x}, {y}): {got} vs {mean} +- {tolerance}"
+            );
+            worst = worst.max((got / mean - 1.0).abs());
+        }
+    }
+    // The jitter noise bounds the per-pixel error; no pixel is off by more than a few percent.
+    assert!(worst < 0.05, "largest relative error {worst}");
+}
+
+/// A closed box whose walls all emit `Le` (inwards) and reflect with albedo `a`: the radiance
+/// everywhere inside is `Le / (1 - a)`. Exercises every bounce, the area-light MIS on both
+/// strategies, and Russian roulette.
+#[test]
+fn emissive_closed_box_reaches_le_over_one_minus_albedo() {
+    let mut text = String::from(
+        r#"
+        [camera]
+        position = [0.1, -0.2, -0.5]
+        look_at = [0, 0, 1]
+        fov = 90
+        [film]
+        width = 32
+        height = 32
+        [render]
+        max_depth = 100
+        [[material]]
+        name = "half"
+        type = "diffuse"
+        color = [0.5, 0.5, 0.5]
+        "#,
+    );
+    // Six faces of [-1, 1]^3, wound so that their front (emitting) side faces inwards.
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let corner = |a: f32, b: f32| {
+                let mut p = [0.0f32; 3];
+                p[axis] = sign;
+                p[(axis + 1) % 3] = a;
+                p[(axis + 2) % 3] = b;
+                format!("[{}, {}, {}]", p[0], p[1], p[2])
+            };
+            // (a, b) counter-clockwise gives a normal along +axis; reverse it on the + side.
+            let mut quad = [
+                corner(-1.0, -1.0),
+                corner(1.0, -1.0),
+                corner(1.0, 1.0),
+                corner(-1.0, 1.0),
+            ];
+            if sign > 0.0 {
+                quad.reverse();
+            }
+            text.push_str(&format!(
+                "[[shape]]\ntype = \"quad\"\nmaterial = \"half\"\nemission = [1, 1, 1]\nvertices = [{}]\n",
+                quad.join(", ")
+            ));
+        }
+    }
+    let out = render_text(&text, 16);
+    let mean = out.image.mean();
+    assert!((mean.x / 2.0 - 1.0).abs() < 0.01, "mean {mean}, expected 2");
+}

@@ -1,0 +1,202 @@
+//! The command line as a user meets it: bad input is one clear error with exit status 2 and no
+//! panic; the README's render command makes a PNG that is not black; --json has its keys.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lightsplit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+const CAMERA: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
+
+/// Writes a scene (and any side files) into a temporary directory and renders it.
+fn render_bad(files: &[(&str, &str)], extra: &[&str]) -> (i32, String, tempfile::TempDir) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, text) in files {
+        std::fs::write(dir.path().join(name), text).expect("write");
+    }
+    let scene = dir.path().join(files[0].0);
+    let out = dir.path().join("out.png");
+    let mut args = vec![
+        "render",
+        scene.to_str().expect("utf8"),
+        "-o",
+        out.to_str().expect("utf8"),
+    ];
+    args.extend_from_slice(extra);
+    let output = lightsplit(&args);
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(!stderr.contains("panicked"), "a panic: {stderr}");
+    assert!(!out.exists(), "an output was written for bad input");
+    (output.status.code().unwrap_or(-1), stderr, dir)
+}
+
+/// A bad-input case: what it is, the files (scene first), what the error must mention.
+type Case = (&'static str, Vec<(&'static str, String)>, &'static str);
+
+#[test]
+fn each_kind_of_bad_scene_is_one_error_with_status_2() {
+    let cases: Vec<Case> = vec![
+        ("unknown key", vec![("s.toml", format!("{CAMERA}[film]\nwidht = 3\n"))], "s.toml:5:"),
+        ("NaN", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = nan\n"))], "s.toml:6:"),
+        ("infinity", vec![("s.toml", format!("{CAMERA}[[light]]\ntype = \"point\"\nposition = [0, -inf, 0]\nintensity = [1, 1, 1]\n"))], "s.toml:6:"),
+        ("wrong type", vec![("s.toml", format!("{CAMERA}[film]\nspp = \"many\"\n"))], "s.toml:5:"),
+        ("syntax", vec![("s.toml", format!("{CAMERA}[film\n"))], "s.toml:4:"),
+        ("missing mesh", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"mesh\"\nfile = \"gone.obj\"\n"))], "gone.obj"),
+        (
+            "mesh index out of range",
+            vec![
+                ("s.toml", format!("{CAMERA}[[shape]]\ntype = \"mesh\"\nfile = \"m.obj\"\n")),
+                ("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n".into()),
+            ],
+            "m.obj:4:",
+        ),
+        ("unknown material", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"gold\"\n"))], "gold"),
+        ("unknown shape", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"torus\"\n"))], "torus"),
+        ("no camera", vec![("s.toml", "[film]\nspp = 4\n".into())], "camera"),
+        ("zero size", vec![("s.toml", format!("{CAMERA}[film]\nwidth = 0\n"))], "s.toml:5:"),
+    ];
+    for (what, files, expect) in cases {
+        let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (*n, t.as_str())).collect();
+        let (code, stderr, _dir) = render_bad(&files, &[]);
+        assert_eq!(code, 2, "{what}: status {code}, stderr {stderr}");
+        assert!(
+            stderr.contains(expect),
+            "{what}: expected `{expect}` in: {stderr}"
+        );
+        assert_eq!(
+            stderr.trim().lines().count(),
+            1,
+            "{what}: not one line: {stderr}"
+        );
+    }
+}
+
+#[test]
+fn missing_scene_file_and_bad_arguments_are_status_2() {
+    let out = lightsplit(&["render", "no/such/scene.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/scene.toml"));
+
+    let scene = format!("{CAMERA}[film]\nwidth = 4\nheight = 4\nspp = 1\n");
+    for args in [
+        &["--spp", "0"][..],
+        &["--threads", "0"][..],
+        &["--spp", "-3"][..],
+    ] {
+        let (code, stderr, _dir) = render_bad(&[("s.toml", &scene)], args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+    }
+    // An output that cannot be written is refused before rendering.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, &scene).expect("write");
+    for bad in ["out.jpg", "no/such/dir/out.png"] {
+        let target = dir.path().join(bad);
+        let out = lightsplit(&[
+            "render",
+            path.to_str().expect("utf8"),
+            "-o",
+            target.to_str().expect("utf8"),
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+    }
+}
+
+/// The render command the README gives a newcomer, run as written (with the output redirected
+/// into a temporary directory).
+#[test]
+fn readme_render_command_makes_a_png_that_is_not_black() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    let command = readme
+        .lines()
+        .find_map(|l| {
+            l.split_once("cargo run --release -- render ")
+                .map(|(_, rest)| rest.to_string())
+        })
+        .expect("the README has a `cargo run --release -- render` command");
+    let mut args: Vec<String> = command.split_whitespace().map(str::to_string).collect();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out_index = args
+        .iter()
+        .position(|a| a == "-o")
+        .expect("the command names an output")
+        + 1;
+    let png: PathBuf = dir
+        .path()
+        .join(Path::new(&args[out_index]).file_name().expect("file name"));
+    args[out_index] = png.to_string_lossy().into_owned();
+    let mut full = vec!["render".to_string()];
+    full.extend(args);
+    let output = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+        .current_dir(root)
+        .args(&full)
+        .output()
+        .expect("runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let img = image::open(&png).expect("a PNG").into_rgb8();
+    let mean: f64 = img
+        .pixels()
+        .map(|p| p.0.iter().map(|&c| c as f64).sum::<f64>())
+        .sum::<f64>()
+        / (3.0 * img.pixels().len() as f64);
+    assert!(mean > 20.0, "mean pixel value {mean} is nearly black");
+}
+
+#[test]
+fn json_summary_has_the_documented_keys() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml");
+    let out = dir.path().join("s.exr");
+    let output = lightsplit(&[
+        "render",
+        scene.to_str().expect("utf8"),
+        "-o",
+        out.to_str().expect("utf8"),
+        "--spp",
+        "2",
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--json",
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
+    for key in [
+        "seconds",
+        "spp",
+        "width",
+        "height",
+        "accel",
+        "samples_per_second",
+        "rays_per_second",
+        "nonfinite_samples",
+        "outputs",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    assert_eq!(v["spp"], 2);
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(24), Some(16))
+    );
+    assert_eq!(v["accel"], "embree");
+    assert!(v["rays_per_second"].as_f64().unwrap_or(0.0) > 0.0);
+    assert!(out.exists());
+    // Nothing but the output is left in the directory (no temporary files).
+    assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 1);
+}
