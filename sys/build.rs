@@ -41,7 +41,9 @@ fn find() -> Result<Found, String> {
                 })
             }
             None => Err(format!(
-                "EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h",
+                "EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h: \
+                 point it at an Embree install, or unset it and `apt-get install libembree-dev \
+                 libclang-dev`",
                 dir.display()
             )),
         };

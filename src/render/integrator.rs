@@ -118,6 +118,9 @@ impl<A: Accel> Integrator<'_, A> {
                 break;
             }
             beta *= albedo; // f cos / pdf for a Lambertian lobe
+            if beta == Vec3::ZERO {
+                break; // nothing more can reach the eye along this path
+            }
             specular = false;
             prev_p = s.p;
 

@@ -23,13 +23,14 @@ const _: () = assert!(RTC_VERSION >= 31300 && RTC_VERSION < 40000);
 const _: () = assert!(RTC_VERSION >= 40000 && RTC_VERSION < 50000);
 
 // The wrapper builds these structs by hand; their sizes must be what the library expects.
-// RTCRay is 12 four-byte fields. RTCHit is Ng, u, v, primID, geomID and one instID per
-// instance level (Embree 4 adds one instPrimID per level when instance arrays are enabled).
+// RTCRay is 12 four-byte fields. RTCHit (16-byte aligned) is Ng, u, v, primID, geomID and one
+// instID per instance level; Embree 4 adds one instPrimID per level with instance arrays.
 const _: () = assert!(core::mem::size_of::<RTCRay>() == 48);
 #[cfg(not(embree4))]
-const HIT_SIZE: usize = 28 + 4 * RTC_MAX_INSTANCE_LEVEL_COUNT as usize;
+const HIT_FIELDS: usize = 28 + 4 * RTC_MAX_INSTANCE_LEVEL_COUNT as usize;
 #[cfg(embree4)]
-const HIT_SIZE: usize = 28 + 8 * RTC_MAX_INSTANCE_LEVEL_COUNT as usize;
+const HIT_FIELDS: usize = 28 + 8 * RTC_MAX_INSTANCE_LEVEL_COUNT as usize;
+const HIT_SIZE: usize = HIT_FIELDS.div_ceil(16) * 16;
 const _: () = assert!(core::mem::size_of::<RTCHit>() == HIT_SIZE);
 const _: () = assert!(core::mem::align_of::<RTCRayHit>() == 16);
-const _: () = assert!(core::mem::size_of::<RTCRayHit>() == (48 + HIT_SIZE).div_ceil(16) * 16);
+const _: () = assert!(core::mem::size_of::<RTCRayHit>() == 48 + HIT_SIZE);
