@@ -82,12 +82,13 @@ impl<A: Accel> Integrator<'_, A> {
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
             let ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
             let Material::Diffuse { albedo } = scene.materials[shape.material as usize];
+            // Every ray leaving this point (shadow or bounce) goes to the side of `ng`.
+            let origin = offset_ray_origin(s.p, ng);
 
             // Next-event estimation.
             if let Some(ls) = lights.sample(scene, s.p, sampler.next_1d(), sampler.next_2d()) {
                 let cos = ns.dot(ls.wi);
                 if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
-                    let origin = offset_ray_origin(s.p, ng);
                     let shadow = match ls.end {
                         // Unnormalised direction: t in [0, 1] ends exactly at the light point.
                         ShadowEnd::Point(q) => Ray {
@@ -134,7 +135,7 @@ impl<A: Accel> Integrator<'_, A> {
                     beta /= survive;
                 }
             }
-            ray = Ray::new(offset_ray_origin(s.p, ng), wi);
+            ray = Ray::new(origin, wi);
         }
         l
     }

@@ -202,7 +202,11 @@ impl Lights {
 
     /// Samples a light as seen from `p`, with uniform numbers `u_select` and `u`.
     pub fn sample(&self, scene: &Scene, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        let (i, select) = self.select.as_ref()?.sample(u_select);
+        let (i, select) = match self.emitters.len() {
+            0 => return None,
+            1 => (0, 1.0),
+            _ => self.select.as_ref()?.sample(u_select),
+        };
         let light = i as u32;
         match &self.emitters[i] {
             Emitter::Point {
