@@ -4,6 +4,7 @@
 #![deny(unsafe_code)]
 
 pub mod accel;
+pub mod bench;
 pub mod film;
 pub mod math;
 pub mod render;

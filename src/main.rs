@@ -32,6 +32,29 @@ struct Cli {
 enum Command {
     /// Render a scene file to an image.
     Render(RenderArgs),
+    /// Measure Embree and the BVH side by side on identical ray sets.
+    BenchAccel(BenchAccelArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchAccelArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Primary rays per set (shadow and incoherent rays start at their hits).
+    #[arg(long, default_value_t = 1 << 20)]
+    rays: usize,
+    /// Threads for the multi-threaded rows (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seconds each measurement runs at least.
+    #[arg(long, default_value_t = 0.5)]
+    seconds: f64,
+    /// Measurements per row and backend, alternating; the best is kept.
+    #[arg(long, default_value_t = 3)]
+    rounds: usize,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -96,6 +119,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render_command(args),
+        Command::BenchAccel(args) => bench_accel_command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -215,4 +239,38 @@ fn default_output(scene: &Path) -> PathBuf {
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "render".into());
     PathBuf::from(format!("{stem}.exr"))
+}
+
+fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
+    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    if args.rays == 0 {
+        return Err(Failure::input("--rays must be at least 1"));
+    }
+    if args.threads == Some(0) {
+        return Err(Failure::input("--threads must be at least 1"));
+    }
+    if !(args.seconds.is_finite() && args.seconds > 0.0) {
+        return Err(Failure::input("--seconds must be a positive number"));
+    }
+    let options = lightsplit::bench::BenchAccelOptions {
+        rays: args.rays,
+        threads: args.threads.unwrap_or_else(rayon::current_num_threads),
+        min_seconds: args.seconds,
+        rounds: args.rounds.max(1),
+        seed: 1,
+    };
+    let bar = progress_bar(0, args.json);
+    let report = lightsplit::bench::bench_accel(&scene, &options, &|done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .map_err(Failure::failed)?;
+    bar.finish_and_clear();
+    if args.json {
+        let json = serde_json::to_string(&report).map_err(Failure::failed)?;
+        println!("{json}");
+    } else {
+        print!("{}", report.table());
+    }
+    Ok(())
 }

@@ -1,6 +1,7 @@
 //! The one interface the renderer traces rays through. The integrator is generic over [`Accel`]
 //! (monomorphised, no dynamic dispatch per ray) and never knows which backend it has.
 
+pub mod bvh;
 pub mod embree;
 
 use glam::Vec3;
@@ -56,12 +57,15 @@ pub trait Accel: Send + Sync {
 pub enum Backend {
     /// Intel Embree through FFI.
     Embree,
+    /// lightsplit's own BVH, in pure Rust.
+    Bvh,
 }
 
 impl std::fmt::Display for Backend {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Backend::Embree => f.write_str("embree"),
+            Backend::Bvh => f.write_str("bvh"),
         }
     }
 }

@@ -106,6 +106,13 @@ pub fn render(
                 out.stats.build_seconds = build_seconds;
                 Ok(out)
             }
+            Backend::Bvh => {
+                let accel = accel::bvh::Bvh::new(scene);
+                let build_seconds = start.elapsed().as_secs_f64();
+                let mut out = render_with(scene, &accel, options, progress);
+                out.stats.build_seconds = build_seconds;
+                Ok(out)
+            }
         }
     };
     match options.threads {

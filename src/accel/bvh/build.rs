@@ -1,0 +1,291 @@
+//! The binned SAH build. Each node bins the primitives' centroids on all three axes, sweeps the
+//! bins for the cheapest split under the surface area heuristic, and partitions in place;
+//! subtrees above a size are built in parallel with `rayon::join`. Deep nodes fall back to median
+//! splits, which bounds the depth (and so the traversal stack) whatever the input.
+
+use glam::Vec3A;
+
+use super::{prim_bounds, Aabb, BuildOptions, Bvh, Node, Prim, STACK};
+
+/// Subtrees with more primitives than this are built on two threads.
+const PARALLEL_MIN: usize = 4096;
+/// Below this depth SAH chooses splits; deeper, median splits keep the depth logarithmic, so
+/// the whole tree stays within the traversal stack (32 + log2 of the primitive count).
+const SAH_DEPTH: usize = 32;
+const _: () = assert!(SAH_DEPTH + 32 <= STACK);
+
+#[derive(Clone, Copy)]
+struct Item {
+    bounds: Aabb,
+    centroid: Vec3A,
+    index: u32,
+}
+
+enum Tree {
+    Leaf {
+        bounds: Aabb,
+        start: usize,
+        count: usize,
+    },
+    Inner {
+        bounds: Aabb,
+        children: Box<[Tree; 2]>,
+    },
+}
+
+impl Tree {
+    fn bounds(&self) -> &Aabb {
+        match self {
+            Tree::Leaf { bounds, .. } | Tree::Inner { bounds, .. } => bounds,
+        }
+    }
+}
+
+pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
+    use rayon::prelude::*;
+    if prims.is_empty() {
+        return Bvh {
+            nodes: Vec::new(),
+            prims,
+        };
+    }
+    let mut items: Vec<Item> = prims
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let bounds = prim_bounds(p);
+            Item {
+                bounds,
+                centroid: bounds.centroid(),
+                index: i as u32,
+            }
+        })
+        .collect();
+    let tree = build_node(&mut items, 0, &options, 0);
+
+    let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
+    nodes.push(placeholder());
+    flatten(&tree, &mut nodes, 0);
+    let ordered = items.iter().map(|it| prims[it.index as usize]).collect();
+    Bvh {
+        nodes,
+        prims: ordered,
+    }
+}
+
+fn placeholder() -> Node {
+    Node {
+        min: [0.0; 3],
+        first: 0,
+        max: [0.0; 3],
+        count: 0,
+    }
+}
+
+fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
+    let b = tree.bounds();
+    match tree {
+        Tree::Leaf { start, count, .. } => {
+            nodes[at] = Node {
+                min: b.min.into(),
+                first: *start as u32,
+                max: b.max.into(),
+                count: *count as u32,
+            };
+        }
+        Tree::Inner { children, .. } => {
+            let first = nodes.len();
+            nodes.push(placeholder());
+            nodes.push(placeholder());
+            nodes[at] = Node {
+                min: b.min.into(),
+                first: first as u32,
+                max: b.max.into(),
+                count: 0,
+            };
+            flatten(&children[0], nodes, first);
+            flatten(&children[1], nodes, first + 1);
+        }
+    }
+}
+
+/// Builds the subtree over `items`, which start at `offset` in the final primitive order.
+fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: usize) -> Tree {
+    let n = items.len();
+    let mut bounds = Aabb::EMPTY;
+    let mut centroids = Aabb::EMPTY;
+    for it in items.iter() {
+        bounds = bounds.union(&it.bounds);
+        centroids = centroids.grow(it.centroid);
+    }
+    let leaf = Tree::Leaf {
+        bounds,
+        start: offset,
+        count: n,
+    };
+    if n == 1 {
+        return leaf;
+    }
+
+    let extent = centroids.max - centroids.min;
+    let split = if depth < SAH_DEPTH && extent.max_element() > 0.0 {
+        best_sah_split(items, &bounds, &centroids, options)
+    } else {
+        None
+    };
+    let mid = match split {
+        Some(Split {
+            cost,
+            axis,
+            bin,
+            lo,
+            scale,
+            bins,
+        }) => {
+            if n <= options.max_leaf && cost >= n as f32 {
+                return leaf; // a leaf is cheaper than any split
+            }
+            // The same arithmetic as the binning, so each item goes where it was counted.
+            let mid = partition(items, |it| {
+                bin_of(it.centroid[axis], lo, scale, bins) <= bin
+            });
+            if mid == 0 || mid == n {
+                median_split(items, extent)
+            } else {
+                mid
+            }
+        }
+        None if n <= options.max_leaf => return leaf,
+        None => median_split(items, extent),
+    };
+
+    let (left, right) = items.split_at_mut(mid);
+    let (l, r) = if n > PARALLEL_MIN {
+        rayon::join(
+            || build_node(left, offset, options, depth + 1),
+            || build_node(right, offset + mid, options, depth + 1),
+        )
+    } else {
+        (
+            build_node(left, offset, options, depth + 1),
+            build_node(right, offset + mid, options, depth + 1),
+        )
+    };
+    Tree::Inner {
+        bounds,
+        children: Box::new([l, r]),
+    }
+}
+
+/// Splits at the median along the axis of largest centroid extent (or, when all centroids
+/// coincide, simply in half). Always returns a split with both sides non-empty.
+fn median_split(items: &mut [Item], extent: Vec3A) -> usize {
+    let mid = items.len() / 2;
+    if extent.max_element() > 0.0 {
+        let axis = if extent.x >= extent.y && extent.x >= extent.z {
+            0
+        } else if extent.y >= extent.z {
+            1
+        } else {
+            2
+        };
+        items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    }
+    mid
+}
+
+/// In-place partition; returns how many items satisfy `pred` (they come first).
+fn partition(items: &mut [Item], pred: impl Fn(&Item) -> bool) -> usize {
+    let mut i = 0;
+    for j in 0..items.len() {
+        if pred(&items[j]) {
+            items.swap(i, j);
+            i += 1;
+        }
+    }
+    i
+}
+
+#[derive(Clone, Copy)]
+struct Bin {
+    bounds: Aabb,
+    count: u32,
+}
+
+/// A split between bins `bin` and `bin + 1` on `axis`; `cost` is in units of one primitive test
+/// (a leaf of n primitives costs n).
+struct Split {
+    cost: f32,
+    axis: usize,
+    bin: usize,
+    lo: f32,
+    scale: f32,
+    bins: usize,
+}
+
+#[inline(always)]
+fn bin_of(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
+    (((c - lo) * scale) as usize).min(bins - 1)
+}
+
+/// The cheapest binned SAH split over all three axes.
+fn best_sah_split(
+    items: &[Item],
+    bounds: &Aabb,
+    centroids: &Aabb,
+    options: &BuildOptions,
+) -> Option<Split> {
+    const MAX_BINS: usize = 64;
+    let bins_n = options.bins.clamp(2, MAX_BINS);
+    let parent_area = bounds.half_area();
+    let mut best: Option<Split> = None;
+    for axis in 0..3 {
+        let lo = centroids.min[axis];
+        let extent = centroids.max[axis] - lo;
+        if extent <= 0.0 {
+            continue;
+        }
+        let scale = bins_n as f32 / extent;
+        let mut bins = [Bin {
+            bounds: Aabb::EMPTY,
+            count: 0,
+        }; MAX_BINS];
+        for it in items {
+            let b = bin_of(it.centroid[axis], lo, scale, bins_n);
+            bins[b].bounds = bins[b].bounds.union(&it.bounds);
+            bins[b].count += 1;
+        }
+        // Right-to-left sweep: area x count of everything right of each boundary.
+        let mut right_cost = [0.0f32; MAX_BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0u32;
+        for b in (1..bins_n).rev() {
+            acc = acc.union(&bins[b].bounds);
+            count += bins[b].count;
+            right_cost[b] = acc.half_area() * count as f32;
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0u32;
+        for b in 0..bins_n - 1 {
+            acc = acc.union(&bins[b].bounds);
+            count += bins[b].count;
+            if count == 0 || count as usize == items.len() {
+                continue;
+            }
+            let cost = options.traversal_cost
+                + (acc.half_area() * count as f32 + right_cost[b + 1])
+                    / parent_area.max(f32::MIN_POSITIVE);
+            if best.as_ref().is_none_or(|s| cost < s.cost) {
+                best = Some(Split {
+                    cost,
+                    axis,
+                    bin: b,
+                    lo,
+                    scale,
+                    bins: bins_n,
+                });
+            }
+        }
+    }
+    best
+}

@@ -1,0 +1,401 @@
+//! lightsplit's own BVH, in pure Rust: a binned-SAH build (parallel with rayon) over triangles
+//! and analytic spheres, flattened into 32-byte nodes whose two children sit side by side;
+//! ordered closest-hit traversal and an any-hit traversal for shadow rays, both on a fixed-size
+//! stack; the watertight ray/triangle test of Woop, Benthin & Wald (JCGT 2013) and a conservative
+//! ray/box test (Ize 2013), so no ray slips through a shared edge.
+
+mod build;
+mod intersect;
+
+use glam::{Vec3, Vec3A};
+
+use super::{Accel, Hit, Ray};
+use crate::scene::{Geometry, Scene};
+use intersect::{sphere, RayTri};
+
+/// Maximum traversal stack depth. The build caps the tree depth below this.
+const STACK: usize = 64;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3A,
+    pub max: Vec3A,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn grow(&self, p: Vec3A) -> Aabb {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    /// Half the surface area (enough for SAH ratios); 0 for an empty box.
+    pub fn half_area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    pub fn centroid(&self) -> Vec3A {
+        (self.min + self.max) * 0.5
+    }
+}
+
+/// A flattened node: an inner node's two children are `first` and `first + 1`; a leaf holds
+/// `count` primitives from `first` on.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub struct Node {
+    pub min: [f32; 3],
+    pub first: u32,
+    pub max: [f32; 3],
+    pub count: u32,
+}
+
+impl Node {
+    fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+}
+
+/// A primitive, stored in leaf order with what its test needs.
+#[derive(Clone, Copy, Debug)]
+pub enum Prim {
+    /// Vertices of triangle `prim` of shape `shape`.
+    Triangle { v: [Vec3; 3], shape: u32, prim: u32 },
+    /// Sphere `shape` (its primitive index is 0, as in Embree).
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        shape: u32,
+    },
+}
+
+/// The BVH over a scene. Immutable once built, so it is `Send + Sync`.
+pub struct Bvh {
+    nodes: Vec<Node>,
+    prims: Vec<Prim>,
+}
+
+/// Build settings; the defaults are what the benchmarks chose.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildOptions {
+    /// Leaves hold at most this many primitives.
+    pub max_leaf: usize,
+    /// SAH cost of one traversal step relative to one primitive test.
+    pub traversal_cost: f32,
+    /// Centroid bins per axis.
+    pub bins: usize,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            max_leaf: 4,
+            traversal_cost: 1.0,
+            bins: 16,
+        }
+    }
+}
+
+impl Bvh {
+    /// Builds over every shape of `scene`; degenerate triangles and empty spheres are dropped.
+    pub fn new(scene: &Scene) -> Bvh {
+        Self::with_options(scene, BuildOptions::default())
+    }
+
+    pub fn with_options(scene: &Scene, options: BuildOptions) -> Bvh {
+        let mut prims = Vec::new();
+        for (s, shape) in scene.shapes.iter().enumerate() {
+            match &shape.geometry {
+                Geometry::Sphere { center, radius } => {
+                    if *radius > 0.0 {
+                        prims.push(Prim::Sphere {
+                            center: *center,
+                            radius: *radius,
+                            shape: s as u32,
+                        });
+                    }
+                }
+                Geometry::Triangles(mesh) => {
+                    for t in 0..mesh.indices.len() as u32 {
+                        let v = mesh.triangle(t);
+                        // Degenerate (zero-area) triangles can never be hit by the watertight
+                        // test; leaving them out keeps them from costing traversal.
+                        if (v[1] - v[0]).cross(v[2] - v[0]) != Vec3::ZERO {
+                            prims.push(Prim::Triangle {
+                                v,
+                                shape: s as u32,
+                                prim: t,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        build::build(prims, options)
+    }
+
+    /// Number of nodes and of primitives.
+    pub fn size(&self) -> (usize, usize) {
+        (self.nodes.len(), self.prims.len())
+    }
+
+    /// Checks the tree's invariants: every primitive in exactly one leaf, children inside their
+    /// parents' boxes, leaves within their size. Returns a description of the first violation.
+    pub fn validate(&self, max_leaf: usize) -> Result<(), String> {
+        let mut seen = vec![false; self.prims.len()];
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let n = &self.nodes[i];
+            let bounds = Aabb {
+                min: Vec3A::from(n.min),
+                max: Vec3A::from(n.max),
+            };
+            if n.is_leaf() {
+                if n.count as usize > max_leaf {
+                    return Err(format!("leaf {i} holds {} primitives", n.count));
+                }
+                let range = n.first as usize..(n.first + n.count) as usize;
+                for (p, prim) in range.clone().zip(&self.prims[range]) {
+                    if std::mem::replace(&mut seen[p], true) {
+                        return Err(format!("primitive {p} is in two leaves"));
+                    }
+                    let b = prim_bounds(prim);
+                    if b.min.cmplt(bounds.min).any() || b.max.cmpgt(bounds.max).any() {
+                        return Err(format!("primitive {p} sticks out of leaf {i}"));
+                    }
+                }
+            } else {
+                for c in [n.first as usize, n.first as usize + 1] {
+                    let cn = &self.nodes[c];
+                    if Vec3A::from(cn.min).cmplt(bounds.min).any()
+                        || Vec3A::from(cn.max).cmpgt(bounds.max).any()
+                    {
+                        return Err(format!("child {c} sticks out of node {i}"));
+                    }
+                    stack.push(c);
+                }
+            }
+        }
+        match seen.iter().position(|s| !s) {
+            Some(p) if !self.prims.is_empty() => Err(format!("primitive {p} is in no leaf")),
+            _ => Ok(()),
+        }
+    }
+}
+
+fn prim_bounds(p: &Prim) -> Aabb {
+    match p {
+        Prim::Triangle { v, .. } => Aabb::EMPTY
+            .grow(v[0].into())
+            .grow(v[1].into())
+            .grow(v[2].into()),
+        Prim::Sphere { center, radius, .. } => {
+            let c = Vec3A::from(*center);
+            Aabb {
+                min: c - Vec3A::splat(*radius),
+                max: c + Vec3A::splat(*radius),
+            }
+        }
+    }
+}
+
+/// Per-ray values for the box test (Ize 2013, "Robust BVH Ray Traversal"): the far distance of
+/// every slab is scaled up by 1 + 2 gamma(3), which covers the rounding of the slab computation.
+struct RayBox {
+    origin: Vec3A,
+    inv_dir: Vec3A,
+}
+
+const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+impl RayBox {
+    fn new(ray: &Ray) -> Self {
+        RayBox {
+            origin: ray.origin.into(),
+            inv_dir: Vec3A::ONE / Vec3A::from(ray.dir),
+        }
+    }
+
+    /// Entry distance into the node's box if the ray meets it within [0, t_max].
+    #[inline(always)]
+    fn hit(&self, n: &Node, t_max: f32) -> Option<f32> {
+        let t0 = (Vec3A::from(n.min) - self.origin) * self.inv_dir;
+        let t1 = (Vec3A::from(n.max) - self.origin) * self.inv_dir;
+        // min/max that ignore NaN (0 * inf when the origin lies on a slab plane).
+        let near = t0.min(t1);
+        let far = t0.max(t1);
+        let t_near = near.x.max(near.y).max(near.z).max(0.0);
+        let t_far = far.x.min(far.y).min(far.z).min(t_max) * FAR_SCALE;
+        (t_near <= t_far).then_some(t_near)
+    }
+}
+
+impl Bvh {
+    /// Closest hit along `ray`.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let rb = RayBox::new(ray);
+        let rt = RayTri::new(ray);
+        let mut best: Option<Hit> = None;
+        let mut t_max = ray.t_max;
+        let mut stack = [0u32; STACK];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        rb.hit(&self.nodes[0], t_max)?;
+        loop {
+            let n = &self.nodes[node];
+            if n.is_leaf() {
+                for p in &self.prims[n.first as usize..(n.first + n.count) as usize] {
+                    let found = match *p {
+                        Prim::Triangle { ref v, shape, prim } => {
+                            rt.hit(v, t_max).map(|(t, u, w)| Hit {
+                                t,
+                                shape,
+                                prim,
+                                u,
+                                v: w,
+                            })
+                        }
+                        Prim::Sphere {
+                            center,
+                            radius,
+                            shape,
+                        } => sphere(ray, center, radius, t_max).map(|t| Hit {
+                            t,
+                            shape,
+                            prim: 0,
+                            u: 0.0,
+                            v: 0.0,
+                        }),
+                    };
+                    if let Some(h) = found {
+                        t_max = h.t;
+                        best = Some(h);
+                    }
+                }
+            } else {
+                let (a, b) = (n.first as usize, n.first as usize + 1);
+                let ta = rb.hit(&self.nodes[a], t_max);
+                let tb = rb.hit(&self.nodes[b], t_max);
+                match (ta, tb) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
+                        stack[sp] = far as u32;
+                        sp += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = b;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop, skipping nodes that the current closest hit has made too far.
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let candidate = stack[sp] as usize;
+                if rb.hit(&self.nodes[candidate], t_max).is_some() {
+                    node = candidate;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let rb = RayBox::new(ray);
+        let rt = RayTri::new(ray);
+        let t_max = ray.t_max;
+        let mut stack = [0u32; STACK];
+        let mut sp = 0usize;
+        if rb.hit(&self.nodes[0], t_max).is_none() {
+            return false;
+        }
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            if n.is_leaf() {
+                for p in &self.prims[n.first as usize..(n.first + n.count) as usize] {
+                    let hit = match *p {
+                        Prim::Triangle { ref v, .. } => rt.hit(v, t_max).is_some(),
+                        Prim::Sphere { center, radius, .. } => {
+                            sphere(ray, center, radius, t_max).is_some()
+                        }
+                    };
+                    if hit {
+                        return true;
+                    }
+                }
+            } else {
+                let (a, b) = (n.first as usize, n.first as usize + 1);
+                let ha = rb.hit(&self.nodes[a], t_max).is_some();
+                let hb = rb.hit(&self.nodes[b], t_max).is_some();
+                match (ha, hb) {
+                    (true, true) => {
+                        stack[sp] = b as u32;
+                        sp += 1;
+                        node = a;
+                        continue;
+                    }
+                    (true, false) => {
+                        node = a;
+                        continue;
+                    }
+                    (false, true) => {
+                        node = b;
+                        continue;
+                    }
+                    (false, false) => {}
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp] as usize;
+        }
+    }
+}
+
+impl Accel for Bvh {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        Bvh::intersect(self, ray)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        Bvh::occluded(self, ray)
+    }
+}
+
+#[cfg(test)]
+mod tests;

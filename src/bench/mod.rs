@@ -1,0 +1,209 @@
+//! Benchmarks behind the command line: `bench-accel` measures both backends on identical ray
+//! sets, side by side in one run, so their ratio means something on a noisy machine.
+
+pub mod rays;
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::accel::{self, bvh::Bvh, Accel, Backend, Ray};
+use crate::scene::Scene;
+use rays::{RayKind, RaySets};
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct BenchAccelOptions {
+    /// Primary rays to generate (shadow and incoherent rays come from their hits).
+    pub rays: usize,
+    /// The "all threads" count (the one-thread rows are always measured too).
+    pub threads: usize,
+    /// Seconds each measurement runs at least.
+    pub min_seconds: f64,
+    /// Measurements per row and backend, alternating backends; the best is kept.
+    pub rounds: usize,
+    pub seed: u64,
+}
+
+/// One measured row.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    pub backend: Backend,
+    pub rays: RayKind,
+    pub threads: usize,
+    pub mrays_per_second: f64,
+}
+
+/// Everything `bench-accel` measured.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BenchAccelReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub spheres: usize,
+    pub ray_counts: [usize; 3],
+    /// Build time of each backend (the best of three builds), by backend name.
+    pub build_seconds: std::collections::BTreeMap<String, f64>,
+    pub rows: Vec<Row>,
+}
+
+/// Traces `rays` once on the current rayon pool; returns how many hit (so nothing is optimised
+/// away, and so backends can be checked for the same answer count).
+pub fn trace_pass<A: Accel>(accel: &A, rays: &[Ray], kind: RayKind) -> usize {
+    rays.par_chunks(1024)
+        .map(|chunk| match kind {
+            RayKind::Shadow => chunk.iter().filter(|r| accel.occluded(r)).count(),
+            _ => chunk
+                .iter()
+                .filter(|r| accel.intersect(r).is_some())
+                .count(),
+        })
+        .sum()
+}
+
+/// Millions of rays per second over passes lasting at least `min_seconds` in all.
+fn rate<A: Accel>(accel: &A, rays: &[Ray], kind: RayKind, min_seconds: f64) -> f64 {
+    if rays.is_empty() {
+        return 0.0;
+    }
+    trace_pass(accel, rays, kind); // warm caches
+    let start = Instant::now();
+    let mut traced = 0usize;
+    loop {
+        trace_pass(accel, rays, kind);
+        traced += rays.len();
+        let t = start.elapsed().as_secs_f64();
+        if t >= min_seconds {
+            return traced as f64 / t / 1e6;
+        }
+    }
+}
+
+fn best_of<T>(n: usize, mut f: impl FnMut() -> (T, f64)) -> (T, f64) {
+    let (mut keep, mut best) = f();
+    for _ in 1..n {
+        let (v, t) = f();
+        if t < best {
+            best = t;
+            keep = v;
+        }
+    }
+    (keep, best)
+}
+
+/// Runs the benchmark. `progress` is called after each measurement with (done, total).
+pub fn bench_accel(
+    scene: &Scene,
+    options: &BenchAccelOptions,
+    progress: &dyn Fn(usize, usize),
+) -> Result<BenchAccelReport, accel::embree::EmbreeError> {
+    let (embree, embree_build) = best_of(3, || {
+        let start = Instant::now();
+        let e = accel::build_embree(scene, None);
+        (e, start.elapsed().as_secs_f64())
+    });
+    let embree = embree?;
+    let (bvh, bvh_build) = best_of(3, || {
+        let start = Instant::now();
+        let b = Bvh::new(scene);
+        (b, start.elapsed().as_secs_f64())
+    });
+
+    let sets = RaySets::generate(scene, &embree, options.rays, options.seed);
+    let mut thread_counts = vec![1];
+    if options.threads > 1 {
+        thread_counts.push(options.threads);
+    }
+    let total = RayKind::ALL.len() * thread_counts.len();
+    let mut rows = Vec::new();
+    let mut done = 0;
+    for kind in RayKind::ALL {
+        let rays = sets.get(kind);
+        for &threads in &thread_counts {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool of a checked size");
+            let (mut e, mut b) = (0.0f64, 0.0f64);
+            pool.install(|| {
+                for _ in 0..options.rounds.max(1) {
+                    e = e.max(rate(&embree, rays, kind, options.min_seconds));
+                    b = b.max(rate(&bvh, rays, kind, options.min_seconds));
+                }
+            });
+            rows.push(Row {
+                backend: Backend::Embree,
+                rays: kind,
+                threads,
+                mrays_per_second: e,
+            });
+            rows.push(Row {
+                backend: Backend::Bvh,
+                rays: kind,
+                threads,
+                mrays_per_second: b,
+            });
+            done += 1;
+            progress(done, total);
+        }
+    }
+    let spheres = scene
+        .shapes
+        .iter()
+        .filter(|s| matches!(s.geometry, crate::scene::Geometry::Sphere { .. }))
+        .count();
+    Ok(BenchAccelReport {
+        scene: scene.path.display().to_string(),
+        triangles: scene.triangle_count(),
+        spheres,
+        ray_counts: [sets.primary.len(), sets.shadow.len(), sets.incoherent.len()],
+        build_seconds: [
+            (Backend::Embree.to_string(), embree_build),
+            (Backend::Bvh.to_string(), bvh_build),
+        ]
+        .into_iter()
+        .collect(),
+        rows,
+    })
+}
+
+impl BenchAccelReport {
+    /// The report as a plain-text table, with the BVH/Embree ratio on each row.
+    pub fn table(&self) -> String {
+        let mut out = format!(
+            "{}: {} triangles, {} spheres; rays: {} primary, {} shadow, {} incoherent\n",
+            self.scene,
+            self.triangles,
+            self.spheres,
+            self.ray_counts[0],
+            self.ray_counts[1],
+            self.ray_counts[2]
+        );
+        let build = |b: Backend| {
+            self.build_seconds
+                .get(&b.to_string())
+                .copied()
+                .unwrap_or(0.0)
+        };
+        let (be, bb) = (build(Backend::Embree), build(Backend::Bvh));
+        out += &format!(
+            "build        embree {:>9.4} s   bvh {:>9.4} s   bvh/embree time {:>5.2}x\n",
+            be,
+            bb,
+            bb / be.max(1e-12)
+        );
+        out += "rays        threads   embree Mrays/s   bvh Mrays/s   bvh/embree\n";
+        for pair in self.rows.chunks(2) {
+            if let [e, b] = pair {
+                out += &format!(
+                    "{:<11} {:>7}   {:>14.2}   {:>11.2}   {:>9.2}x\n",
+                    e.rays.name(),
+                    e.threads,
+                    e.mrays_per_second,
+                    b.mrays_per_second,
+                    b.mrays_per_second / e.mrays_per_second.max(1e-12)
+                );
+            }
+        }
+        out
+    }
+}
