@@ -13,8 +13,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{
-    obj, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene, SceneError,
-    Shape,
+    obj, procedural, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene,
+    SceneError, Shape,
 };
 
 /// A finite number: TOML's `nan` and `inf` are rejected where they are written.
@@ -50,6 +50,9 @@ impl<'de> Deserialize<'de> for F {
 }
 
 type V3 = [F; 3];
+
+/// The finest terrain: 2 x 4096^2, about 33.5 million triangles.
+const MAX_TERRAIN: u32 = 4096;
 
 fn v3(v: V3) -> Vec3 {
     Vec3::new(v[0].0, v[1].0, v[2].0)
@@ -130,6 +133,11 @@ struct FileShape {
     max: Option<V3>,
     // mesh
     file: Option<String>,
+    // terrain
+    resolution: Option<Spanned<u32>>,
+    size: Option<F>,
+    height: Option<F>,
+    seed: Option<u32>,
 }
 
 #[derive(Deserialize)]
@@ -419,6 +427,10 @@ fn add_shape(
         ("min", s.min.is_some()),
         ("max", s.max.is_some()),
         ("file", s.file.is_some()),
+        ("resolution", s.resolution.is_some()),
+        ("size", s.size.is_some()),
+        ("height", s.height.is_some()),
+        ("seed", s.seed.is_some()),
     ];
     let what = format!("a {} shape", s.kind);
     let index = out.shapes.len();
@@ -537,10 +549,44 @@ fn add_shape(
             }
             return Ok(());
         }
+        "terrain" => {
+            ctx.only(
+                span.clone(),
+                &what,
+                &present,
+                &["resolution", "size", "height", "seed"],
+            )?;
+            let resolution = match &s.resolution {
+                Some(r) if !(1..=MAX_TERRAIN).contains(r.get_ref()) => {
+                    return ctx.err(
+                        r.span(),
+                        format!("`resolution` must lie between 1 and {MAX_TERRAIN}"),
+                    )
+                }
+                Some(r) => *r.get_ref(),
+                None => 64,
+            };
+            let size = s.size.map_or(10.0, |v| v.0);
+            if size <= 0.0 {
+                return ctx.err(span, "a terrain's `size` must be positive");
+            }
+            let height = s.height.map_or(1.0, |v| v.0);
+            let mut mesh = procedural::terrain(resolution, size, height, s.seed.unwrap_or(0));
+            if transform.rotates || transform.scale != 1.0 || transform.translate != Vec3::ZERO {
+                mesh.positions = mesh
+                    .positions
+                    .iter()
+                    .map(|&p| Vec3A::from(transform.point(p.into())))
+                    .collect();
+            }
+            Geometry::Triangles(mesh)
+        }
         other => {
             return ctx.err(
                 span,
-                format!("unknown shape type `{other}` (expected sphere, quad, box or mesh)"),
+                format!(
+                    "unknown shape type `{other}` (expected sphere, quad, box, mesh or terrain)"
+                ),
             )
         }
     };

@@ -3,7 +3,9 @@
 //! [`file`] (TOML) and [`obj`] (Wavefront OBJ meshes).
 
 pub mod file;
+pub mod noise;
 pub mod obj;
+pub mod procedural;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
