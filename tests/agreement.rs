@@ -1,0 +1,201 @@
+//! Embree and the BVH give the same hits on every scene in `scenes/` and on generated ray sets
+//! (primary, shadow, incoherent), and the same image at the same seed up to float rounding.
+
+use std::path::{Path, PathBuf};
+
+use lightsplit::accel::{build_embree, bvh::Bvh, Backend, Hit, Ray};
+use lightsplit::bench::rays::{RayKind, RaySets};
+use lightsplit::render::{render, RenderOptions};
+use lightsplit::scene::Geometry;
+use lightsplit::scene::{self, Scene};
+
+fn scenes() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("scenes/")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    assert!(paths.len() >= 3);
+    paths
+}
+
+#[derive(Default, Debug)]
+struct Tally {
+    rays: usize,
+    hits: usize,
+    /// Both hit at the same distance but report different primitives: a tie on a shared edge.
+    ties: usize,
+    /// One hits and the other misses, or the distances differ.
+    disagreements: usize,
+}
+
+/// t within 1e-5 relative, where "relative" includes the size of the coordinates: a hit 0.3
+/// units from an origin 500 units out carries the rounding of coordinates near 500 (an f32
+/// ulp there is 3e-5), whatever the length of the ray.
+fn same_t(ray: &Ray, a: f32, b: f32) -> bool {
+    let scale = a.abs().max(b.abs()) + ray.origin.abs().max_element() / ray.dir.length();
+    (a - b).abs() <= 1e-5 * scale
+}
+
+fn compare(ray: &Ray, a: Option<Hit>, b: Option<Hit>, tally: &mut Tally) {
+    tally.rays += 1;
+    match (a, b) {
+        (None, None) => {}
+        (Some(x), Some(y)) => {
+            tally.hits += 1;
+            if !same_t(ray, x.t, y.t) {
+                tally.disagreements += 1;
+            } else if (x.shape, x.prim) != (y.shape, y.prim) {
+                tally.ties += 1;
+            }
+        }
+        _ => tally.disagreements += 1,
+    }
+}
+
+fn tally_scene(scene: &Scene, n: usize) -> [Tally; 3] {
+    let embree = build_embree(scene, None).expect("embree builds");
+    let bvh = Bvh::new(scene);
+    let sets = RaySets::generate(scene, &embree, n, 3);
+    RayKind::ALL.map(|kind| {
+        let mut tally = Tally::default();
+        for ray in sets.get(kind) {
+            if kind == RayKind::Shadow {
+                let (a, b) = (embree.occluded(ray), bvh.occluded(ray));
+                tally.rays += 1;
+                tally.hits += a as usize;
+                tally.disagreements += (a != b) as usize;
+            } else {
+                let (a, b) = (embree.intersect(ray), bvh.intersect(ray));
+                let before = tally.disagreements;
+                compare(ray, a, b, &mut tally);
+                if tally.disagreements > before && std::env::var_os("AGREEMENT_DEBUG").is_some() {
+                    eprintln!("  {ray:?}\n    embree {a:?}\n    bvh    {b:?}");
+                }
+            }
+        }
+        tally
+    })
+}
+
+#[test]
+fn both_backends_agree_on_every_scene() {
+    for path in scenes() {
+        let scene = scene::load(&path).expect("scene loads");
+        let tallies = tally_scene(&scene, 20_000);
+        for (kind, t) in RayKind::ALL.iter().zip(&tallies) {
+            eprintln!("{}: {} rays: {t:?}", path.display(), kind.name());
+            assert!(t.rays > 1000, "{kind:?}: too few rays to say anything");
+            // Differences in t beyond 1e-5 or in hit/miss would be a bug; allow one in 10^4
+            // for rays that graze a silhouette exactly.
+            assert!(
+                t.disagreements * 10_000 <= t.rays,
+                "{}: {kind:?}: {t:?}",
+                path.display()
+            );
+            // Ties on shared edges are rare: both backends are watertight, they just may pick
+            // different triangles of the two that share the edge.
+            assert!(
+                t.ties * 1_000 <= t.rays,
+                "{}: {kind:?}: {t:?}",
+                path.display()
+            );
+        }
+    }
+}
+
+#[test]
+fn images_agree_up_to_float_rounding() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let scene = scene::load(&path).expect("scene loads");
+    let mut options = RenderOptions::from_scene(&scene);
+    options.width = 64;
+    options.height = 64;
+    options.spp = 8;
+    let a = render(&scene, &options, &|_| {})
+        .expect("embree renders")
+        .image;
+    options.accel = Backend::Bvh;
+    let b = render(&scene, &options, &|_| {})
+        .expect("bvh renders")
+        .image;
+    let (mut largest, mut sum, mut identical) = (0.0f32, 0.0f64, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        let d = (*p - *q).abs().max_element();
+        largest = largest.max(d);
+        sum += d as f64;
+        identical += (p == q) as usize;
+    }
+    let mean = sum / a.pixels.len() as f64;
+    eprintln!(
+        "cornell 64x64 8 spp: largest pixel difference {largest}, mean {mean:e}, {identical} of {} pixels identical",
+        a.pixels.len()
+    );
+    // Hit points differ by rounding, so pixels differ in their last bits; a larger difference
+    // would mean a path went another way (a different hit, not a rounding).
+    let scale = a.mean().max_element();
+    assert!(
+        largest < 1e-3 * scale,
+        "largest difference {largest} against a mean of {scale}"
+    );
+    assert!(mean < 1e-5 * scale as f64, "mean difference {mean}");
+}
+
+/// Rays from the camera aimed exactly at the midpoints of triangle edges, where two triangles
+/// of a quad or mesh meet: neither backend may miss (both are watertight), but they may pick
+/// different triangles of the pair. The ties are counted and reported.
+#[test]
+fn rays_at_shared_edges_hit_on_both_backends() {
+    for path in scenes() {
+        let name = path.display();
+        let scene = scene::load(&path).expect("loads");
+        let embree = build_embree(&scene, None).expect("embree builds");
+        let bvh = Bvh::new(&scene);
+        let mut tally = Tally::default();
+        let (mut misses, mut grazing) = (0, 0);
+        for shape in &scene.shapes {
+            let Geometry::Triangles(mesh) = &shape.geometry else {
+                continue;
+            };
+            // Edges used by two triangles of the mesh, with the two vertices opposite them (a
+            // boundary edge may be missed by both backends).
+            let mut uses: std::collections::HashMap<(u32, u32), Vec<u32>> = Default::default();
+            for tri in mesh.indices.iter() {
+                for k in 0..3 {
+                    let (i, j, o) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                    uses.entry((i.min(j), i.max(j))).or_default().push(o);
+                }
+            }
+            let mut shared: Vec<((u32, u32), [u32; 2])> = uses
+                .into_iter()
+                .filter_map(|(e, o)| (o.len() == 2).then(|| (e, [o[0], o[1]])))
+                .collect();
+            shared.sort_unstable();
+            // At most about 5000 edges a mesh.
+            let stride = shared.len() / 5000 + 1;
+            for &((i, j), [o1, o2]) in shared.iter().step_by(stride) {
+                let v = |k: u32| glam::Vec3::from(mesh.positions[k as usize]);
+                let (p, q) = (v(i), v(j));
+                let target = (p + q) * 0.5;
+                let ray = Ray::new(scene.camera.position, target - scene.camera.position);
+                // The surface crosses the ray at the edge only if the two triangles lie on
+                // opposite sides of the plane through the ray and the edge; otherwise the ray
+                // grazes a fold (a silhouette), where a miss is no crack.
+                let n = ray.dir.cross(q - p);
+                let (s1, s2) = (n.dot(v(o1) - p), n.dot(v(o2) - p));
+                if s1 * s2 >= 0.0 {
+                    grazing += 1;
+                    continue;
+                }
+                let (x, y) = (embree.intersect(&ray), bvh.intersect(&ray));
+                misses += x.is_none() as usize + y.is_none() as usize;
+                compare(&ray, x, y, &mut tally);
+            }
+        }
+        eprintln!("{name}: rays at edge midpoints: {tally:?}, misses {misses}, grazing folds skipped {grazing}");
+        assert_eq!(misses, 0, "{name}: a ray aimed at an edge slipped through");
+        assert_eq!(tally.disagreements, 0, "{name}: {tally:?}");
+    }
+}
