@@ -18,11 +18,7 @@ const EXIT_INPUT: u8 = 2;
 const EXIT_FAILURE: u8 = 1;
 
 #[derive(Parser)]
-#[command(
-    name = "lightsplit",
-    version,
-    about = "A path tracer that filters only the indirect diffuse light"
-)]
+#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -47,10 +43,10 @@ struct BenchAccelArgs {
     #[arg(long)]
     threads: Option<usize>,
     /// Seconds each measurement runs at least.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.3)]
     seconds: f64,
-    /// Measurements per row and backend, alternating; the best is kept.
-    #[arg(long, default_value_t = 3)]
+    /// Rounds per row, each measuring both backends back to back; medians are reported.
+    #[arg(long, default_value_t = 5)]
     rounds: usize,
     /// Print one JSON object on stdout instead of the table.
     #[arg(long)]
@@ -102,16 +98,10 @@ struct Failure {
 
 impl Failure {
     fn input(message: impl ToString) -> Self {
-        Failure {
-            code: EXIT_INPUT,
-            message: message.to_string(),
-        }
+        Failure { code: EXIT_INPUT, message: message.to_string() }
     }
     fn failed(message: impl ToString) -> Self {
-        Failure {
-            code: EXIT_FAILURE,
-            message: message.to_string(),
-        }
+        Failure { code: EXIT_FAILURE, message: message.to_string() }
     }
 }
 
@@ -134,9 +124,9 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::new(total);
     if quiet || !std::io::stderr().is_terminal() {
         bar.set_draw_target(ProgressDrawTarget::hidden());
-    } else if let Ok(style) = ProgressStyle::with_template(
-        "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})",
-    ) {
+    } else if let Ok(style) =
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent}% (eta {eta})")
+    {
         bar.set_style(style);
     }
     bar
@@ -144,10 +134,7 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 
 fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| default_output(&args.scene));
+    let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     film::check_output(&output).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
@@ -222,7 +209,11 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             s.build_seconds,
             samples_per_second / 1e6,
             rays_per_second / 1e6,
-            if s.nonfinite_samples > 0 { format!(", {} non-finite samples dropped", s.nonfinite_samples) } else { String::new() },
+            if s.nonfinite_samples > 0 {
+                format!(", {} non-finite samples dropped", s.nonfinite_samples)
+            } else {
+                String::new()
+            },
             output.display()
         );
     }
@@ -234,10 +225,7 @@ fn rayon_threads(threads: Option<usize>) -> usize {
 }
 
 fn default_output(scene: &Path) -> PathBuf {
-    let stem = scene
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "render".into());
+    let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());
     PathBuf::from(format!("{stem}.exr"))
 }
 

@@ -105,11 +105,7 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
             pi
         }
     };
-    Vec3::new(
-        pick(p.x, p_i.x, n.x),
-        pick(p.y, p_i.y, n.y),
-        pick(p.z, p_i.z, n.z),
-    )
+    Vec3::new(pick(p.x, p_i.x, n.x), pick(p.y, p_i.y, n.y), pick(p.z, p_i.z, n.z))
 }
 
 /// Rec. 709 luminance of a linear RGB value.
@@ -155,14 +151,9 @@ impl Distribution1D {
 
     /// Picks an item for `u` in [0, 1); returns its index and probability.
     pub fn sample(&self, u: f32) -> (usize, f32) {
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .min(self.cdf.len() - 1);
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1);
         // Skip zero-probability items that share a CDF value with their neighbour.
-        let i = (i..self.pdf.len())
-            .find(|&j| self.pdf[j] > 0.0)
-            .unwrap_or(i);
+        let i = (i..self.pdf.len()).find(|&j| self.pdf[j] > 0.0).unwrap_or(i);
         (i, self.pdf[i])
     }
 
@@ -197,17 +188,10 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [
-            Vec3::Z,
-            -Vec3::Z,
-            Vec3::X,
-            Vec3::new(0.3, -0.5, 0.8).normalize(),
-        ] {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
             let f = Frame::new(n);
             assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);
-            assert!(
-                f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5
-            );
+            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5);
             assert!((f.s.cross(f.t) - n).length() < 1e-5);
         }
     }
@@ -217,30 +201,18 @@ mod tests {
         // The sun: 0.53 degrees across. In f32, cos(half angle) rounds; 1 - cos must not.
         let half = (0.53f64 / 2.0).to_radians();
         let omc = (2.0 * (half / 2.0).sin().powi(2)) as f32;
-        for u in [
-            Vec2::new(0.0, 0.3),
-            Vec2::new(0.999, 0.7),
-            Vec2::new(0.5, 0.1),
-        ] {
+        for u in [Vec2::new(0.0, 0.3), Vec2::new(0.999, 0.7), Vec2::new(0.5, 0.1)] {
             let d = uniform_cone(u, omc);
             assert!((d.length() - 1.0).abs() < 1e-6);
             let got = one_minus_cos_between(d, Vec3::Z);
             assert!(got <= omc * 1.0001, "{got} > {omc}");
-            assert!(
-                (got - u.x * omc).abs() <= 1e-3 * omc,
-                "{got} vs {}",
-                u.x * omc
-            );
+            assert!((got - u.x * omc).abs() <= 1e-3 * omc, "{got} vs {}", u.x * omc);
         }
     }
 
     #[test]
     fn offset_leaves_the_surface_on_the_normal_side() {
-        for p in [
-            Vec3::ZERO,
-            Vec3::new(1e6, -3.0, 0.01),
-            Vec3::new(-123.4, 5e-3, 7e4),
-        ] {
+        for p in [Vec3::ZERO, Vec3::new(1e6, -3.0, 0.01), Vec3::new(-123.4, 5e-3, 7e4)] {
             for n in [Vec3::Y, -Vec3::Y, Vec3::new(0.6, 0.0, -0.8)] {
                 let o = offset_ray_origin(p, n);
                 assert!((o - p).dot(n) > 0.0, "{p} {n} -> {o}");

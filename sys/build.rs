@@ -11,16 +11,10 @@ struct Found {
     api: u32,
 }
 
-const SYSTEM_INCLUDES: &[&str] = &[
-    "/usr/include",
-    "/usr/local/include",
-    "/opt/homebrew/include",
-];
+const SYSTEM_INCLUDES: &[&str] = &["/usr/include", "/usr/local/include", "/opt/homebrew/include"];
 
 fn find_in(include: &Path) -> Option<u32> {
-    [4, 3]
-        .into_iter()
-        .find(|api| include.join(format!("embree{api}/rtcore.h")).is_file())
+    [4, 3].into_iter().find(|api| include.join(format!("embree{api}/rtcore.h")).is_file())
 }
 
 fn find() -> Result<Found, String> {
@@ -34,11 +28,7 @@ fn find() -> Result<Found, String> {
                     .map(|l| dir.join(l))
                     .find(|l| l.is_dir())
                     .unwrap_or_else(|| dir.join("lib"));
-                Ok(Found {
-                    include,
-                    lib: Some(lib),
-                    api,
-                })
+                Ok(Found { include, lib: Some(lib), api })
             }
             None => Err(format!(
                 "EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h: \

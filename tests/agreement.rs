@@ -57,7 +57,7 @@ fn compare(ray: &Ray, a: Option<Hit>, b: Option<Hit>, tally: &mut Tally) {
 
 fn tally_scene(scene: &Scene, n: usize) -> [Tally; 3] {
     let embree = build_embree(scene, None).expect("embree builds");
-    let bvh = Bvh::new(scene);
+    let bvh = Bvh::new(scene).expect("bvh builds");
     let sets = RaySets::generate(scene, &embree, n, 3);
     RayKind::ALL.map(|kind| {
         let mut tally = Tally::default();
@@ -90,18 +90,10 @@ fn both_backends_agree_on_every_scene() {
             assert!(t.rays > 1000, "{kind:?}: too few rays to say anything");
             // Differences in t beyond 1e-5 or in hit/miss would be a bug; allow one in 10^4
             // for rays that graze a silhouette exactly.
-            assert!(
-                t.disagreements * 10_000 <= t.rays,
-                "{}: {kind:?}: {t:?}",
-                path.display()
-            );
+            assert!(t.disagreements * 10_000 <= t.rays, "{}: {kind:?}: {t:?}", path.display());
             // Ties on shared edges are rare: both backends are watertight, they just may pick
             // different triangles of the two that share the edge.
-            assert!(
-                t.ties * 1_000 <= t.rays,
-                "{}: {kind:?}: {t:?}",
-                path.display()
-            );
+            assert!(t.ties * 1_000 <= t.rays, "{}: {kind:?}: {t:?}", path.display());
         }
     }
 }
@@ -114,13 +106,9 @@ fn images_agree_up_to_float_rounding() {
     options.width = 64;
     options.height = 64;
     options.spp = 8;
-    let a = render(&scene, &options, &|_| {})
-        .expect("embree renders")
-        .image;
+    let a = render(&scene, &options, &|_| {}).expect("embree renders").image;
     options.accel = Backend::Bvh;
-    let b = render(&scene, &options, &|_| {})
-        .expect("bvh renders")
-        .image;
+    let b = render(&scene, &options, &|_| {}).expect("bvh renders").image;
     let (mut largest, mut sum, mut identical) = (0.0f32, 0.0f64, 0usize);
     for (p, q) in a.pixels.iter().zip(&b.pixels) {
         let d = (*p - *q).abs().max_element();
@@ -136,10 +124,7 @@ fn images_agree_up_to_float_rounding() {
     // Hit points differ by rounding, so pixels differ in their last bits; a larger difference
     // would mean a path went another way (a different hit, not a rounding).
     let scale = a.mean().max_element();
-    assert!(
-        largest < 1e-3 * scale,
-        "largest difference {largest} against a mean of {scale}"
-    );
+    assert!(largest < 1e-3 * scale, "largest difference {largest} against a mean of {scale}");
     assert!(mean < 1e-5 * scale as f64, "mean difference {mean}");
 }
 
@@ -152,7 +137,7 @@ fn rays_at_shared_edges_hit_on_both_backends() {
         let name = path.display();
         let scene = scene::load(&path).expect("loads");
         let embree = build_embree(&scene, None).expect("embree builds");
-        let bvh = Bvh::new(&scene);
+        let bvh = Bvh::new(&scene).expect("bvh builds");
         let mut tally = Tally::default();
         let (mut misses, mut grazing) = (0, 0);
         for shape in &scene.shapes {
@@ -168,10 +153,8 @@ fn rays_at_shared_edges_hit_on_both_backends() {
                     uses.entry((i.min(j), i.max(j))).or_default().push(o);
                 }
             }
-            let mut shared: Vec<((u32, u32), [u32; 2])> = uses
-                .into_iter()
-                .filter_map(|(e, o)| (o.len() == 2).then(|| (e, [o[0], o[1]])))
-                .collect();
+            let mut shared: Vec<((u32, u32), [u32; 2])> =
+                uses.into_iter().filter_map(|(e, o)| (o.len() == 2).then(|| (e, [o[0], o[1]]))).collect();
             shared.sort_unstable();
             // At most about 5000 edges a mesh.
             let stride = shared.len() / 5000 + 1;
@@ -194,7 +177,9 @@ fn rays_at_shared_edges_hit_on_both_backends() {
                 compare(&ray, x, y, &mut tally);
             }
         }
-        eprintln!("{name}: rays at edge midpoints: {tally:?}, misses {misses}, grazing folds skipped {grazing}");
+        eprintln!(
+            "{name}: rays at edge midpoints: {tally:?}, misses {misses}, grazing folds skipped {grazing}"
+        );
         assert_eq!(misses, 0, "{name}: a ray aimed at an edge slipped through");
         assert_eq!(tally.disagreements, 0, "{name}: {tally:?}");
     }

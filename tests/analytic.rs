@@ -99,10 +99,7 @@ fn diffuse_plane_under_point_light_matches_the_formula() {
             let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / 63.0;
             let tolerance = 5.0 * (var / spp as f32).sqrt() + 2e-3 * mean;
             let got = out.image.get(x, y).x;
-            assert!(
-                (got - mean).abs() <= tolerance,
-                "pixel ({x}, {y}): {got} vs {mean} +- {tolerance}"
-            );
+            assert!((got - mean).abs() <= tolerance, "pixel ({x}, {y}): {got} vs {mean} +- {tolerance}");
             worst = worst.max((got / mean - 1.0).abs());
         }
     }
@@ -143,12 +140,7 @@ fn emissive_closed_box_reaches_le_over_one_minus_albedo() {
                 format!("[{}, {}, {}]", p[0], p[1], p[2])
             };
             // (a, b) counter-clockwise gives a normal along +axis; reverse it on the + side.
-            let mut quad = [
-                corner(-1.0, -1.0),
-                corner(1.0, -1.0),
-                corner(1.0, 1.0),
-                corner(-1.0, 1.0),
-            ];
+            let mut quad = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
             if sign > 0.0 {
                 quad.reverse();
             }

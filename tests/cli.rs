@@ -5,10 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn lightsplit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lightsplit"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
+    Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(args).output().expect("the binary runs")
 }
 
 const CAMERA: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
@@ -21,12 +18,7 @@ fn render_bad(files: &[(&str, &str)], extra: &[&str]) -> (i32, String, tempfile:
     }
     let scene = dir.path().join(files[0].0);
     let out = dir.path().join("out.png");
-    let mut args = vec![
-        "render",
-        scene.to_str().expect("utf8"),
-        "-o",
-        out.to_str().expect("utf8"),
-    ];
+    let mut args = vec!["render", scene.to_str().expect("utf8"), "-o", out.to_str().expect("utf8")];
     args.extend_from_slice(extra);
     let output = lightsplit(&args);
     let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
@@ -42,11 +34,28 @@ type Case = (&'static str, Vec<(&'static str, String)>, &'static str);
 fn each_kind_of_bad_scene_is_one_error_with_status_2() {
     let cases: Vec<Case> = vec![
         ("unknown key", vec![("s.toml", format!("{CAMERA}[film]\nwidht = 3\n"))], "s.toml:5:"),
-        ("NaN", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = nan\n"))], "s.toml:6:"),
-        ("infinity", vec![("s.toml", format!("{CAMERA}[[light]]\ntype = \"point\"\nposition = [0, -inf, 0]\nintensity = [1, 1, 1]\n"))], "s.toml:6:"),
+        (
+            "NaN",
+            vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = nan\n"))],
+            "s.toml:6:",
+        ),
+        (
+            "infinity",
+            vec![(
+                "s.toml",
+                format!(
+                    "{CAMERA}[[light]]\ntype = \"point\"\nposition = [0, -inf, 0]\nintensity = [1, 1, 1]\n"
+                ),
+            )],
+            "s.toml:6:",
+        ),
         ("wrong type", vec![("s.toml", format!("{CAMERA}[film]\nspp = \"many\"\n"))], "s.toml:5:"),
         ("syntax", vec![("s.toml", format!("{CAMERA}[film\n"))], "s.toml:4:"),
-        ("missing mesh", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"mesh\"\nfile = \"gone.obj\"\n"))], "gone.obj"),
+        (
+            "missing mesh",
+            vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"mesh\"\nfile = \"gone.obj\"\n"))],
+            "gone.obj",
+        ),
         (
             "mesh index out of range",
             vec![
@@ -55,7 +64,14 @@ fn each_kind_of_bad_scene_is_one_error_with_status_2() {
             ],
             "m.obj:4:",
         ),
-        ("unknown material", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"gold\"\n"))], "gold"),
+        (
+            "unknown material",
+            vec![(
+                "s.toml",
+                format!("{CAMERA}[[shape]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"gold\"\n"),
+            )],
+            "gold",
+        ),
         ("unknown shape", vec![("s.toml", format!("{CAMERA}[[shape]]\ntype = \"torus\"\n"))], "torus"),
         ("no camera", vec![("s.toml", "[film]\nspp = 4\n".into())], "camera"),
         ("zero size", vec![("s.toml", format!("{CAMERA}[film]\nwidth = 0\n"))], "s.toml:5:"),
@@ -64,15 +80,8 @@ fn each_kind_of_bad_scene_is_one_error_with_status_2() {
         let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (*n, t.as_str())).collect();
         let (code, stderr, _dir) = render_bad(&files, &[]);
         assert_eq!(code, 2, "{what}: status {code}, stderr {stderr}");
-        assert!(
-            stderr.contains(expect),
-            "{what}: expected `{expect}` in: {stderr}"
-        );
-        assert_eq!(
-            stderr.trim().lines().count(),
-            1,
-            "{what}: not one line: {stderr}"
-        );
+        assert!(stderr.contains(expect), "{what}: expected `{expect}` in: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{what}: not one line: {stderr}");
     }
 }
 
@@ -83,11 +92,7 @@ fn missing_scene_file_and_bad_arguments_are_status_2() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/scene.toml"));
 
     let scene = format!("{CAMERA}[film]\nwidth = 4\nheight = 4\nspp = 1\n");
-    for args in [
-        &["--spp", "0"][..],
-        &["--threads", "0"][..],
-        &["--spp", "-3"][..],
-    ] {
+    for args in [&["--spp", "0"][..], &["--threads", "0"][..], &["--spp", "-3"][..]] {
         let (code, stderr, _dir) = render_bad(&[("s.toml", &scene)], args);
         assert_eq!(code, 2, "{args:?}: {stderr}");
     }
@@ -97,12 +102,7 @@ fn missing_scene_file_and_bad_arguments_are_status_2() {
     std::fs::write(&path, &scene).expect("write");
     for bad in ["out.jpg", "no/such/dir/out.png"] {
         let target = dir.path().join(bad);
-        let out = lightsplit(&[
-            "render",
-            path.to_str().expect("utf8"),
-            "-o",
-            target.to_str().expect("utf8"),
-        ]);
+        let out = lightsplit(&["render", path.to_str().expect("utf8"), "-o", target.to_str().expect("utf8")]);
         assert_eq!(out.status.code(), Some(2), "{bad}");
     }
 }
@@ -115,39 +115,20 @@ fn readme_render_command_makes_a_png_that_is_not_black() {
     let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
     let command = readme
         .lines()
-        .find_map(|l| {
-            l.split_once("cargo run --release -- render ")
-                .map(|(_, rest)| rest.to_string())
-        })
+        .find_map(|l| l.split_once("cargo run --release -- render ").map(|(_, rest)| rest.to_string()))
         .expect("the README has a `cargo run --release -- render` command");
     let mut args: Vec<String> = command.split_whitespace().map(str::to_string).collect();
     let dir = tempfile::tempdir().expect("tempdir");
-    let out_index = args
-        .iter()
-        .position(|a| a == "-o")
-        .expect("the command names an output")
-        + 1;
-    let png: PathBuf = dir
-        .path()
-        .join(Path::new(&args[out_index]).file_name().expect("file name"));
+    let out_index = args.iter().position(|a| a == "-o").expect("the command names an output") + 1;
+    let png: PathBuf = dir.path().join(Path::new(&args[out_index]).file_name().expect("file name"));
     args[out_index] = png.to_string_lossy().into_owned();
     let mut full = vec!["render".to_string()];
     full.extend(args);
-    let output = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
-        .current_dir(root)
-        .args(&full)
-        .output()
-        .expect("runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_lightsplit")).current_dir(root).args(&full).output().expect("runs");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let img = image::open(&png).expect("a PNG").into_rgb8();
-    let mean: f64 = img
-        .pixels()
-        .map(|p| p.0.iter().map(|&c| c as f64).sum::<f64>())
-        .sum::<f64>()
+    let mean: f64 = img.pixels().map(|p| p.0.iter().map(|&c| c as f64).sum::<f64>()).sum::<f64>()
         / (3.0 * img.pixels().len() as f64);
     assert!(mean > 20.0, "mean pixel value {mean} is nearly black");
 }
@@ -170,11 +151,7 @@ fn json_summary_has_the_documented_keys() {
         "16",
         "--json",
     ]);
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let v: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     for key in [
         "seconds",
@@ -190,10 +167,7 @@ fn json_summary_has_the_documented_keys() {
         assert!(v.get(key).is_some(), "missing {key}: {v}");
     }
     assert_eq!(v["spp"], 2);
-    assert_eq!(
-        (v["width"].as_u64(), v["height"].as_u64()),
-        (Some(24), Some(16))
-    );
+    assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(24), Some(16)));
     assert_eq!(v["accel"], "embree");
     assert!(v["rays_per_second"].as_f64().unwrap_or(0.0) > 0.0);
     assert!(out.exists());

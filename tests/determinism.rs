@@ -22,10 +22,7 @@ fn same_seed_same_image_on_one_and_two_threads() {
     let one = cornell(1, 7);
     let two = cornell(2, 7);
     let bits = |img: &lightsplit::film::Image| -> Vec<u32> {
-        img.pixels
-            .iter()
-            .flat_map(|p| p.to_array().map(f32::to_bits))
-            .collect()
+        img.pixels.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect()
     };
     assert_eq!(bits(&one), bits(&two));
     assert!(one.mean().x > 0.0);
@@ -35,15 +32,7 @@ fn same_seed_same_image_on_one_and_two_threads() {
 fn another_seed_gives_another_image() {
     let a = cornell(2, 7);
     let b = cornell(2, 8);
-    let differing = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .filter(|(p, q)| p != q)
-        .count();
+    let differing = a.pixels.iter().zip(&b.pixels).filter(|(p, q)| p != q).count();
     // With 4 spp nearly every lit pixel differs.
-    assert!(
-        differing > a.pixels.len() / 2,
-        "only {differing} pixels differ"
-    );
+    assert!(differing > a.pixels.len() / 2, "only {differing} pixels differ");
 }

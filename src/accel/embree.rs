@@ -61,11 +61,7 @@ impl DeviceInner {
     }
 }
 
-unsafe extern "C" fn error_callback(
-    user: *mut c_void,
-    code: sys::RTCError,
-    message: *const c_char,
-) {
+unsafe extern "C" fn error_callback(user: *mut c_void, code: sys::RTCError, message: *const c_char) {
     if user.is_null() {
         return;
     }
@@ -107,14 +103,9 @@ impl Device {
         if raw.is_null() {
             // SAFETY: rtcGetDeviceError accepts a null device and reports the creation error.
             let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
-            return Err(EmbreeError::Device(format!(
-                "rtcNewDevice failed with error {code}"
-            )));
+            return Err(EmbreeError::Device(format!("rtcNewDevice failed with error {code}")));
         }
-        let inner = Arc::new(DeviceInner {
-            raw,
-            errors: Box::new(Mutex::new(None)),
-        });
+        let inner = Arc::new(DeviceInner { raw, errors: Box::new(Mutex::new(None)) });
         let user = &*inner.errors as *const ErrorSlot as *mut c_void;
         // SAFETY: `raw` is a live device; `user` points to the boxed slot owned by `inner`, which
         // lives until after rtcReleaseDevice in Drop.
@@ -129,8 +120,7 @@ impl Device {
     fn check_version(&self) -> Result<(), EmbreeError> {
         // SAFETY: `raw` is a live device and the property is a plain integer query.
         let library =
-            unsafe { sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) }
-                as i64;
+            unsafe { sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) } as i64;
         let header = sys::RTC_VERSION as i64;
         if library / 10000 != header / 10000 || library < header / 100 * 100 {
             return Err(EmbreeError::Version { library, header });
@@ -141,9 +131,7 @@ impl Device {
     /// The Embree version of the loaded library, as `major * 10000 + minor * 100 + patch`.
     pub fn version(&self) -> i64 {
         // SAFETY: `raw` is a live device and the property is a plain integer query.
-        unsafe {
-            sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) as i64
-        }
+        unsafe { sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) as i64 }
     }
 
     /// A new, empty scene to fill and commit.
@@ -154,11 +142,7 @@ impl Device {
         if raw.is_null() {
             return Err(EmbreeError::Device("rtcNewScene returned null".into()));
         }
-        let scene = SceneBuilder {
-            raw,
-            device: self.inner.clone(),
-            meshes: Vec::new(),
-        };
+        let scene = SceneBuilder { raw, device: self.inner.clone(), meshes: Vec::new() };
         // SAFETY: `raw` is a live scene; these are plain setters.
         unsafe {
             sys::rtcSetSceneFlags(raw, sys::RTC_SCENE_FLAG_ROBUST);
@@ -251,10 +235,7 @@ impl SceneBuilder {
                 indices.len(),
             );
         }
-        self.meshes.push(SharedMesh {
-            _positions: positions,
-            _indices: indices,
-        });
+        self.meshes.push(SharedMesh { _positions: positions, _indices: indices });
         self.attach(geometry, id)
     }
 
@@ -276,9 +257,7 @@ impl SceneBuilder {
             if buffer.is_null() {
                 sys::rtcReleaseGeometry(geometry);
                 self.device.take_error()?;
-                return Err(EmbreeError::Device(
-                    "rtcSetNewGeometryBuffer returned null".into(),
-                ));
+                return Err(EmbreeError::Device("rtcSetNewGeometryBuffer returned null".into()));
             }
             for (i, s) in spheres.iter().enumerate() {
                 buffer.add(i).write(s.to_array());
@@ -293,11 +272,7 @@ impl SceneBuilder {
         unsafe { sys::rtcCommitScene(self.raw) };
         self.device.take_error()?;
         let raw = std::mem::replace(&mut self.raw, std::ptr::null_mut());
-        Ok(CommittedScene {
-            raw,
-            _device: self.device.clone(),
-            _meshes: std::mem::take(&mut self.meshes),
-        })
+        Ok(CommittedScene { raw, _device: self.device.clone(), _meshes: std::mem::take(&mut self.meshes) })
     }
 }
 
@@ -446,69 +421,45 @@ mod tests {
     fn triangle_scene() -> CommittedScene {
         let device = Device::new().expect("device");
         let mut scene = device.scene().expect("scene");
-        let positions: Arc<[Vec3A]> = Arc::from(vec![
-            Vec3A::new(0.0, 0.0, 0.0),
-            Vec3A::new(1.0, 0.0, 0.0),
-            Vec3A::new(0.0, 1.0, 0.0),
-        ]);
+        let positions: Arc<[Vec3A]> =
+            Arc::from(vec![Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(1.0, 0.0, 0.0), Vec3A::new(0.0, 1.0, 0.0)]);
         let indices: Arc<[[u32; 3]]> = Arc::from(vec![[0u32, 1, 2]]);
         scene.add_triangles(3, positions, indices).expect("mesh");
-        scene
-            .add_spheres(5, &[Vec4::new(0.0, 0.0, 10.0, 2.0)])
-            .expect("spheres");
+        scene.add_spheres(5, &[Vec4::new(0.0, 0.0, 10.0, 2.0)]).expect("spheres");
         scene.commit().expect("commit")
     }
 
     #[test]
     fn triangle_hit_has_expected_t_and_barycentrics() {
         let scene = triangle_scene();
-        let hit = scene
-            .intersect(&Ray::new(Vec3::new(0.25, 0.5, -2.0), Vec3::Z))
-            .expect("hit");
+        let hit = scene.intersect(&Ray::new(Vec3::new(0.25, 0.5, -2.0), Vec3::Z)).expect("hit");
         assert_eq!((hit.shape, hit.prim), (3, 0));
         assert!((hit.t - 2.0).abs() < 1e-6, "t = {}", hit.t);
         // p = (1-u-v) p0 + u p1 + v p2 = (u, v, 0)
-        assert!(
-            (hit.u - 0.25).abs() < 1e-6 && (hit.v - 0.5).abs() < 1e-6,
-            "{hit:?}"
-        );
+        assert!((hit.u - 0.25).abs() < 1e-6 && (hit.v - 0.5).abs() < 1e-6, "{hit:?}");
     }
 
     #[test]
     fn triangle_miss_and_t_max() {
         let scene = triangle_scene();
-        assert!(scene
-            .intersect(&Ray::new(Vec3::new(1.5, 1.5, -2.0), Vec3::Z))
-            .is_none());
-        let short = Ray {
-            t_max: 1.5,
-            ..Ray::new(Vec3::new(0.25, 0.25, -2.0), Vec3::Z)
-        };
+        assert!(scene.intersect(&Ray::new(Vec3::new(1.5, 1.5, -2.0), Vec3::Z)).is_none());
+        let short = Ray { t_max: 1.5, ..Ray::new(Vec3::new(0.25, 0.25, -2.0), Vec3::Z) };
         assert!(scene.intersect(&short).is_none());
         assert!(!scene.occluded(&short));
-        let long = Ray {
-            t_max: 2.5,
-            ..short
-        };
+        let long = Ray { t_max: 2.5, ..short };
         assert!(scene.occluded(&long));
     }
 
     #[test]
     fn sphere_hit_from_outside_and_inside() {
         let scene = triangle_scene();
-        let hit = scene
-            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 20.0), -Vec3::Z))
-            .expect("hit");
+        let hit = scene.intersect(&Ray::new(Vec3::new(0.0, 0.0, 20.0), -Vec3::Z)).expect("hit");
         assert_eq!((hit.shape, hit.prim), (5, 0));
         assert!((hit.t - 8.0).abs() < 1e-5, "t = {}", hit.t);
         // From the centre the far side is 2 away.
-        let inside = scene
-            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 10.0), Vec3::X))
-            .expect("hit from inside");
+        let inside = scene.intersect(&Ray::new(Vec3::new(0.0, 0.0, 10.0), Vec3::X)).expect("hit from inside");
         assert!((inside.t - 2.0).abs() < 1e-5, "t = {}", inside.t);
-        assert!(scene
-            .intersect(&Ray::new(Vec3::new(3.0, 0.0, 20.0), -Vec3::Z))
-            .is_none());
+        assert!(scene.intersect(&Ray::new(Vec3::new(3.0, 0.0, 20.0), -Vec3::Z)).is_none());
     }
 
     #[test]
@@ -544,9 +495,7 @@ mod tests {
         assert_eq!(device.version() / 10000, sys::API as i64);
         // An unknown geometry type is an Embree error, reported through the callback.
         let scene = device.scene().expect("scene");
-        let err = scene
-            .new_geometry(9999)
-            .expect_err("an unknown type must fail");
+        let err = scene.new_geometry(9999).expect_err("an unknown type must fail");
         assert!(matches!(err, EmbreeError::Api { .. }), "{err}");
     }
 

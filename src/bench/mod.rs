@@ -11,6 +11,17 @@ use crate::accel::{self, bvh::Bvh, Accel, Backend, Ray};
 use crate::scene::Scene;
 use rays::{RayKind, RaySets};
 
+/// A benchmark that could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error(transparent)]
+    Embree(#[from] accel::embree::EmbreeError),
+    #[error(transparent)]
+    Bvh(#[from] accel::bvh::TooLarge),
+    #[error("cannot start {0} worker threads: {1}")]
+    Threads(usize, String),
+}
+
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct BenchAccelOptions {
@@ -20,7 +31,8 @@ pub struct BenchAccelOptions {
     pub threads: usize,
     /// Seconds each measurement runs at least.
     pub min_seconds: f64,
-    /// Measurements per row and backend, alternating backends; the best is kept.
+    /// Rounds per row; each round measures Embree then the BVH back to back. The medians over
+    /// rounds are reported, so one slow moment of a noisy machine does not decide a row.
     pub rounds: usize,
     pub seed: u64,
 }
@@ -32,6 +44,18 @@ pub struct Row {
     pub rays: RayKind,
     pub threads: usize,
     pub mrays_per_second: f64,
+    /// For the BVH rows: the median over rounds of BVH / Embree, each measured back to back.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio: Option<f64>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }
 
 /// Everything `bench-accel` measured.
@@ -52,10 +76,7 @@ pub fn trace_pass<A: Accel>(accel: &A, rays: &[Ray], kind: RayKind) -> usize {
     rays.par_chunks(1024)
         .map(|chunk| match kind {
             RayKind::Shadow => chunk.iter().filter(|r| accel.occluded(r)).count(),
-            _ => chunk
-                .iter()
-                .filter(|r| accel.intersect(r).is_some())
-                .count(),
+            _ => chunk.iter().filter(|r| accel.intersect(r).is_some()).count(),
         })
         .sum()
 }
@@ -95,7 +116,7 @@ pub fn bench_accel(
     scene: &Scene,
     options: &BenchAccelOptions,
     progress: &dyn Fn(usize, usize),
-) -> Result<BenchAccelReport, accel::embree::EmbreeError> {
+) -> Result<BenchAccelReport, BenchError> {
     let (embree, embree_build) = best_of(3, || {
         let start = Instant::now();
         let e = accel::build_embree(scene, None);
@@ -107,6 +128,7 @@ pub fn bench_accel(
         let b = Bvh::new(scene);
         (b, start.elapsed().as_secs_f64())
     });
+    let bvh = bvh?;
 
     let sets = RaySets::generate(scene, &embree, options.rays, options.seed);
     let mut thread_counts = vec![1];
@@ -122,46 +144,40 @@ pub fn bench_accel(
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
-                .expect("a thread pool of a checked size");
-            let (mut e, mut b) = (0.0f64, 0.0f64);
+                .map_err(|e| BenchError::Threads(threads, e.to_string()))?;
+            let (mut e, mut b, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
             pool.install(|| {
                 for _ in 0..options.rounds.max(1) {
-                    e = e.max(rate(&embree, rays, kind, options.min_seconds));
-                    b = b.max(rate(&bvh, rays, kind, options.min_seconds));
+                    let re = rate(&embree, rays, kind, options.min_seconds);
+                    let rb = rate(&bvh, rays, kind, options.min_seconds);
+                    e.push(re);
+                    b.push(rb);
+                    ratio.push(rb / re.max(1e-12));
                 }
             });
-            rows.push(Row {
-                backend: Backend::Embree,
+            let row = |backend, mrays_per_second, ratio| Row {
+                backend,
                 rays: kind,
                 threads,
-                mrays_per_second: e,
-            });
-            rows.push(Row {
-                backend: Backend::Bvh,
-                rays: kind,
-                threads,
-                mrays_per_second: b,
-            });
+                mrays_per_second,
+                ratio,
+            };
+            rows.push(row(Backend::Embree, median(e), None));
+            rows.push(row(Backend::Bvh, median(b), Some(median(ratio))));
             done += 1;
             progress(done, total);
         }
     }
-    let spheres = scene
-        .shapes
-        .iter()
-        .filter(|s| matches!(s.geometry, crate::scene::Geometry::Sphere { .. }))
-        .count();
+    let spheres =
+        scene.shapes.iter().filter(|s| matches!(s.geometry, crate::scene::Geometry::Sphere { .. })).count();
     Ok(BenchAccelReport {
         scene: scene.path.display().to_string(),
         triangles: scene.triangle_count(),
         spheres,
         ray_counts: [sets.primary.len(), sets.shadow.len(), sets.incoherent.len()],
-        build_seconds: [
-            (Backend::Embree.to_string(), embree_build),
-            (Backend::Bvh.to_string(), bvh_build),
-        ]
-        .into_iter()
-        .collect(),
+        build_seconds: [(Backend::Embree.to_string(), embree_build), (Backend::Bvh.to_string(), bvh_build)]
+            .into_iter()
+            .collect(),
         rows,
     })
 }
@@ -178,12 +194,7 @@ impl BenchAccelReport {
             self.ray_counts[1],
             self.ray_counts[2]
         );
-        let build = |b: Backend| {
-            self.build_seconds
-                .get(&b.to_string())
-                .copied()
-                .unwrap_or(0.0)
-        };
+        let build = |b: Backend| self.build_seconds.get(&b.to_string()).copied().unwrap_or(0.0);
         let (be, bb) = (build(Backend::Embree), build(Backend::Bvh));
         out += &format!(
             "build        embree {:>9.4} s   bvh {:>9.4} s   bvh/embree time {:>5.2}x\n",
@@ -191,7 +202,7 @@ impl BenchAccelReport {
             bb,
             bb / be.max(1e-12)
         );
-        out += "rays        threads   embree Mrays/s   bvh Mrays/s   bvh/embree\n";
+        out += "rays        threads   embree Mrays/s   bvh Mrays/s   bvh/embree (median of rounds)\n";
         for pair in self.rows.chunks(2) {
             if let [e, b] = pair {
                 out += &format!(
@@ -200,7 +211,7 @@ impl BenchAccelReport {
                     e.threads,
                     e.mrays_per_second,
                     b.mrays_per_second,
-                    b.mrays_per_second / e.mrays_per_second.max(1e-12)
+                    b.ratio.unwrap_or(b.mrays_per_second / e.mrays_per_second.max(1e-12))
                 );
             }
         }

@@ -57,11 +57,7 @@ impl RaySets {
         let camera = PinholeCamera::new(&scene.camera, w, h);
         let lights = Lights::new(scene);
         let (lo, hi) = scene.bounds();
-        let mut sets = RaySets {
-            primary: Vec::with_capacity(n),
-            shadow: Vec::new(),
-            incoherent: Vec::new(),
-        };
+        let mut sets = RaySets { primary: Vec::with_capacity(n), shadow: Vec::new(), incoherent: Vec::new() };
         for i in 0..n {
             let mut s = Sampler::new(seed, i as u64, 0x5eed);
             let film = Vec2::new(s.next_1d() * w as f32, s.next_1d() * h as f32);
@@ -71,11 +67,7 @@ impl RaySets {
                 continue;
             };
             let surf = surface(scene, &ray, &hit);
-            let ng = if surf.ng.dot(ray.dir) <= 0.0 {
-                surf.ng
-            } else {
-                -surf.ng
-            };
+            let ng = if surf.ng.dot(ray.dir) <= 0.0 { surf.ng } else { -surf.ng };
             let origin = offset_ray_origin(surf.p, ng);
             // Shadow: toward a light sample, or a random point of the scene without lights.
             let end = match lights.sample(scene, surf.p, s.next_1d(), s.next_2d()) {
@@ -85,11 +77,7 @@ impl RaySets {
                 },
                 None => lo + (hi - lo) * Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()),
             };
-            sets.shadow.push(Ray {
-                origin,
-                dir: end - origin,
-                t_max: 1.0,
-            });
+            sets.shadow.push(Ray { origin, dir: end - origin, t_max: 1.0 });
             let dir = Frame::new(ng).to_world(cosine_hemisphere(s.next_2d()));
             sets.incoherent.push(Ray::new(origin, dir));
         }

@@ -18,11 +18,7 @@ pub struct Image {
 
 impl Image {
     pub fn new(width: u32, height: u32) -> Self {
-        Image {
-            width,
-            height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
-        }
+        Image { width, height, pixels: vec![Vec3::ZERO; width as usize * height as usize] }
     }
 
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
@@ -42,11 +38,7 @@ impl Image {
             }
         }
         let n = self.pixels.len().max(1) as f64;
-        Vec3::new(
-            (sum[0] / n) as f32,
-            (sum[1] / n) as f32,
-            (sum[2] / n) as f32,
-        )
+        Vec3::new((sum[0] / n) as f32, (sum[1] / n) as f32, (sum[2] / n) as f32)
     }
 }
 
@@ -70,10 +62,7 @@ pub enum WriteError {
 impl Format {
     /// The format for a path's extension, case-insensitive.
     pub fn from_path(path: &Path) -> Result<Format, WriteError> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("exr") => Ok(Format::Exr),
             Some("png") => Ok(Format::Png),
@@ -108,11 +97,7 @@ fn parent_dir(path: &Path) -> PathBuf {
 pub fn srgb8(linear: f32, exposure: f32) -> u8 {
     let c = (linear * exposure.exp2()).clamp(0.0, 1.0);
     let c = if c.is_nan() { 0.0 } else { c };
-    let s = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0 + 0.5) as u8
 }
 
@@ -121,16 +106,9 @@ pub fn srgb8(linear: f32, exposure: f32) -> u8 {
 pub fn write(image: &Image, path: &Path, exposure: f32) -> Result<(), WriteError> {
     let format = Format::from_path(path)?;
     let io_err = |e: String| WriteError::Io(path.to_path_buf(), e);
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     // Same directory, so the rename is atomic; the same extension, for writers that look at it.
-    let tmp = parent_dir(path).join(format!(
-        ".{name}.{}.tmp.{}",
-        std::process::id(),
-        extension(format)
-    ));
+    let tmp = parent_dir(path).join(format!(".{name}.{}.tmp.{}", std::process::id(), extension(format)));
     let result = match format {
         Format::Exr => write_exr(image, &tmp),
         Format::Png => write_png(image, &tmp, exposure),
@@ -166,28 +144,17 @@ fn write_png(image: &Image, path: &Path, exposure: f32) -> Result<(), String> {
     let bytes: Vec<u8> = image
         .pixels
         .iter()
-        .flat_map(|c| {
-            [
-                srgb8(c.x, exposure),
-                srgb8(c.y, exposure),
-                srgb8(c.z, exposure),
-            ]
-        })
+        .flat_map(|c| [srgb8(c.x, exposure), srgb8(c.y, exposure), srgb8(c.z, exposure)])
         .collect();
     let buffer = image::RgbImage::from_raw(image.width, image.height, bytes)
         .ok_or_else(|| "image buffer has the wrong size".to_string())?;
-    buffer
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| e.to_string())
+    buffer.save_with_format(path, image::ImageFormat::Png).map_err(|e| e.to_string())
 }
 
 fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
     let file = fs::File::create(path).map_err(|e| e.to_string())?;
-    let pixels: Vec<image::Rgb<f32>> = image
-        .pixels
-        .iter()
-        .map(|c| image::Rgb([c.x.max(0.0), c.y.max(0.0), c.z.max(0.0)]))
-        .collect();
+    let pixels: Vec<image::Rgb<f32>> =
+        image.pixels.iter().map(|c| image::Rgb([c.x.max(0.0), c.y.max(0.0), c.z.max(0.0)])).collect();
     let mut out = BufWriter::new(file);
     image::codecs::hdr::HdrEncoder::new(&mut out)
         .encode(&pixels, image.width as usize, image.height as usize)
@@ -222,11 +189,7 @@ mod tests {
         let mut img = Image::new(5, 3);
         for y in 0..3 {
             for x in 0..5 {
-                img.set(
-                    x,
-                    y,
-                    Vec3::new(x as f32 * 0.25, y as f32 * 0.5, 1000.0 + x as f32),
-                );
+                img.set(x, y, Vec3::new(x as f32 * 0.25, y as f32 * 0.5, 1000.0 + x as f32));
             }
         }
         img
@@ -276,14 +239,8 @@ mod tests {
 
     #[test]
     fn bad_extension_and_missing_directory_fail_before_writing() {
-        assert!(matches!(
-            check_output(Path::new("x.jpg")),
-            Err(WriteError::Extension(_))
-        ));
-        assert!(matches!(
-            check_output(Path::new("/no/such/dir/x.png")),
-            Err(WriteError::Io(..))
-        ));
+        assert!(matches!(check_output(Path::new("x.jpg")), Err(WriteError::Extension(_))));
+        assert!(matches!(check_output(Path::new("/no/such/dir/x.png")), Err(WriteError::Io(..))));
         assert_eq!(check_output(Path::new("x.EXR")).expect("ok"), Format::Exr);
     }
 }

@@ -54,12 +54,7 @@ mod tests {
 
     #[test]
     fn centre_and_corners() {
-        let cam = Camera {
-            position: Vec3::ZERO,
-            look_at: Vec3::Z,
-            up: Vec3::Y,
-            fov: 90.0,
-        };
+        let cam = Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 90.0 };
         let c = PinholeCamera::new(&cam, 100, 50);
         let centre = c.ray(50, 25, Vec2::ZERO);
         assert!((centre.dir - Vec3::Z).length() < 1e-6);

@@ -50,11 +50,7 @@ impl<A: Accel> Integrator<'_, A> {
                 for &i in &lights.distant {
                     let (le, light_pdf) = lights.distant(i, ray.dir);
                     if le != Vec3::ZERO {
-                        let w = if specular {
-                            1.0
-                        } else {
-                            power_heuristic(bsdf_pdf, light_pdf)
-                        };
+                        let w = if specular { 1.0 } else { power_heuristic(bsdf_pdf, light_pdf) };
                         l += beta * le * w;
                     }
                 }
@@ -91,21 +87,13 @@ impl<A: Accel> Integrator<'_, A> {
                 if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
                     let shadow = match ls.end {
                         // Unnormalised direction: t in [0, 1] ends exactly at the light point.
-                        ShadowEnd::Point(q) => Ray {
-                            origin,
-                            dir: q - origin,
-                            t_max: 1.0,
-                        },
+                        ShadowEnd::Point(q) => Ray { origin, dir: q - origin, t_max: 1.0 },
                         ShadowEnd::Infinite => Ray::new(origin, ls.wi),
                     };
                     *rays += 1;
                     if !self.accel.occluded(&shadow) {
                         let f = albedo * FRAC_1_PI;
-                        let w = if ls.delta {
-                            1.0
-                        } else {
-                            power_heuristic(ls.pdf, cos * FRAC_1_PI)
-                        };
+                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
                         l += beta * f * ls.radiance * (cos * w / ls.pdf);
                     }
                 }

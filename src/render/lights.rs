@@ -8,8 +8,8 @@ use std::f32::consts::PI;
 use glam::{Vec2, Vec3};
 
 use crate::math::{
-    luminance, offset_ray_origin, one_minus_cos_between, uniform_cone, uniform_sphere,
-    uniform_triangle, Distribution1D, Frame, FOUR_PI,
+    luminance, offset_ray_origin, one_minus_cos_between, uniform_cone, uniform_sphere, uniform_triangle,
+    Distribution1D, Frame, FOUR_PI,
 };
 use crate::scene::{Geometry, Light, Mesh, Scene};
 
@@ -19,30 +19,11 @@ const NONE: u32 = u32::MAX;
 /// One light, ready to sample.
 #[derive(Clone, Debug)]
 pub enum Emitter {
-    Point {
-        position: Vec3,
-        intensity: Vec3,
-    },
-    Sun {
-        frame: Frame,
-        radiance: Vec3,
-        one_minus_cos: f32,
-    },
-    Sky {
-        radiance: Vec3,
-    },
-    Mesh {
-        shape: u32,
-        triangles: Distribution1D,
-        area: f32,
-        emission: Vec3,
-    },
-    Sphere {
-        shape: u32,
-        center: Vec3,
-        radius: f32,
-        emission: Vec3,
-    },
+    Point { position: Vec3, intensity: Vec3 },
+    Sun { frame: Frame, radiance: Vec3, one_minus_cos: f32 },
+    Sky { radiance: Vec3 },
+    Mesh { shape: u32, triangles: Distribution1D, area: f32, emission: Vec3 },
+    Sphere { shape: u32, center: Vec3, radius: f32, emission: Vec3 },
 }
 
 /// Where a shadow ray toward a light sample ends.
@@ -88,47 +69,22 @@ impl Lights {
         let (lo, hi) = scene.bounds();
         let radius = 0.5 * (hi - lo).length().max(1e-3);
         let disc = PI * radius * radius;
-        let mut lights = Lights {
-            shape_light: vec![NONE; scene.shapes.len()],
-            ..Default::default()
-        };
+        let mut lights = Lights { shape_light: vec![NONE; scene.shapes.len()], ..Default::default() };
         let mut power = Vec::new();
 
         for light in &scene.lights {
             let (emitter, phi, diffuse_source) = match *light {
-                Light::Point {
-                    position,
-                    intensity,
-                } => (
-                    Emitter::Point {
-                        position,
-                        intensity,
-                    },
-                    FOUR_PI * luminance(intensity),
-                    false,
-                ),
-                Light::Sun {
-                    direction,
-                    radiance,
-                    one_minus_cos,
-                    diffuse_source,
-                } => {
+                Light::Point { position, intensity } => {
+                    (Emitter::Point { position, intensity }, FOUR_PI * luminance(intensity), false)
+                }
+                Light::Sun { direction, radiance, one_minus_cos, diffuse_source } => {
                     let irradiance = radiance * (2.0 * PI * one_minus_cos);
-                    let emitter = Emitter::Sun {
-                        frame: Frame::new(direction),
-                        radiance,
-                        one_minus_cos,
-                    };
+                    let emitter = Emitter::Sun { frame: Frame::new(direction), radiance, one_minus_cos };
                     (emitter, disc * luminance(irradiance), diffuse_source)
                 }
-                Light::Sky {
-                    radiance,
-                    diffuse_source,
-                } => (
-                    Emitter::Sky { radiance },
-                    FOUR_PI * disc * luminance(radiance),
-                    diffuse_source,
-                ),
+                Light::Sky { radiance, diffuse_source } => {
+                    (Emitter::Sky { radiance }, FOUR_PI * disc * luminance(radiance), diffuse_source)
+                }
             };
             if !light_is_dark(&emitter) {
                 if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. }) {
@@ -146,19 +102,14 @@ impl Lights {
             }
             let (emitter, area) = match &shape.geometry {
                 Geometry::Triangles(mesh) => {
-                    let areas: Vec<f32> = (0..mesh.indices.len() as u32)
-                        .map(|t| mesh.triangle_area(t))
-                        .collect();
+                    let areas: Vec<f32> =
+                        (0..mesh.indices.len() as u32).map(|t| mesh.triangle_area(t)).collect();
                     let area: f32 = areas.iter().sum();
                     let Some(triangles) = Distribution1D::new(&areas) else {
                         continue;
                     };
-                    let emitter = Emitter::Mesh {
-                        shape: i as u32,
-                        triangles,
-                        area,
-                        emission: shape.emission,
-                    };
+                    let emitter =
+                        Emitter::Mesh { shape: i as u32, triangles, area, emission: shape.emission };
                     (emitter, area)
                 }
                 Geometry::Sphere { center, radius } => {
@@ -209,10 +160,7 @@ impl Lights {
         };
         let light = i as u32;
         match &self.emitters[i] {
-            Emitter::Point {
-                position,
-                intensity,
-            } => {
+            Emitter::Point { position, intensity } => {
                 let d = *position - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 {
@@ -227,11 +175,7 @@ impl Lights {
                     light,
                 })
             }
-            Emitter::Sun {
-                frame,
-                radiance,
-                one_minus_cos,
-            } => Some(LightSample {
+            Emitter::Sun { frame, radiance, one_minus_cos } => Some(LightSample {
                 radiance: *radiance,
                 wi: frame.to_world(uniform_cone(u, *one_minus_cos)),
                 pdf: select / (2.0 * PI * one_minus_cos),
@@ -247,12 +191,7 @@ impl Lights {
                 end: ShadowEnd::Infinite,
                 light,
             }),
-            Emitter::Mesh {
-                shape,
-                triangles,
-                area,
-                emission,
-            } => {
+            Emitter::Mesh { shape, triangles, area, emission } => {
                 let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
                     return None;
                 };
@@ -261,12 +200,7 @@ impl Lights {
                 let (q, n) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
                 area_sample(p, q, n, *emission, select / area, light)
             }
-            Emitter::Sphere {
-                center,
-                radius,
-                emission,
-                ..
-            } => {
+            Emitter::Sphere { center, radius, emission, .. } => {
                 let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
                 let cos_l = n.dot(p - q);
                 if cos_l <= 0.0 {
@@ -317,11 +251,7 @@ impl Lights {
         let select = self.select_pdf(light);
         match &self.emitters[light as usize] {
             Emitter::Sky { radiance } => (*radiance, select / FOUR_PI),
-            Emitter::Sun {
-                frame,
-                radiance,
-                one_minus_cos,
-            } => {
+            Emitter::Sun { frame, radiance, one_minus_cos } => {
                 if one_minus_cos_between(dir, frame.n) <= *one_minus_cos {
                     (*radiance, select / (2.0 * PI * one_minus_cos))
                 } else {
@@ -337,9 +267,7 @@ fn light_is_dark(e: &Emitter) -> bool {
     match e {
         Emitter::Point { intensity, .. } => intensity.max_element() <= 0.0,
         Emitter::Sun { radiance, .. } | Emitter::Sky { radiance } => radiance.max_element() <= 0.0,
-        Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => {
-            emission.max_element() <= 0.0
-        }
+        Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => emission.max_element() <= 0.0,
     }
 }
 
@@ -354,14 +282,7 @@ fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3) {
 
 /// Turns an area sample `q` (normal `n`, one-sided emission `emission`, area density
 /// `pdf_area`) into a solid-angle sample at `p`.
-fn area_sample(
-    p: Vec3,
-    q: Vec3,
-    n: Vec3,
-    emission: Vec3,
-    pdf_area: f32,
-    light: u32,
-) -> Option<LightSample> {
+fn area_sample(p: Vec3, q: Vec3, n: Vec3, emission: Vec3, pdf_area: f32, light: u32) -> Option<LightSample> {
     let d = q - p;
     let dist2 = d.length_squared();
     if dist2 == 0.0 {
@@ -436,11 +357,7 @@ mod tests {
         // Standard error of the fraction estimate, times 4 pi; 5 sigma.
         let frac = inside as f32 / n as f32;
         let sigma = FOUR_PI * (frac * (1.0 - frac) / n as f32).sqrt();
-        assert!(
-            (1.0 / pdf - solid_angle).abs() < 5.0 * sigma,
-            "{} vs {solid_angle}",
-            1.0 / pdf
-        );
+        assert!((1.0 / pdf - solid_angle).abs() < 5.0 * sigma, "{} vs {solid_angle}", 1.0 / pdf);
         assert!(((q - c).length() - r).abs() < 1e-5);
     }
 }

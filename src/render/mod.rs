@@ -77,6 +77,8 @@ pub struct RenderOutput {
 pub enum RenderError {
     #[error(transparent)]
     Embree(#[from] accel::embree::EmbreeError),
+    #[error(transparent)]
+    Bvh(#[from] accel::bvh::TooLarge),
     #[error("cannot start {0} worker threads: {1}")]
     Threads(usize, String),
     #[error("the image size {0}x{1} is empty or too large")]
@@ -90,10 +92,7 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
-    if options.width == 0
-        || options.height == 0
-        || options.width as u64 * options.height as u64 > 1 << 30
-    {
+    if options.width == 0 || options.height == 0 || options.width as u64 * options.height as u64 > 1 << 30 {
         return Err(RenderError::Size(options.width, options.height));
     }
     let run = || -> Result<RenderOutput, RenderError> {
@@ -107,7 +106,7 @@ pub fn render(
                 Ok(out)
             }
             Backend::Bvh => {
-                let accel = accel::bvh::Bvh::new(scene);
+                let accel = accel::bvh::Bvh::new(scene)?;
                 let build_seconds = start.elapsed().as_secs_f64();
                 let mut out = render_with(scene, &accel, options, progress);
                 out.stats.build_seconds = build_seconds;
@@ -147,12 +146,7 @@ pub fn render_with<A: Accel>(
     let (width, height) = (options.width, options.height);
     let camera = PinholeCamera::new(&scene.camera, width, height);
     let lights = Lights::new(scene);
-    let integrator = Integrator {
-        scene,
-        accel,
-        lights: &lights,
-        max_depth: options.max_depth,
-    };
+    let integrator = Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
     let spp = options.spp.max(1);
 
     let tiles: Vec<(u32, u32)> = (0..height.div_ceil(TILE))
@@ -162,14 +156,8 @@ pub fn render_with<A: Accel>(
         .par_iter()
         .map(|&(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            let mut tile = Tile {
-                x0,
-                y0,
-                w,
-                pixels: Vec::with_capacity((w * h) as usize),
-                rays: 0,
-                nonfinite: 0,
-            };
+            let mut tile =
+                Tile { x0, y0, w, pixels: Vec::with_capacity((w * h) as usize), rays: 0, nonfinite: 0 };
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
                     let pixel = y as u64 * width as u64 + x as u64;
@@ -193,10 +181,7 @@ pub fn render_with<A: Accel>(
         .collect();
 
     let mut image = Image::new(width, height);
-    let mut stats = RenderStats {
-        samples: width as u64 * height as u64 * spp as u64,
-        ..Default::default()
-    };
+    let mut stats = RenderStats { samples: width as u64 * height as u64 * spp as u64, ..Default::default() };
     for tile in done {
         for (i, p) in tile.pixels.iter().enumerate() {
             let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);

@@ -23,10 +23,7 @@ impl Sampler {
         let a = mix(seed ^ 0x9e37_79b9_7f4a_7c15);
         let b = mix(a ^ pixel);
         let c = mix(b.wrapping_add(sample.wrapping_mul(0x632b_e59b_d9b4_e019)));
-        let mut s = Sampler {
-            state: 0,
-            inc: (mix(c ^ 0xda94_2042_e4dd_58b5) << 1) | 1,
-        };
+        let mut s = Sampler { state: 0, inc: (mix(c ^ 0xda94_2042_e4dd_58b5) << 1) | 1 };
         s.state = c.wrapping_add(s.inc);
         s.next_u32();
         s
@@ -34,9 +31,7 @@ impl Sampler {
 
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(self.inc);
+        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -72,11 +67,7 @@ mod tests {
             })
             .collect();
         assert_eq!(a, b);
-        for other in [
-            Sampler::new(0, 2, 3),
-            Sampler::new(1, 3, 3),
-            Sampler::new(1, 2, 4),
-        ] {
+        for other in [Sampler::new(0, 2, 3), Sampler::new(1, 3, 3), Sampler::new(1, 2, 4)] {
             let mut other = other;
             let c: Vec<u32> = (0..8).map(|_| other.next_u32()).collect();
             assert_ne!(a, c);

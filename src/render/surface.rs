@@ -21,11 +21,7 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         Geometry::Sphere { center, radius } => {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
             let n = (ray.at(hit.t) - *center).normalize_or(fallback);
-            Surface {
-                p: *center + n * *radius,
-                ng: n,
-                ns: n,
-            }
+            Surface { p: *center + n * *radius, ng: n, ns: n }
         }
         Geometry::Triangles(mesh) => {
             let [a, b, c] = mesh.triangle(hit.prim);

@@ -156,11 +156,7 @@ struct FileLight {
 
 /// 1-based line of a byte offset.
 fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())]
-        .bytes()
-        .filter(|&b| b == b'\n')
-        .count()
-        + 1
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
 
 /// Reports errors against one scene file.
@@ -170,16 +166,8 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn err<T>(
-        &self,
-        span: std::ops::Range<usize>,
-        message: impl Into<String>,
-    ) -> Result<T, SceneError> {
-        Err(SceneError::new(
-            self.path,
-            Some(line_of(self.text, span.start)),
-            message,
-        ))
+    fn err<T>(&self, span: std::ops::Range<usize>, message: impl Into<String>) -> Result<T, SceneError> {
+        Err(SceneError::new(self.path, Some(line_of(self.text, span.start)), message))
     }
 
     /// Rejects keys that the table's `type` does not use: present keys minus allowed ones.
@@ -190,18 +178,12 @@ impl Ctx<'_> {
         present: &[(&'static str, bool)],
         allowed: &[&str],
     ) -> Result<(), SceneError> {
-        let extra: Vec<&str> = present
-            .iter()
-            .filter(|(key, is)| *is && !allowed.contains(key))
-            .map(|(key, _)| *key)
-            .collect();
+        let extra: Vec<&str> =
+            present.iter().filter(|(key, is)| *is && !allowed.contains(key)).map(|(key, _)| *key).collect();
         if extra.is_empty() {
             Ok(())
         } else {
-            self.err(
-                span,
-                format!("{what} does not take `{}`", extra.join("`, `")),
-            )
+            self.err(span, format!("{what} does not take `{}`", extra.join("`, `")))
         }
     }
 
@@ -230,12 +212,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let file: FileScene = toml::from_str(text).map_err(|e| {
         let line = e.span().map(|s| line_of(text, s.start));
-        let message: Vec<&str> = e
-            .message()
-            .lines()
-            .map(str::trim)
-            .filter(|l| !l.is_empty())
-            .collect();
+        let message: Vec<&str> = e.message().lines().map(str::trim).filter(|l| !l.is_empty()).collect();
         SceneError::new(path, line, message.join("; "))
     })?;
     let ctx = Ctx { path, text };
@@ -245,9 +222,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let film = film(&ctx, file.film.as_ref())?;
     let render = RenderSettings {
         max_depth: match file.render.as_ref().and_then(|r| r.max_depth.as_ref()) {
-            Some(d) if *d.get_ref() == 0 => {
-                return ctx.err(d.span(), "`max_depth` must be at least 1")
-            }
+            Some(d) if *d.get_ref() == 0 => return ctx.err(d.span(), "`max_depth` must be at least 1"),
             Some(d) => *d.get_ref(),
             None => 8,
         },
@@ -270,22 +245,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 }
                 Material::Diffuse { albedo: color }
             }
-            other => {
-                return ctx.err(
-                    span,
-                    format!("unknown material type `{other}` (expected diffuse)"),
-                )
-            }
+            other => return ctx.err(span, format!("unknown material type `{other}` (expected diffuse)")),
         };
         material_ids.insert(m.name.clone(), materials.len() as u32);
         materials.push(material);
     }
 
-    let mut builder = ShapeBuilder {
-        shapes: Vec::new(),
-        objects: Vec::new(),
-        object_ids: HashMap::new(),
-    };
+    let mut builder = ShapeBuilder { shapes: Vec::new(), objects: Vec::new(), object_ids: HashMap::new() };
     for s in &file.shape {
         add_shape(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
     }
@@ -315,47 +281,31 @@ fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<Camera, SceneError> {
     let up = c.up.map(v3).unwrap_or(Vec3::Y);
     let fov = match &c.fov {
         Some(f) if !(f.get_ref().0 > 0.0 && f.get_ref().0 < 180.0) => {
-            return ctx.err(
-                f.span(),
-                "`fov` must lie strictly between 0 and 180 degrees",
-            )
+            return ctx.err(f.span(), "`fov` must lie strictly between 0 and 180 degrees")
         }
         Some(f) => f.get_ref().0,
         None => 40.0,
     };
     let forward = look_at - position;
     if forward.length_squared() == 0.0 {
-        return ctx.err(
-            span,
-            "the camera's `position` and `look_at` are the same point",
-        );
+        return ctx.err(span, "the camera's `position` and `look_at` are the same point");
     }
-    if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared()
-    {
-        return ctx.err(
-            span,
-            "the camera's `up` is zero or parallel to its view direction",
-        );
+    if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared() {
+        return ctx.err(span, "the camera's `up` is zero or parallel to its view direction");
     }
-    Ok(Camera {
-        position,
-        look_at,
-        up,
-        fov,
-    })
+    Ok(Camera { position, look_at, up, fov })
 }
 
 fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, SceneError> {
-    let get =
-        |v: Option<&Spanned<u32>>, name: &str, default: u32, max: u32| -> Result<u32, SceneError> {
-            match v {
-                Some(v) if *v.get_ref() == 0 || *v.get_ref() > max => {
-                    ctx.err(v.span(), format!("`{name}` must lie between 1 and {max}"))
-                }
-                Some(v) => Ok(*v.get_ref()),
-                None => Ok(default),
+    let get = |v: Option<&Spanned<u32>>, name: &str, default: u32, max: u32| -> Result<u32, SceneError> {
+        match v {
+            Some(v) if *v.get_ref() == 0 || *v.get_ref() > max => {
+                ctx.err(v.span(), format!("`{name}` must lie between 1 and {max}"))
             }
-        };
+            Some(v) => Ok(*v.get_ref()),
+            None => Ok(default),
+        }
+    };
     Ok(FilmSettings {
         width: get(f.and_then(|f| f.width.as_ref()), "width", 256, 1 << 16)?,
         height: get(f.and_then(|f| f.height.as_ref()), "height", 256, 1 << 16)?,
@@ -434,10 +384,7 @@ fn add_shape(
     ];
     let what = format!("a {} shape", s.kind);
     let index = out.shapes.len();
-    let name = s
-        .name
-        .clone()
-        .unwrap_or_else(|| format!("{}{}", s.kind, index));
+    let name = s.name.clone().unwrap_or_else(|| format!("{}{}", s.kind, index));
     let emission = s.emission.map(v3).unwrap_or(Vec3::ZERO);
     if emission.min_element() < 0.0 {
         return ctx.err(span.clone(), "`emission` must not be negative");
@@ -455,9 +402,7 @@ fn add_shape(
         None => None,
     };
     let default_material = |materials: &mut Vec<Material>| -> u32 {
-        materials.push(Material::Diffuse {
-            albedo: Vec3::splat(0.8),
-        });
+        materials.push(Material::Diffuse { albedo: Vec3::splat(0.8) });
         (materials.len() - 1) as u32
     };
 
@@ -522,18 +467,12 @@ fn add_shape(
                 } else {
                     part.material.map_or(Vec3::ZERO, |m| m.emission)
                 };
-                let positions: Vec<Vec3> =
-                    part.positions.iter().map(|&p| transform.point(p)).collect();
+                let positions: Vec<Vec3> = part.positions.iter().map(|&p| transform.point(p)).collect();
                 let normals = part.normals.map(|n| {
                     let inv_t = transform.linear.inverse().transpose();
-                    n.iter()
-                        .map(|&v| (inv_t * v).normalize_or_zero())
-                        .collect::<Arc<[Vec3]>>()
+                    n.iter().map(|&v| (inv_t * v).normalize_or_zero()).collect::<Arc<[Vec3]>>()
                 });
-                let object_name = s
-                    .object
-                    .clone()
-                    .unwrap_or_else(|| format!("{name}/{}", part.name));
+                let object_name = s.object.clone().unwrap_or_else(|| format!("{name}/{}", part.name));
                 let object = out.object(&object_name);
                 out.shapes.push(Shape {
                     name: format!("{name}/{}", part.name),
@@ -550,18 +489,10 @@ fn add_shape(
             return Ok(());
         }
         "terrain" => {
-            ctx.only(
-                span.clone(),
-                &what,
-                &present,
-                &["resolution", "size", "height", "seed"],
-            )?;
+            ctx.only(span.clone(), &what, &present, &["resolution", "size", "height", "seed"])?;
             let resolution = match &s.resolution {
                 Some(r) if !(1..=MAX_TERRAIN).contains(r.get_ref()) => {
-                    return ctx.err(
-                        r.span(),
-                        format!("`resolution` must lie between 1 and {MAX_TERRAIN}"),
-                    )
+                    return ctx.err(r.span(), format!("`resolution` must lie between 1 and {MAX_TERRAIN}"))
                 }
                 Some(r) => *r.get_ref(),
                 None => 64,
@@ -573,41 +504,26 @@ fn add_shape(
             let height = s.height.map_or(1.0, |v| v.0);
             let mut mesh = procedural::terrain(resolution, size, height, s.seed.unwrap_or(0));
             if transform.rotates || transform.scale != 1.0 || transform.translate != Vec3::ZERO {
-                mesh.positions = mesh
-                    .positions
-                    .iter()
-                    .map(|&p| Vec3A::from(transform.point(p.into())))
-                    .collect();
+                mesh.positions =
+                    mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.into()))).collect();
             }
             Geometry::Triangles(mesh)
         }
         other => {
             return ctx.err(
                 span,
-                format!(
-                    "unknown shape type `{other}` (expected sphere, quad, box, mesh or terrain)"
-                ),
+                format!("unknown shape type `{other}` (expected sphere, quad, box, mesh or terrain)"),
             )
         }
     };
     let material = material.unwrap_or_else(|| default_material(materials));
     let object = out.object(s.object.as_deref().unwrap_or(&name));
-    out.shapes.push(Shape {
-        name,
-        geometry,
-        material,
-        emission,
-        object,
-    });
+    out.shapes.push(Shape { name, geometry, material, emission, object });
     Ok(())
 }
 
 fn mesh(p: &[Vec3], indices: &[[u32; 3]]) -> Mesh {
-    Mesh {
-        positions: p.iter().map(|&q| Vec3A::from(q)).collect(),
-        indices: indices.into(),
-        normals: None,
-    }
+    Mesh { positions: p.iter().map(|&q| Vec3A::from(q)).collect(), indices: indices.into(), normals: None }
 }
 
 /// An axis-aligned box as 12 triangles wound counter-clockwise seen from outside.
@@ -622,14 +538,7 @@ fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         })
         .collect();
     // Faces as corner quads (counter-clockwise from outside): -x, +x, -y, +y, -z, +z.
-    let quads = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
+    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
     let mut tris = Vec::with_capacity(12);
     for [a, b, c, d] in quads {
         tris.push([a, b, c]);
@@ -663,19 +572,29 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
             ctx.only(span.clone(), &what, &present, &["position", "intensity"])?;
             Ok(Light::Point {
                 position: v3(ctx.need(span.clone(), &what, "position", l.position)?),
-                intensity: non_negative(v3(ctx.need(span.clone(), &what, "intensity", l.intensity)?), "intensity")?,
+                intensity: non_negative(
+                    v3(ctx.need(span.clone(), &what, "intensity", l.intensity)?),
+                    "intensity",
+                )?,
             })
         }
         "sun" => {
-            ctx.only(span.clone(), &what, &present, &["direction", "irradiance", "angular_diameter", "diffuse_source"])?;
+            ctx.only(
+                span.clone(),
+                &what,
+                &present,
+                &["direction", "irradiance", "angular_diameter", "diffuse_source"],
+            )?;
             let direction = v3(ctx.need(span.clone(), &what, "direction", l.direction)?);
             if direction.length_squared() == 0.0 {
                 return ctx.err(span, "a sun's `direction` must not be zero");
             }
-            let irradiance = non_negative(v3(ctx.need(span.clone(), &what, "irradiance", l.irradiance)?), "irradiance")?;
+            let irradiance =
+                non_negative(v3(ctx.need(span.clone(), &what, "irradiance", l.irradiance)?), "irradiance")?;
             let diameter = l.angular_diameter.map_or(0.53, |d| d.0);
             if !(diameter > 0.0 && diameter < 180.0) {
-                return ctx.err(span, "a sun's `angular_diameter` must lie strictly between 0 and 180 degrees");
+                return ctx
+                    .err(span, "a sun's `angular_diameter` must lie strictly between 0 and 180 degrees");
             }
             // 1 - cos(half angle) = 2 sin^2(half angle / 2), in f64: about 1e-5 for the real sun,
             // which f32 cannot hold as a difference from 1.
@@ -692,11 +611,19 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
         "sky" => {
             ctx.only(span.clone(), &what, &present, &["radiance", "diffuse_source"])?;
             Ok(Light::Sky {
-                radiance: non_negative(v3(ctx.need(span.clone(), &what, "radiance", l.radiance)?), "radiance")?,
+                radiance: non_negative(
+                    v3(ctx.need(span.clone(), &what, "radiance", l.radiance)?),
+                    "radiance",
+                )?,
                 diffuse_source: l.diffuse_source.unwrap_or(true),
             })
         }
-        other => ctx.err(span, format!("unknown light type `{other}` (expected point, sun or sky; an emissive shape has `emission`)")),
+        other => ctx.err(
+            span,
+            format!(
+                "unknown light type `{other}` (expected point, sun or sky; an emissive shape has `emission`)"
+            ),
+        ),
     }
 }
 
@@ -750,8 +677,7 @@ mod tests {
 
     #[test]
     fn unknown_material_and_missing_mesh_are_errors() {
-        let text =
-            format!("{MINIMAL}\n[[shape]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"nope\"\n");
+        let text = format!("{MINIMAL}\n[[shape]]\ntype = \"sphere\"\nradius = 1\nmaterial = \"nope\"\n");
         let (line, msg) = error_line(&text);
         assert_eq!(line, Some(5));
         assert!(msg.contains("nope"));
@@ -763,18 +689,10 @@ mod tests {
 
     #[test]
     fn sun_keeps_its_tiny_solid_angle() {
-        let text = format!(
-            "{MINIMAL}[[light]]\ntype = \"sun\"\ndirection = [0, 1, 0]\nirradiance = [1, 1, 1]\n"
-        );
+        let text =
+            format!("{MINIMAL}[[light]]\ntype = \"sun\"\ndirection = [0, 1, 0]\nirradiance = [1, 1, 1]\n");
         let s = parse_str(&text).expect("parses");
-        let Light::Sun {
-            one_minus_cos,
-            radiance,
-            ..
-        } = &s.lights[0]
-        else {
-            panic!("sun")
-        };
+        let Light::Sun { one_minus_cos, radiance, .. } = &s.lights[0] else { panic!("sun") };
         let half = (0.53f64 / 2.0).to_radians();
         let expected = 1.0 - half.cos();
         assert!(((*one_minus_cos as f64) - expected).abs() < 1e-6 * expected);

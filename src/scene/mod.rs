@@ -25,11 +25,7 @@ pub struct SceneError {
 
 impl SceneError {
     pub fn new(file: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
-        SceneError {
-            file: file.to_path_buf(),
-            line,
-            message: message.into(),
-        }
+        SceneError { file: file.to_path_buf(), line, message: message.into() }
     }
 }
 
@@ -137,17 +133,9 @@ pub enum Light {
     Point { position: Vec3, intensity: Vec3 },
     /// A distant disc of directions around `direction` (unit, towards the sun) whose solid angle
     /// is `2 pi one_minus_cos`; `radiance` gives the irradiance the scene file asked for.
-    Sun {
-        direction: Vec3,
-        radiance: Vec3,
-        one_minus_cos: f32,
-        diffuse_source: bool,
-    },
+    Sun { direction: Vec3, radiance: Vec3, one_minus_cos: f32, diffuse_source: bool },
     /// Constant radiance from every direction at infinity.
-    Sky {
-        radiance: Vec3,
-        diffuse_source: bool,
-    },
+    Sky { radiance: Vec3, diffuse_source: bool },
 }
 
 /// A loaded scene, ready to be traced.

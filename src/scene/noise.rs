@@ -49,25 +49,12 @@ pub fn perlin(seed: u32, p: Vec3) -> f32 {
     let d = p - f;
     let (u, v, w) = (fade(d.x), fade(d.y), fade(d.z));
     let g = |i: i32, j: i32, k: i32| {
-        grad(
-            lattice(seed, x0 + i, y0 + j, z0 + k),
-            d.x - i as f32,
-            d.y - j as f32,
-            d.z - k as f32,
-        )
+        grad(lattice(seed, x0 + i, y0 + j, z0 + k), d.x - i as f32, d.y - j as f32, d.z - k as f32)
     };
     let n = lerp(
         w,
-        lerp(
-            v,
-            lerp(u, g(0, 0, 0), g(1, 0, 0)),
-            lerp(u, g(0, 1, 0), g(1, 1, 0)),
-        ),
-        lerp(
-            v,
-            lerp(u, g(0, 0, 1), g(1, 0, 1)),
-            lerp(u, g(0, 1, 1), g(1, 1, 1)),
-        ),
+        lerp(v, lerp(u, g(0, 0, 0), g(1, 0, 0)), lerp(u, g(0, 1, 0), g(1, 1, 0))),
+        lerp(v, lerp(u, g(0, 0, 1), g(1, 0, 1)), lerp(u, g(0, 1, 1), g(1, 1, 1))),
     );
     // The 12-gradient form stays within about [-1.04, 1.04]; clamp to the documented range.
     n.clamp(-1.0, 1.0)
@@ -95,11 +82,7 @@ mod tests {
         let mut min: f32 = 1.0;
         let mut max: f32 = -1.0;
         for i in 0..20_000 {
-            let p = Vec3::new(
-                i as f32 * 0.137,
-                (i % 97) as f32 * 0.31,
-                (i % 13) as f32 * 0.77,
-            );
+            let p = Vec3::new(i as f32 * 0.137, (i % 97) as f32 * 0.31, (i % 13) as f32 * 0.77);
             let n = perlin(7, p);
             assert_eq!(n, perlin(7, p));
             assert!((-1.0..=1.0).contains(&n));

@@ -32,11 +32,7 @@ fn triple(values: &[f32]) -> Vec3 {
 
 /// Loads an OBJ file. Errors are messages naming the OBJ file and, where found, its line.
 pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, materials) = match tobj::load_obj(path, &options) {
         Ok(loaded) => loaded,
         Err(e) => return Err(describe(path, &e.to_string())),
@@ -51,15 +47,9 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
         .collect();
     for m in &materials {
         if !(m.diffuse.is_finite() && m.emission.is_finite()) {
-            return Err(format!(
-                "{}: material library: a Kd or Ke value is not finite",
-                path.display()
-            ));
+            return Err(format!("{}: material library: a Kd or Ke value is not finite", path.display()));
         }
-        if m.diffuse.min_element() < 0.0
-            || m.diffuse.max_element() > 1.0
-            || m.emission.min_element() < 0.0
-        {
+        if m.diffuse.min_element() < 0.0 || m.diffuse.max_element() > 1.0 || m.emission.min_element() < 0.0 {
             return Err(format!(
                 "{}: material library: Kd must lie in [0, 1] and Ke must not be negative",
                 path.display()
@@ -77,22 +67,10 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(describe(path, "a vertex position is not a finite number"));
         }
-        let normals = (mesh.normals.len() == mesh.positions.len()).then(|| {
-            mesh.normals
-                .chunks_exact(3)
-                .map(|n| triple(n).normalize_or_zero())
-                .collect::<Vec<_>>()
-        });
-        let indices: Vec<[u32; 3]> = mesh
-            .indices
-            .chunks_exact(3)
-            .map(|t| [t[0], t[1], t[2]])
-            .collect();
-        if indices
-            .iter()
-            .flatten()
-            .any(|&i| i as usize >= positions.len())
-        {
+        let normals = (mesh.normals.len() == mesh.positions.len())
+            .then(|| mesh.normals.chunks_exact(3).map(|n| triple(n).normalize_or_zero()).collect::<Vec<_>>());
+        let indices: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        if indices.iter().flatten().any(|&i| i as usize >= positions.len()) {
             return Err(describe(path, "face vertex index out of bounds"));
         }
         parts.push(ObjPart {
@@ -118,15 +96,8 @@ fn describe(path: &Path, message: &str) -> String {
         match words.next() {
             Some("v") => {
                 vertices += 1;
-                if words
-                    .take(3)
-                    .any(|w| w.parse::<f32>().map_or(true, |x| !x.is_finite()))
-                {
-                    return format!(
-                        "{}:{}: {message} (vertex {vertices})",
-                        path.display(),
-                        n + 1
-                    );
+                if words.take(3).any(|w| w.parse::<f32>().map_or(true, |x| !x.is_finite())) {
+                    return format!("{}:{}: {message} (vertex {vertices})", path.display(), n + 1);
                 }
             }
             Some("f") => {
@@ -161,11 +132,7 @@ mod tests {
     #[test]
     fn quads_are_triangulated_with_mtl_colours() {
         let dir = tempfile::tempdir().expect("tempdir");
-        write(
-            dir.path(),
-            "m.mtl",
-            "newmtl lamp\nKd 0.5 0.5 0.5\nKe 10 9 8\n",
-        );
+        write(dir.path(), "m.mtl", "newmtl lamp\nKd 0.5 0.5 0.5\nKe 10 9 8\n");
         let obj = write(
             dir.path(),
             "m.obj",
@@ -182,11 +149,7 @@ mod tests {
     #[test]
     fn bad_index_names_the_obj_line() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let obj = write(
-            dir.path(),
-            "bad.obj",
-            "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n",
-        );
+        let obj = write(dir.path(), "bad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n");
         let e = load(&obj).expect_err("index 9 is out of range");
         assert!(e.contains("bad.obj:5:"), "{e}");
     }
@@ -194,11 +157,7 @@ mod tests {
     #[test]
     fn nan_vertex_names_the_obj_line() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let obj = write(
-            dir.path(),
-            "nan.obj",
-            "v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n",
-        );
+        let obj = write(dir.path(), "nan.obj", "v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n");
         let e = load(&obj).expect_err("nan vertex");
         assert!(e.contains("nan.obj:2:"), "{e}");
     }

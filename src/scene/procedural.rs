@@ -14,10 +14,7 @@ pub fn terrain(resolution: u32, size: f32, height: f32, seed: u32) -> Mesh {
     let positions: Vec<Vec3A> = (0..n * n)
         .into_par_iter()
         .map(|i| {
-            let (x, z) = (
-                (i % n) as f32 / resolution as f32 - 0.5,
-                (i / n) as f32 / resolution as f32 - 0.5,
-            );
+            let (x, z) = ((i % n) as f32 / resolution as f32 - 0.5, (i / n) as f32 / resolution as f32 - 0.5);
             let y = height * fbm(seed, Vec3::new(x * 6.0, 0.37, z * 6.0), 10, 0.5);
             Vec3A::new(x * size, y, z * size)
         })
@@ -33,11 +30,7 @@ pub fn terrain(resolution: u32, size: f32, height: f32, seed: u32) -> Mesh {
             [[a, d, e], [a, e, b]]
         })
         .collect();
-    Mesh {
-        positions: positions.into(),
-        indices: indices.into(),
-        normals: None,
-    }
+    Mesh { positions: positions.into(), indices: indices.into(), normals: None }
 }
 
 #[cfg(test)]

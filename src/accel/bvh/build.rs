@@ -5,6 +5,7 @@
 
 use glam::Vec3A;
 
+use super::wide::Bvh4;
 use super::{prim_bounds, Aabb, BuildOptions, Bvh, Node, Prim, STACK};
 
 /// Subtrees with more primitives than this are built on two threads.
@@ -22,15 +23,8 @@ struct Item {
 }
 
 enum Tree {
-    Leaf {
-        bounds: Aabb,
-        start: usize,
-        count: usize,
-    },
-    Inner {
-        bounds: Aabb,
-        children: Box<[Tree; 2]>,
-    },
+    Leaf { bounds: Aabb, start: usize, count: usize },
+    Inner { bounds: Aabb, children: Box<[Tree; 2]> },
 }
 
 impl Tree {
@@ -44,21 +38,14 @@ impl Tree {
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     use rayon::prelude::*;
     if prims.is_empty() {
-        return Bvh {
-            nodes: Vec::new(),
-            prims,
-        };
+        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[]) };
     }
     let mut items: Vec<Item> = prims
         .par_iter()
         .enumerate()
         .map(|(i, p)| {
             let bounds = prim_bounds(p);
-            Item {
-                bounds,
-                centroid: bounds.centroid(),
-                index: i as u32,
-            }
+            Item { bounds, centroid: bounds.centroid(), index: i as u32 }
         })
         .collect();
     let tree = build_node(&mut items, 0, &options, 0);
@@ -67,42 +54,26 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
     let ordered = items.iter().map(|it| prims[it.index as usize]).collect();
-    Bvh {
-        nodes,
-        prims: ordered,
-    }
+    let wide = Bvh4::collapse(&nodes);
+    Bvh { nodes, prims: ordered, wide }
 }
 
 fn placeholder() -> Node {
-    Node {
-        min: [0.0; 3],
-        first: 0,
-        max: [0.0; 3],
-        count: 0,
-    }
+    Node { min: [0.0; 3], first: 0, max: [0.0; 3], count: 0 }
 }
 
 fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
     let b = tree.bounds();
     match tree {
         Tree::Leaf { start, count, .. } => {
-            nodes[at] = Node {
-                min: b.min.into(),
-                first: *start as u32,
-                max: b.max.into(),
-                count: *count as u32,
-            };
+            nodes[at] =
+                Node { min: b.min.into(), first: *start as u32, max: b.max.into(), count: *count as u32 };
         }
         Tree::Inner { children, .. } => {
             let first = nodes.len();
             nodes.push(placeholder());
             nodes.push(placeholder());
-            nodes[at] = Node {
-                min: b.min.into(),
-                first: first as u32,
-                max: b.max.into(),
-                count: 0,
-            };
+            nodes[at] = Node { min: b.min.into(), first: first as u32, max: b.max.into(), count: 0 };
             flatten(&children[0], nodes, first);
             flatten(&children[1], nodes, first + 1);
         }
@@ -118,11 +89,7 @@ fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: 
         bounds = bounds.union(&it.bounds);
         centroids = centroids.grow(it.centroid);
     }
-    let leaf = Tree::Leaf {
-        bounds,
-        start: offset,
-        count: n,
-    };
+    let leaf = Tree::Leaf { bounds, start: offset, count: n };
     if n == 1 {
         return leaf;
     }
@@ -134,21 +101,12 @@ fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: 
         None
     };
     let mid = match split {
-        Some(Split {
-            cost,
-            axis,
-            bin,
-            lo,
-            scale,
-            bins,
-        }) => {
+        Some(Split { cost, axis, bin, lo, scale, bins }) => {
             if n <= options.max_leaf && cost >= n as f32 {
                 return leaf; // a leaf is cheaper than any split
             }
             // The same arithmetic as the binning, so each item goes where it was counted.
-            let mid = partition(items, |it| {
-                bin_of(it.centroid[axis], lo, scale, bins) <= bin
-            });
+            let mid = partition(items, |it| bin_of(it.centroid[axis], lo, scale, bins) <= bin);
             if mid == 0 || mid == n {
                 median_split(items, extent)
             } else {
@@ -166,15 +124,9 @@ fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: 
             || build_node(right, offset + mid, options, depth + 1),
         )
     } else {
-        (
-            build_node(left, offset, options, depth + 1),
-            build_node(right, offset + mid, options, depth + 1),
-        )
+        (build_node(left, offset, options, depth + 1), build_node(right, offset + mid, options, depth + 1))
     };
-    Tree::Inner {
-        bounds,
-        children: Box::new([l, r]),
-    }
+    Tree::Inner { bounds, children: Box::new([l, r]) }
 }
 
 /// Splits at the median along the axis of largest centroid extent (or, when all centroids
@@ -229,12 +181,7 @@ fn bin_of(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
 }
 
 /// The cheapest binned SAH split over all three axes.
-fn best_sah_split(
-    items: &[Item],
-    bounds: &Aabb,
-    centroids: &Aabb,
-    options: &BuildOptions,
-) -> Option<Split> {
+fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &BuildOptions) -> Option<Split> {
     const MAX_BINS: usize = 64;
     let bins_n = options.bins.clamp(2, MAX_BINS);
     let parent_area = bounds.half_area();
@@ -246,10 +193,7 @@ fn best_sah_split(
             continue;
         }
         let scale = bins_n as f32 / extent;
-        let mut bins = [Bin {
-            bounds: Aabb::EMPTY,
-            count: 0,
-        }; MAX_BINS];
+        let mut bins = [Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS];
         for it in items {
             let b = bin_of(it.centroid[axis], lo, scale, bins_n);
             bins[b].bounds = bins[b].bounds.union(&it.bounds);
@@ -273,17 +217,9 @@ fn best_sah_split(
                 continue;
             }
             let cost = options.traversal_cost
-                + (acc.half_area() * count as f32 + right_cost[b + 1])
-                    / parent_area.max(f32::MIN_POSITIVE);
+                + (acc.half_area() * count as f32 + right_cost[b + 1]) / parent_area.max(f32::MIN_POSITIVE);
             if best.as_ref().is_none_or(|s| cost < s.cost) {
-                best = Some(Split {
-                    cost,
-                    axis,
-                    bin: b,
-                    lo,
-                    scale,
-                    bins: bins_n,
-                });
+                best = Some(Split { cost, axis, bin: b, lo, scale, bins: bins_n });
             }
         }
     }

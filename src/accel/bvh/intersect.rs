@@ -1,8 +1,9 @@
 //! Ray/primitive tests of the BVH: the watertight triangle test and a precise sphere test.
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
-use crate::accel::Ray;
+use super::Prim;
+use crate::accel::{Hit, Ray};
 
 /// The per-ray part of the watertight ray/triangle test (Woop, Benthin & Wald, "Watertight
 /// Ray/Triangle Intersection", JCGT 2013): the ray is sheared so that it points along +z, and
@@ -10,12 +11,12 @@ use crate::accel::Ray;
 /// same arithmetic from both sides, so a ray can never fall between them.
 pub struct RayTri {
     origin: Vec3,
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    /// Rows: e_kx - Sx e_kz, e_ky - Sy e_kz, Sz e_kz. Applied to a vertex (relative to the
+    /// origin) it gives Woop's sheared coordinates with the same roundings as the paper's
+    /// formulas (the other products are by exact 0 and 1), and each vertex is transformed the
+    /// same way whichever triangle it belongs to, which is what keeps shared edges watertight.
+    /// As a matrix it avoids indexing vectors by run-time axis numbers per triangle.
+    shear: Mat3,
 }
 
 impl RayTri {
@@ -39,39 +40,30 @@ impl RayTri {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        RayTri {
-            origin: ray.origin,
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
-        }
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let mut rows = [[0.0f32; 3]; 3];
+        rows[0][kx] = 1.0;
+        rows[0][kz] = -sx;
+        rows[1][ky] = 1.0;
+        rows[1][kz] = -sy;
+        rows[2][kz] = sz;
+        RayTri { origin: ray.origin, shear: Mat3::from_cols_array_2d(&rows).transpose() }
     }
 
     /// The hit with triangle `v` within [0, t_max]: `(t, u, v)` with `u`, `v` the barycentric
     /// weights of the second and third vertices (Embree's convention).
     #[inline(always)]
     pub fn hit(&self, v: &[Vec3; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-        let a = v[0] - self.origin;
-        let b = v[1] - self.origin;
-        let c = v[2] - self.origin;
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
-        let mut u = cx * by - cy * bx;
-        let mut w = ax * cy - ay * cx;
-        let mut x = bx * ay - by * ax;
+        let a = self.shear * (v[0] - self.origin);
+        let b = self.shear * (v[1] - self.origin);
+        let c = self.shear * (v[2] - self.origin);
+        let mut u = c.x * b.y - c.y * b.x;
+        let mut w = a.x * c.y - a.y * c.x;
+        let mut x = b.x * a.y - b.y * a.x;
         // On an edge the f32 products can round to exactly zero: decide in f64 instead.
         if u == 0.0 || w == 0.0 || x == 0.0 {
-            let (ax, ay, bx, by, cx, cy) = (
-                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
-            );
+            let (ax, ay, bx, by, cx, cy) =
+                (a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64);
             u = (cx * by - cy * bx) as f32;
             w = (ax * cy - ay * cx) as f32;
             x = (bx * ay - by * ax) as f32;
@@ -83,10 +75,7 @@ impl RayTri {
         if det == 0.0 {
             return None;
         }
-        let az = self.sz * a[kz];
-        let bz = self.sz * b[kz];
-        let cz = self.sz * c[kz];
-        let t_scaled = u * az + w * bz + x * cz;
+        let t_scaled = u * a.z + w * b.z + x * c.z;
         // t = t_scaled / det must lie in [0, t_max]; compare without dividing, by det's sign.
         if det > 0.0 {
             if t_scaled < 0.0 || t_scaled > t_max * det {
@@ -128,5 +117,18 @@ pub fn sphere(ray: &Ray, center: Vec3, radius: f32, t_max: f32) -> Option<f32> {
         Some(far)
     } else {
         None
+    }
+}
+
+/// One primitive's hit within [0, t_max], as a [`Hit`].
+#[inline(always)]
+pub fn prim_hit(p: &Prim, ray: &Ray, rt: &RayTri, t_max: f32) -> Option<Hit> {
+    match *p {
+        Prim::Triangle { ref v, shape, prim } => {
+            rt.hit(v, t_max).map(|(t, u, w)| Hit { t, shape, prim, u, v: w })
+        }
+        Prim::Sphere { center, radius, shape } => {
+            sphere(ray, center, radius, t_max).map(|t| Hit { t, shape, prim: 0, u: 0.0, v: 0.0 })
+        }
     }
 }

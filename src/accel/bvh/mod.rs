@@ -6,12 +6,13 @@
 
 mod build;
 mod intersect;
+pub mod wide;
 
 use glam::{Vec3, Vec3A};
 
 use super::{Accel, Hit, Ray};
 use crate::scene::{Geometry, Scene};
-use intersect::{sphere, RayTri};
+use intersect::{prim_hit, RayTri};
 
 /// Maximum traversal stack depth. The build caps the tree depth below this.
 const STACK: usize = 64;
@@ -24,23 +25,14 @@ pub struct Aabb {
 }
 
 impl Aabb {
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3A::splat(f32::INFINITY),
-        max: Vec3A::splat(f32::NEG_INFINITY),
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3A::splat(f32::INFINITY), max: Vec3A::splat(f32::NEG_INFINITY) };
 
     pub fn grow(&self, p: Vec3A) -> Aabb {
-        Aabb {
-            min: self.min.min(p),
-            max: self.max.max(p),
-        }
+        Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
 
     pub fn union(&self, o: &Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
     /// Half the surface area (enough for SAH ratios); 0 for an empty box.
@@ -77,18 +69,21 @@ pub enum Prim {
     /// Vertices of triangle `prim` of shape `shape`.
     Triangle { v: [Vec3; 3], shape: u32, prim: u32 },
     /// Sphere `shape` (its primitive index is 0, as in Embree).
-    Sphere {
-        center: Vec3,
-        radius: f32,
-        shape: u32,
-    },
+    Sphere { center: Vec3, radius: f32, shape: u32 },
 }
 
-/// The BVH over a scene. Immutable once built, so it is `Send + Sync`.
+/// The BVH over a scene: the binary SAH tree and its 4-wide collapse, which rays traverse.
+/// Immutable once built, so it is `Send + Sync`.
 pub struct Bvh {
     nodes: Vec<Node>,
     prims: Vec<Prim>,
+    wide: wide::Bvh4,
 }
+
+/// A scene with more primitives than the BVH's 28-bit primitive references can name.
+#[derive(Debug, thiserror::Error)]
+#[error("the scene has {0} primitives; lightsplit's BVH holds at most 268435456 (use --accel embree)")]
+pub struct TooLarge(pub usize);
 
 /// Build settings; the defaults are what the benchmarks chose.
 #[derive(Clone, Copy, Debug)]
@@ -103,31 +98,23 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions {
-            max_leaf: 4,
-            traversal_cost: 1.0,
-            bins: 16,
-        }
+        BuildOptions { max_leaf: 4, traversal_cost: 1.0, bins: 16 }
     }
 }
 
 impl Bvh {
     /// Builds over every shape of `scene`; degenerate triangles and empty spheres are dropped.
-    pub fn new(scene: &Scene) -> Bvh {
+    pub fn new(scene: &Scene) -> Result<Bvh, TooLarge> {
         Self::with_options(scene, BuildOptions::default())
     }
 
-    pub fn with_options(scene: &Scene, options: BuildOptions) -> Bvh {
+    pub fn with_options(scene: &Scene, options: BuildOptions) -> Result<Bvh, TooLarge> {
         let mut prims = Vec::new();
         for (s, shape) in scene.shapes.iter().enumerate() {
             match &shape.geometry {
                 Geometry::Sphere { center, radius } => {
                     if *radius > 0.0 {
-                        prims.push(Prim::Sphere {
-                            center: *center,
-                            radius: *radius,
-                            shape: s as u32,
-                        });
+                        prims.push(Prim::Sphere { center: *center, radius: *radius, shape: s as u32 });
                     }
                 }
                 Geometry::Triangles(mesh) => {
@@ -136,22 +123,23 @@ impl Bvh {
                         // Degenerate (zero-area) triangles can never be hit by the watertight
                         // test; leaving them out keeps them from costing traversal.
                         if (v[1] - v[0]).cross(v[2] - v[0]) != Vec3::ZERO {
-                            prims.push(Prim::Triangle {
-                                v,
-                                shape: s as u32,
-                                prim: t,
-                            });
+                            prims.push(Prim::Triangle { v, shape: s as u32, prim: t });
                         }
                     }
                 }
             }
         }
-        build::build(prims, options)
+        if prims.len() > wide::MAX_PRIMS as usize {
+            return Err(TooLarge(prims.len()));
+        }
+        let options =
+            BuildOptions { max_leaf: options.max_leaf.clamp(1, wide::MAX_LEAF as usize), ..options };
+        Ok(build::build(prims, options))
     }
 
-    /// Number of nodes and of primitives.
-    pub fn size(&self) -> (usize, usize) {
-        (self.nodes.len(), self.prims.len())
+    /// Number of binary nodes, of wide nodes and of primitives.
+    pub fn size(&self) -> (usize, usize, usize) {
+        (self.nodes.len(), self.wide.node_count(), self.prims.len())
     }
 
     /// Checks the tree's invariants: every primitive in exactly one leaf, children inside their
@@ -161,10 +149,7 @@ impl Bvh {
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i];
-            let bounds = Aabb {
-                min: Vec3A::from(n.min),
-                max: Vec3A::from(n.max),
-            };
+            let bounds = Aabb { min: Vec3A::from(n.min), max: Vec3A::from(n.max) };
             if n.is_leaf() {
                 if n.count as usize > max_leaf {
                     return Err(format!("leaf {i} holds {} primitives", n.count));
@@ -200,16 +185,10 @@ impl Bvh {
 
 fn prim_bounds(p: &Prim) -> Aabb {
     match p {
-        Prim::Triangle { v, .. } => Aabb::EMPTY
-            .grow(v[0].into())
-            .grow(v[1].into())
-            .grow(v[2].into()),
+        Prim::Triangle { v, .. } => Aabb::EMPTY.grow(v[0].into()).grow(v[1].into()).grow(v[2].into()),
         Prim::Sphere { center, radius, .. } => {
             let c = Vec3A::from(*center);
-            Aabb {
-                min: c - Vec3A::splat(*radius),
-                max: c + Vec3A::splat(*radius),
-            }
+            Aabb { min: c - Vec3A::splat(*radius), max: c + Vec3A::splat(*radius) }
         }
     }
 }
@@ -225,10 +204,7 @@ const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32
 
 impl RayBox {
     fn new(ray: &Ray) -> Self {
-        RayBox {
-            origin: ray.origin.into(),
-            inv_dir: Vec3A::ONE / Vec3A::from(ray.dir),
-        }
+        RayBox { origin: ray.origin.into(), inv_dir: Vec3A::ONE / Vec3A::from(ray.dir) }
     }
 
     /// Entry distance into the node's box if the ray meets it within [0, t_max].
@@ -248,6 +224,16 @@ impl RayBox {
 impl Bvh {
     /// Closest hit along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.wide.intersect(&self.prims, ray)
+    }
+
+    /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.wide.occluded(&self.prims, ray)
+    }
+
+    /// Closest hit by the binary tree (the reference the wide tree is tested against).
+    pub fn intersect_binary(&self, ray: &Ray) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -263,29 +249,7 @@ impl Bvh {
             let n = &self.nodes[node];
             if n.is_leaf() {
                 for p in &self.prims[n.first as usize..(n.first + n.count) as usize] {
-                    let found = match *p {
-                        Prim::Triangle { ref v, shape, prim } => {
-                            rt.hit(v, t_max).map(|(t, u, w)| Hit {
-                                t,
-                                shape,
-                                prim,
-                                u,
-                                v: w,
-                            })
-                        }
-                        Prim::Sphere {
-                            center,
-                            radius,
-                            shape,
-                        } => sphere(ray, center, radius, t_max).map(|t| Hit {
-                            t,
-                            shape,
-                            prim: 0,
-                            u: 0.0,
-                            v: 0.0,
-                        }),
-                    };
-                    if let Some(h) = found {
+                    if let Some(h) = prim_hit(p, ray, &rt, t_max) {
                         t_max = h.t;
                         best = Some(h);
                     }
@@ -328,8 +292,8 @@ impl Bvh {
         }
     }
 
-    /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    /// Any hit by the binary tree.
+    pub fn occluded_binary(&self, ray: &Ray) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -345,16 +309,9 @@ impl Bvh {
         loop {
             let n = &self.nodes[node];
             if n.is_leaf() {
-                for p in &self.prims[n.first as usize..(n.first + n.count) as usize] {
-                    let hit = match *p {
-                        Prim::Triangle { ref v, .. } => rt.hit(v, t_max).is_some(),
-                        Prim::Sphere { center, radius, .. } => {
-                            sphere(ray, center, radius, t_max).is_some()
-                        }
-                    };
-                    if hit {
-                        return true;
-                    }
+                let leaf = &self.prims[n.first as usize..(n.first + n.count) as usize];
+                if leaf.iter().any(|p| prim_hit(p, ray, &rt, t_max).is_some()) {
+                    return true;
                 }
             } else {
                 let (a, b) = (n.first as usize, n.first as usize + 1);
