@@ -3,7 +3,7 @@
 //! subtrees above a size are built in parallel with `rayon::join`. Deep nodes fall back to median
 //! splits, which bounds the depth (and so the traversal stack) whatever the input.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 
 use super::wide::Bvh4;
 use super::{prim_bounds, Aabb, BuildOptions, Bvh, Node, Prim, STACK};
@@ -17,9 +17,30 @@ const _: () = assert!(SAH_DEPTH + 32 <= STACK);
 
 #[derive(Clone, Copy)]
 struct Item {
-    bounds: Aabb,
-    centroid: Vec3A,
-    index: u32,
+    /// The box's minimum, with the primitive's index in the fourth lane (bit for bit), so that an
+    /// item is 32 bytes: the build is bound by how fast it streams items through memory.
+    min: Vec4,
+    max: Vec3A,
+}
+
+impl Item {
+    fn new(bounds: Aabb, index: u32) -> Item {
+        Item { min: bounds.min.extend(f32::from_bits(index)), max: bounds.max }
+    }
+
+    #[inline(always)]
+    fn bounds(&self) -> Aabb {
+        Aabb { min: Vec3A::from_vec4(self.min), max: self.max }
+    }
+
+    #[inline(always)]
+    fn centroid(&self) -> Vec3A {
+        (Vec3A::from_vec4(self.min) + self.max) * 0.5
+    }
+
+    fn index(&self) -> usize {
+        self.min.w.to_bits() as usize
+    }
 }
 
 enum Tree {
@@ -45,7 +66,7 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
         .enumerate()
         .map(|(i, p)| {
             let bounds = prim_bounds(p);
-            Item { bounds, centroid: bounds.centroid(), index: i as u32 }
+            Item::new(bounds, i as u32)
         })
         .collect();
     let tree = build_node(&mut items, 0, &options, 0);
@@ -53,7 +74,7 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
-    let ordered = items.iter().map(|it| prims[it.index as usize]).collect();
+    let ordered = items.iter().map(|it| prims[it.index()]).collect();
     let wide = Bvh4::collapse(&nodes);
     Bvh { nodes, prims: ordered, wide }
 }
@@ -82,13 +103,17 @@ fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
 
 /// Builds the subtree over `items`, which start at `offset` in the final primitive order.
 fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: usize) -> Tree {
+    use rayon::prelude::*;
     let n = items.len();
-    let mut bounds = Aabb::EMPTY;
-    let mut centroids = Aabb::EMPTY;
-    for it in items.iter() {
-        bounds = bounds.union(&it.bounds);
-        centroids = centroids.grow(it.centroid);
-    }
+    let grow = |(b, c): (Aabb, Aabb), it: &Item| (b.union(&it.bounds()), c.grow(it.centroid()));
+    let (bounds, centroids) = if n > PARALLEL_BINNING {
+        items
+            .par_chunks(PARALLEL_BINNING / 4)
+            .map(|chunk| chunk.iter().fold((Aabb::EMPTY, Aabb::EMPTY), grow))
+            .reduce(|| (Aabb::EMPTY, Aabb::EMPTY), |(a, b), (c, d)| (a.union(&c), b.union(&d)))
+    } else {
+        items.iter().fold((Aabb::EMPTY, Aabb::EMPTY), grow)
+    };
     let leaf = Tree::Leaf { bounds, start: offset, count: n };
     if n == 1 {
         return leaf;
@@ -106,7 +131,7 @@ fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: 
                 return leaf; // a leaf is cheaper than any split
             }
             // The same arithmetic as the binning, so each item goes where it was counted.
-            let mid = partition(items, |it| bin_of(it.centroid[axis], lo, scale, bins) <= bin);
+            let mid = partition(items, |it| bin_of(it.centroid()[axis], lo, scale, bins) <= bin);
             if mid == 0 || mid == n {
                 median_split(items, extent)
             } else {
@@ -141,7 +166,7 @@ fn median_split(items: &mut [Item], extent: Vec3A) -> usize {
         } else {
             2
         };
-        items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+        items.select_nth_unstable_by(mid, |a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
     }
     mid
 }
@@ -180,25 +205,80 @@ fn bin_of(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
     (((c - lo) * scale) as usize).min(bins - 1)
 }
 
-/// The cheapest binned SAH split over all three axes.
+/// Centroid bins on the three axes: bounds and count of the items in each.
+type Bins = [[Bin; MAX_BINS]; 3];
+const MAX_BINS: usize = 32;
+/// Nodes with more items than this bin on several threads.
+const PARALLEL_BINNING: usize = 1 << 15;
+
+fn empty_bins() -> Box<Bins> {
+    Box::new([[Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS]; 3])
+}
+
+/// The cheapest binned SAH split over all three axes, binning every axis in one pass over the
+/// items (split across threads for large nodes).
 fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &BuildOptions) -> Option<Split> {
-    const MAX_BINS: usize = 64;
-    let bins_n = options.bins.clamp(2, MAX_BINS);
-    let parent_area = bounds.half_area();
+    use rayon::prelude::*;
+    // More bins than items cannot find a better split.
+    let bins_n = options.bins.min(items.len()).clamp(2, MAX_BINS);
+    let lo = centroids.min;
+    let extent = centroids.max - lo;
+    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), Vec3A::splat(bins_n as f32) / extent, Vec3A::ZERO);
+    let fill = |mut bins: Box<Bins>, it: &Item| {
+        let (ib, c) = (it.bounds(), it.centroid());
+        for axis in 0..3 {
+            let b = bin_of(c[axis], lo[axis], scale[axis], bins_n);
+            bins[axis][b].bounds = bins[axis][b].bounds.union(&ib);
+            bins[axis][b].count += 1;
+        }
+        bins
+    };
+    if items.len() > PARALLEL_BINNING {
+        let bins = items
+            .par_chunks(PARALLEL_BINNING / 4)
+            .map(|chunk| chunk.iter().fold(empty_bins(), fill))
+            .reduce(empty_bins, |mut a, b| {
+                for axis in 0..3 {
+                    for (x, y) in a[axis].iter_mut().zip(b[axis].iter()) {
+                        x.bounds = x.bounds.union(&y.bounds);
+                        x.count += y.count;
+                    }
+                }
+                a
+            });
+        sweep(&bins, items.len(), bounds, lo, scale, bins_n, options)
+    } else {
+        // Small nodes bin on the stack.
+        let mut bins = [[Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS]; 3];
+        for it in items {
+            let (ib, c) = (it.bounds(), it.centroid());
+            for axis in 0..3 {
+                let b = bin_of(c[axis], lo[axis], scale[axis], bins_n);
+                bins[axis][b].bounds = bins[axis][b].bounds.union(&ib);
+                bins[axis][b].count += 1;
+            }
+        }
+        sweep(&bins, items.len(), bounds, lo, scale, bins_n, options)
+    }
+}
+
+/// Sweeps the bins of each axis for the split of least SAH cost.
+fn sweep(
+    bins: &Bins,
+    n: usize,
+    bounds: &Aabb,
+    lo: Vec3A,
+    scale: Vec3A,
+    bins_n: usize,
+    options: &BuildOptions,
+) -> Option<Split> {
+    let parent_area = bounds.half_area().max(f32::MIN_POSITIVE);
     let mut best: Option<Split> = None;
     for axis in 0..3 {
-        let lo = centroids.min[axis];
-        let extent = centroids.max[axis] - lo;
-        if extent <= 0.0 {
+        if scale[axis] <= 0.0 {
             continue;
         }
-        let scale = bins_n as f32 / extent;
-        let mut bins = [Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS];
-        for it in items {
-            let b = bin_of(it.centroid[axis], lo, scale, bins_n);
-            bins[b].bounds = bins[b].bounds.union(&it.bounds);
-            bins[b].count += 1;
-        }
+        let bins = &bins[axis];
         // Right-to-left sweep: area x count of everything right of each boundary.
         let mut right_cost = [0.0f32; MAX_BINS];
         let mut acc = Aabb::EMPTY;
@@ -213,13 +293,13 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
         for b in 0..bins_n - 1 {
             acc = acc.union(&bins[b].bounds);
             count += bins[b].count;
-            if count == 0 || count as usize == items.len() {
+            if count == 0 || count as usize == n {
                 continue;
             }
-            let cost = options.traversal_cost
-                + (acc.half_area() * count as f32 + right_cost[b + 1]) / parent_area.max(f32::MIN_POSITIVE);
+            let cost =
+                options.traversal_cost + (acc.half_area() * count as f32 + right_cost[b + 1]) / parent_area;
             if best.as_ref().is_none_or(|s| cost < s.cost) {
-                best = Some(Split { cost, axis, bin: b, lo, scale, bins: bins_n });
+                best = Some(Split { cost, axis, bin: b, lo: lo[axis], scale: scale[axis], bins: bins_n });
             }
         }
     }
