@@ -59,7 +59,7 @@ impl Tree {
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     use rayon::prelude::*;
     if prims.is_empty() {
-        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[]) };
+        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[], &[]) };
     }
     let mut items: Vec<Item> = prims
         .par_iter()
@@ -74,8 +74,8 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
-    let ordered = items.iter().map(|it| prims[it.index()]).collect();
-    let wide = Bvh4::collapse(&nodes);
+    let ordered: Vec<Prim> = items.iter().map(|it| prims[it.index()]).collect();
+    let wide = Bvh4::collapse(&nodes, &ordered);
     Bvh { nodes, prims: ordered, wide }
 }
 

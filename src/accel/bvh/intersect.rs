@@ -20,15 +20,12 @@ pub struct RayTri {
 }
 
 impl RayTri {
-    pub fn new(ray: &Ray) -> Self {
+    /// The axes `[kx, ky, kz]` (kz the dominant direction) and shear `[Sx, Sy, Sz]` of a ray.
+    pub fn axes(ray: &Ray) -> ([usize; 3], [f32; 3]) {
         let d = ray.dir;
         let a = d.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z {
-                0
-            } else {
-                2
-            }
+        let kz = if a.x > a.y && a.x > a.z {
+            0
         } else if a.y > a.z {
             1
         } else {
@@ -40,7 +37,11 @@ impl RayTri {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        ([kx, ky, kz], [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]])
+    }
+
+    pub fn new(ray: &Ray) -> Self {
+        let ([kx, ky, kz], [sx, sy, sz]) = Self::axes(ray);
         let mut rows = [[0.0f32; 3]; 3];
         rows[0][kx] = 1.0;
         rows[0][kz] = -sx;

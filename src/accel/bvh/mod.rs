@@ -224,12 +224,12 @@ impl RayBox {
 impl Bvh {
     /// Closest hit along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.wide.intersect(&self.prims, ray)
+        self.wide.intersect(ray)
     }
 
     /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.wide.occluded(&self.prims, ray)
+        self.wide.occluded(ray)
     }
 
     /// Closest hit by the binary tree (the reference the wide tree is tested against).

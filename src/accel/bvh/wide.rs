@@ -4,21 +4,20 @@
 
 use wide::f32x4;
 
-use super::intersect::{prim_hit, RayTri};
+use super::intersect::{sphere, RayTri};
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
-/// A reference to a child: an inner node, a leaf, or nothing, packed in 32 bits so a node's
-/// four children take 16 bytes: an inner node is its index (top bit clear); a leaf sets the top
-/// bit, keeps its primitive count in the next 3 bits and its first primitive in the other 28.
+/// A reference to a child, 32 bits so a node's four children take 16 bytes: an inner node is its
+/// index (top bit clear), a leaf the index of its [`Leaf4`] with the top bit set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Child(u32);
 
 const LEAF: u32 = 1 << 31;
-const COUNT_SHIFT: u32 = 28;
-/// The most primitives a leaf can hold, and the most a tree can hold.
-pub const MAX_LEAF: u32 = 7;
-pub const MAX_PRIMS: u32 = 1 << COUNT_SHIFT;
+/// The most primitives a leaf can hold (its triangles are tested four at a time).
+pub const MAX_LEAF: u32 = 4;
+/// The most primitives a tree can hold.
+pub const MAX_PRIMS: u32 = LEAF - 1;
 
 impl Child {
     const EMPTY: Child = Child(u32::MAX);
@@ -28,9 +27,9 @@ impl Child {
         Child(index)
     }
 
-    fn leaf(first: u32, count: u32) -> Child {
-        debug_assert!((1..=MAX_LEAF).contains(&count) && first < MAX_PRIMS);
-        Child(LEAF | count << COUNT_SHIFT | first)
+    fn leaf(index: u32) -> Child {
+        debug_assert!(index < LEAF - 1);
+        Child(LEAF | index)
     }
 
     /// Whether this is a leaf (EMPTY, never traversed, also has the top bit set).
@@ -39,12 +38,32 @@ impl Child {
         self.0 & LEAF != 0
     }
 
-    /// The primitive range of a leaf.
     #[inline(always)]
-    fn range(self) -> std::ops::Range<usize> {
-        let first = (self.0 & (MAX_PRIMS - 1)) as usize;
-        first..first + ((self.0 >> COUNT_SHIFT) & MAX_LEAF) as usize
+    fn index(self) -> usize {
+        (self.0 & !LEAF) as usize
     }
+}
+
+/// A leaf's triangles, structure-of-arrays so that one SIMD pass tests all four: `v[3 * k + a]`
+/// holds axis `a` of vertex `k` of each triangle. Unused lanes repeat the first triangle, which
+/// can only report the same hit again. Spheres (rare) are kept aside and tested one by one.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Leaf4 {
+    v: [[f32; 4]; 9],
+    shape: [u32; 4],
+    prim: [u32; 4],
+    triangles: u32,
+    spheres_first: u32,
+    spheres_count: u32,
+}
+
+/// A sphere of a leaf.
+#[derive(Clone, Copy, Debug)]
+struct SphereRef {
+    center: glam::Vec3,
+    radius: f32,
+    shape: u32,
 }
 
 /// Four children's boxes, axis by axis (empty slots hold an inverted box that no ray meets),
@@ -59,6 +78,8 @@ pub struct Node4 {
 
 pub struct Bvh4 {
     nodes: Vec<Node4>,
+    leaves: Vec<Leaf4>,
+    spheres: Vec<SphereRef>,
     root: Child,
 }
 
@@ -68,19 +89,66 @@ const STACK: usize = 3 * super::STACK;
 impl Bvh4 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
     /// opening the inner child of largest area until it has four.
-    pub fn collapse(binary: &[Node]) -> Bvh4 {
-        let mut bvh = Bvh4 { nodes: Vec::with_capacity(binary.len() / 2 + 1), root: Child::EMPTY };
+    pub fn collapse(binary: &[Node], prims: &[Prim]) -> Bvh4 {
+        let mut bvh = Bvh4 {
+            nodes: Vec::with_capacity(binary.len() / 2 + 1),
+            leaves: Vec::with_capacity(binary.len() / 2 + 1),
+            spheres: Vec::new(),
+            root: Child::EMPTY,
+        };
         if binary.is_empty() {
             return bvh;
         }
-        bvh.root = bvh.add(binary, 0);
+        bvh.root = bvh.add(binary, prims, 0);
         bvh
     }
 
-    fn add(&mut self, binary: &[Node], index: usize) -> Child {
+    /// Packs a binary leaf's primitives into a [`Leaf4`].
+    fn add_leaf(&mut self, prims: &[Prim]) -> Child {
+        debug_assert!(prims.len() <= MAX_LEAF as usize);
+        let mut leaf = Leaf4 {
+            v: [[0.0; 4]; 9],
+            shape: [0; 4],
+            prim: [0; 4],
+            triangles: 0,
+            spheres_first: self.spheres.len() as u32,
+            spheres_count: 0,
+        };
+        for p in prims {
+            match *p {
+                Prim::Triangle { v, shape, prim } => {
+                    let lane = leaf.triangles as usize;
+                    for (k, vertex) in v.iter().enumerate() {
+                        for a in 0..3 {
+                            leaf.v[3 * k + a][lane] = vertex[a];
+                        }
+                    }
+                    leaf.shape[lane] = shape;
+                    leaf.prim[lane] = prim;
+                    leaf.triangles += 1;
+                }
+                Prim::Sphere { center, radius, shape } => {
+                    self.spheres.push(SphereRef { center, radius, shape });
+                    leaf.spheres_count += 1;
+                }
+            }
+        }
+        // Unused lanes repeat lane 0 (a real triangle, or with no triangles lanes never run).
+        for lane in leaf.triangles.max(1) as usize..4 {
+            for row in leaf.v.iter_mut() {
+                row[lane] = row[0];
+            }
+            leaf.shape[lane] = leaf.shape[0];
+            leaf.prim[lane] = leaf.prim[0];
+        }
+        self.leaves.push(leaf);
+        Child::leaf((self.leaves.len() - 1) as u32)
+    }
+
+    fn add(&mut self, binary: &[Node], prims: &[Prim], index: usize) -> Child {
         let n = &binary[index];
         if n.count > 0 {
-            return Child::leaf(n.first, n.count);
+            return self.add_leaf(&prims[n.first as usize..(n.first + n.count) as usize]);
         }
         let area = |i: usize| {
             let b = &binary[i];
@@ -117,7 +185,7 @@ impl Bvh4 {
                 self.nodes[at].bounds[axis][slot] = b.min[axis];
                 self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
             }
-            let child = self.add(binary, k);
+            let child = self.add(binary, prims, k);
             self.nodes[at].children[slot] = child;
         }
         Child::inner(at as u32)
@@ -125,6 +193,10 @@ impl Bvh4 {
 
     pub fn node_count(&self) -> usize {
         self.nodes.len()
+    }
+
+    fn leaf_spheres(&self, leaf: &Leaf4) -> &[SphereRef] {
+        &self.spheres[leaf.spheres_first as usize..(leaf.spheres_first + leaf.spheres_count) as usize]
     }
 }
 
@@ -177,14 +249,95 @@ struct Entry {
     t: f32,
 }
 
+/// The watertight test of [`RayTri`] on the four triangles of a leaf at once: the same
+/// formulas lane by lane (including the double-precision retry when an edge function rounds to
+/// zero), so what holds for the scalar test holds here.
+struct RayTri4 {
+    origin: [f32x4; 3],
+    k: [usize; 3],
+    shear: [f32; 3],
+}
+
+impl RayTri4 {
+    fn new(ray: &Ray) -> Self {
+        let (k, shear) = RayTri::axes(ray);
+        RayTri4 {
+            origin: ray.origin.to_array().map(f32x4::splat),
+            k,
+            shear,
+        }
+    }
+
+    /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
+    #[inline(always)]
+    fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
+        let [kx, ky, kz] = self.k;
+        let (sx, sy, sz) = (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
+        let rel = |vertex: usize, axis: usize| f32x4::new(leaf.v[3 * vertex + axis]) - self.origin[axis];
+        let (az, bz, cz) = (rel(0, kz), rel(1, kz), rel(2, kz));
+        let ax = rel(0, kx) - sx * az;
+        let ay = rel(0, ky) - sy * az;
+        let bx = rel(1, kx) - sx * bz;
+        let by = rel(1, ky) - sy * bz;
+        let cx = rel(2, kx) - sx * cz;
+        let cy = rel(2, ky) - sy * cz;
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        let zero = f32x4::splat(0.0);
+        if (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).any() {
+            // On an edge: decide in f64, lane by lane, as the scalar test does.
+            let (ax, ay, bx, by, cx, cy) =
+                (ax.to_array(), ay.to_array(), bx.to_array(), by.to_array(), cx.to_array(), cy.to_array());
+            let (mut uu, mut vv, mut ww) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
+            for l in 0..4 {
+                let (ax, ay, bx, by, cx, cy) =
+                    (ax[l] as f64, ay[l] as f64, bx[l] as f64, by[l] as f64, cx[l] as f64, cy[l] as f64);
+                uu[l] = (cx * by - cy * bx) as f32;
+                vv[l] = (ax * cy - ay * cx) as f32;
+                ww[l] = (bx * ay - by * ax) as f32;
+            }
+            (u, v, w) = (f32x4::new(uu), f32x4::new(vv), f32x4::new(ww));
+        }
+        let negative = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+        let positive = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+        let det = u + v + w;
+        let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+        // Fold det's sign into both sides: t = t_scaled / det must lie in [0, t_max].
+        let sign = det & f32x4::splat(-0.0);
+        let (t_signed, det_abs) = (t_scaled ^ sign, det ^ sign);
+        let valid = !(negative & positive)
+            & !det.simd_eq(zero)
+            & t_signed.simd_ge(zero)
+            & t_signed.simd_le(f32x4::splat(t_max) * det_abs);
+        let mut mask = valid.to_bitmask() & ((1u32 << leaf.triangles) - 1);
+        if mask == 0 {
+            return None;
+        }
+        // t, u, v as the scalar test computes them: through the reciprocal of det.
+        let inv = f32x4::splat(1.0) / det;
+        let (t, inv, v, w) = ((t_scaled * inv).to_array(), inv.to_array(), v.to_array(), w.to_array());
+        let mut best = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        while mask != 0 {
+            let l = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[l] < t[best] {
+                best = l;
+            }
+        }
+        Some((t[best], best, v[best] * inv[best], w[best] * inv[best]))
+    }
+}
+
 impl Bvh4 {
     /// Closest hit along `ray` among `prims` (the binary tree's primitive order).
-    pub fn intersect(&self, prims: &[Prim], ray: &Ray) -> Option<Hit> {
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
         let rb = RayBox4::new(ray);
-        let rt = RayTri::new(ray);
+        let rt = RayTri4::new(ray);
         let mut best: Option<Hit> = None;
         let mut t_max = ray.t_max;
         let mut stack = [Entry { child: Child::EMPTY, t: 0.0 }; STACK];
@@ -193,10 +346,17 @@ impl Bvh4 {
         loop {
             let child = current.child;
             if child.is_leaf() {
-                for p in &prims[child.range()] {
-                    if let Some(h) = prim_hit(p, ray, &rt, t_max) {
-                        t_max = h.t;
-                        best = Some(h);
+                let leaf = &self.leaves[child.index()];
+                if leaf.triangles > 0 {
+                    if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
+                        t_max = t;
+                        best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
+                    }
+                }
+                for s in self.leaf_spheres(leaf) {
+                    if let Some(t) = sphere(ray, s.center, s.radius, t_max) {
+                        t_max = t;
+                        best = Some(Hit { t, shape: s.shape, prim: 0, u: 0.0, v: 0.0 });
                     }
                 }
             } else {
@@ -241,18 +401,22 @@ impl Bvh4 {
     }
 
     /// Whether anything lies along `ray` within [0, t_max]; stops at the first hit.
-    pub fn occluded(&self, prims: &[Prim], ray: &Ray) -> bool {
+    pub fn occluded(&self, ray: &Ray) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
         let rb = RayBox4::new(ray);
-        let rt = RayTri::new(ray);
+        let rt = RayTri4::new(ray);
         let mut stack = [Child::EMPTY; STACK];
         let mut sp = 0;
         let mut current = self.root;
         loop {
             if current.is_leaf() {
-                if prims[current.range()].iter().any(|p| prim_hit(p, ray, &rt, ray.t_max).is_some()) {
+                let leaf = &self.leaves[current.index()];
+                if leaf.triangles > 0 && rt.hit(leaf, ray.t_max).is_some() {
+                    return true;
+                }
+                if self.leaf_spheres(leaf).iter().any(|s| sphere(ray, s.center, s.radius, ray.t_max).is_some()) {
                     return true;
                 }
             } else {
