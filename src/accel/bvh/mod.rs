@@ -98,7 +98,7 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { max_leaf: 4, traversal_cost: 1.0, bins: 16 }
+        BuildOptions { max_leaf: 4, traversal_cost: 3.0, bins: 16 }
     }
 }
 
