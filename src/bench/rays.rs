@@ -77,7 +77,11 @@ impl RaySets {
                 },
                 None => lo + (hi - lo) * Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()),
             };
-            sets.shadow.push(Ray { origin, dir: end - origin, t_max: 1.0 });
+            // As the integrator does, only toward lights on the side the surface faces: a ray
+            // into the surface it starts on is no shadow ray.
+            if (end - origin).dot(ng) > 0.0 {
+                sets.shadow.push(Ray { origin, dir: end - origin, t_max: 1.0 });
+            }
             let dir = Frame::new(ng).to_world(cosine_hemisphere(s.next_2d()));
             sets.incoherent.push(Ray::new(origin, dir));
         }

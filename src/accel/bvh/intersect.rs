@@ -77,17 +77,38 @@ impl RayTri {
             return None;
         }
         let t_scaled = u * a.z + w * b.z + x * c.z;
-        // t = t_scaled / det must lie in [0, t_max]; compare without dividing, by det's sign.
-        if det > 0.0 {
-            if t_scaled < 0.0 || t_scaled > t_max * det {
-                return None;
-            }
-        } else if t_scaled > 0.0 || t_scaled < t_max * det {
+        // t = t_scaled / det must lie in (error bound, t_max]; compare without dividing, with
+        // det's sign folded into both sides.
+        let (t_signed, det_abs) = if det < 0.0 { (-t_scaled, -det) } else { (t_scaled, det) };
+        let bound = t_error_bound([a.x, b.x, c.x], [a.y, b.y, c.y], [a.z, b.z, c.z], [u, w, x]);
+        if t_signed <= bound || t_signed > t_max * det_abs {
             return None;
         }
         let inv = 1.0 / det;
         Some((t_scaled * inv, w * inv, x * inv))
     }
+}
+
+/// gamma(n) of Higham's error analysis: a bound on the relative error of n roundings.
+pub const fn gamma(n: f32) -> f32 {
+    let u = f32::EPSILON * 0.5;
+    n * u / (1.0 - n * u)
+}
+
+/// A conservative bound on the rounding error of the watertight test's scaled distance (t times
+/// det), from the sheared vertex coordinates and the edge functions (Pharr, Jakob & Humphreys,
+/// pbrt 3rd ed., section 3.9.6). A hit closer than this may really lie behind the origin: near a
+/// surface, a ray leaving it could otherwise hit the surface it starts on, because t is computed
+/// from vertices that may be far from the origin.
+#[inline(always)]
+pub fn t_error_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], e: [f32; 3]) -> f32 {
+    let max = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (max_x, max_y, max_z, max_e) = (max(x), max(y), max(z), max(e));
+    let delta_x = gamma(5.0) * (max_x + max_z);
+    let delta_y = gamma(5.0) * (max_y + max_z);
+    let delta_z = gamma(3.0) * max_z;
+    let delta_e = 2.0 * (gamma(2.0) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    3.0 * (gamma(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e)
 }
 
 /// The nearest hit of `ray` with a sphere within [0, t_max], from outside or inside. Uses the

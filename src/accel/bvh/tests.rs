@@ -190,3 +190,27 @@ fn degenerate_input_builds_a_bounded_tree() {
     assert_eq!(bvh.size().2, 0);
     assert!(bvh.intersect(&Ray::new(Vec3::new(1.0, 0.0, -1.0), Vec3::Z)).is_none());
 }
+
+/// A ray leaving a large triangle from just off its plane, far from its vertices (the offset
+/// origin of a secondary ray on the Cornell box's wall), must not hit the triangle behind it:
+/// the distance the watertight test computes carries an error larger than the offset, which the
+/// t error bound accounts for.
+#[test]
+fn rays_leaving_a_surface_do_not_hit_it() {
+    let wall = [Vec3::new(0.0, 0.0, 559.2), Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 548.8, 0.0)];
+    let scene = scene_of(vec![mesh(wall.to_vec(), vec![[0, 1, 2]])]);
+    let bvh = Bvh::new(&scene).expect("builds");
+    let mut s = Sampler::new(11, 0, 0);
+    for _ in 0..2000 {
+        let (y, z) = (s.next_1d() * 200.0 + 20.0, s.next_1d() * 200.0 + 20.0);
+        let origin = crate::math::offset_ray_origin(Vec3::new(0.0, y, z), Vec3::X);
+        let dir =
+            Vec3::new(50.0 + 300.0 * s.next_1d(), 400.0 * s.next_1d() - 200.0, 400.0 * s.next_1d() - 200.0);
+        let ray = Ray { origin, dir, t_max: 1.0 };
+        assert!(!bvh.occluded(&ray), "{ray:?} hit the surface it leaves");
+        assert!(bvh.intersect(&ray).is_none() && bvh.intersect_binary(&ray).is_none());
+        // From a unit in front, the ray turned around does hit it.
+        let back = Ray { origin: origin + Vec3::X, dir: -dir, t_max: 1.0 };
+        assert!(bvh.occluded(&back) && bvh.intersect(&back).is_some());
+    }
+}

@@ -4,7 +4,7 @@
 
 use wide::f32x4;
 
-use super::intersect::{sphere, RayTri};
+use super::intersect::{gamma, sphere, RayTri};
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
@@ -261,18 +261,15 @@ struct RayTri4 {
 impl RayTri4 {
     fn new(ray: &Ray) -> Self {
         let (k, shear) = RayTri::axes(ray);
-        RayTri4 {
-            origin: ray.origin.to_array().map(f32x4::splat),
-            k,
-            shear,
-        }
+        RayTri4 { origin: ray.origin.to_array().map(f32x4::splat), k, shear }
     }
 
     /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
     #[inline(always)]
     fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
         let [kx, ky, kz] = self.k;
-        let (sx, sy, sz) = (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
+        let (sx, sy, sz) =
+            (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
         let rel = |vertex: usize, axis: usize| f32x4::new(leaf.v[3 * vertex + axis]) - self.origin[axis];
         let (az, bz, cz) = (rel(0, kz), rel(1, kz), rel(2, kz));
         let ax = rel(0, kx) - sx * az;
@@ -303,12 +300,25 @@ impl RayTri4 {
         let positive = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
         let det = u + v + w;
         let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
-        // Fold det's sign into both sides: t = t_scaled / det must lie in [0, t_max].
+        // Fold det's sign into both sides: t = t_scaled / det must lie in (error bound, t_max].
         let sign = det & f32x4::splat(-0.0);
         let (t_signed, det_abs) = (t_scaled ^ sign, det ^ sign);
+        let bound = {
+            // t_error_bound, lane by lane.
+            let max3 = |a: f32x4, b: f32x4, c: f32x4| a.abs().fast_max(b.abs()).fast_max(c.abs());
+            let (max_x, max_y) = (max3(ax, bx, cx), max3(ay, by, cy));
+            let max_z = max3(sz * az, sz * bz, sz * cz);
+            let max_e = max3(u, v, w);
+            let g = |n: f32| f32x4::splat(gamma(n));
+            let delta_x = g(5.0) * (max_x + max_z);
+            let delta_y = g(5.0) * (max_y + max_z);
+            let delta_z = g(3.0) * max_z;
+            let delta_e = f32x4::splat(2.0) * (g(2.0) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+            f32x4::splat(3.0) * (g(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+        };
         let valid = !(negative & positive)
             & !det.simd_eq(zero)
-            & t_signed.simd_ge(zero)
+            & t_signed.simd_gt(bound)
             & t_signed.simd_le(f32x4::splat(t_max) * det_abs);
         let mut mask = valid.to_bitmask() & ((1u32 << leaf.triangles) - 1);
         if mask == 0 {
@@ -416,7 +426,11 @@ impl Bvh4 {
                 if leaf.triangles > 0 && rt.hit(leaf, ray.t_max).is_some() {
                     return true;
                 }
-                if self.leaf_spheres(leaf).iter().any(|s| sphere(ray, s.center, s.radius, ray.t_max).is_some()) {
+                if self
+                    .leaf_spheres(leaf)
+                    .iter()
+                    .any(|s| sphere(ray, s.center, s.radius, ray.t_max).is_some())
+                {
                     return true;
                 }
             } else {
