@@ -298,13 +298,25 @@ impl RayTri4 {
         }
         let negative = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
         let positive = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+        let inside = !(negative & positive);
+        let lanes = (1u32 << leaf.triangles) - 1;
+        if inside.to_bitmask() & lanes == 0 {
+            return None; // the common case: the ray passes beside all four
+        }
         let det = u + v + w;
         let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
         // Fold det's sign into both sides: t = t_scaled / det must lie in (error bound, t_max].
         let sign = det & f32x4::splat(-0.0);
         let (t_signed, det_abs) = (t_scaled ^ sign, det ^ sign);
+        let in_range = inside
+            & !det.simd_eq(zero)
+            & t_signed.simd_gt(zero)
+            & t_signed.simd_le(f32x4::splat(t_max) * det_abs);
+        if in_range.to_bitmask() & lanes == 0 {
+            return None;
+        }
+        // Only now the bound on t's rounding error (t_error_bound, lane by lane).
         let bound = {
-            // t_error_bound, lane by lane.
             let max3 = |a: f32x4, b: f32x4, c: f32x4| a.abs().fast_max(b.abs()).fast_max(c.abs());
             let (max_x, max_y) = (max3(ax, bx, cx), max3(ay, by, cy));
             let max_z = max3(sz * az, sz * bz, sz * cz);
@@ -316,11 +328,8 @@ impl RayTri4 {
             let delta_e = f32x4::splat(2.0) * (g(2.0) * max_x * max_y + delta_y * max_x + delta_x * max_y);
             f32x4::splat(3.0) * (g(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e)
         };
-        let valid = !(negative & positive)
-            & !det.simd_eq(zero)
-            & t_signed.simd_gt(bound)
-            & t_signed.simd_le(f32x4::splat(t_max) * det_abs);
-        let mut mask = valid.to_bitmask() & ((1u32 << leaf.triangles) - 1);
+        let valid = in_range & t_signed.simd_gt(bound);
+        let mut mask = valid.to_bitmask() & lanes;
         if mask == 0 {
             return None;
         }
