@@ -47,6 +47,23 @@ pub trait Accel: Send + Sync {
     fn occluded(&self, ray: &Ray) -> bool;
 }
 
+/// A failure to set up ray tracing: a backend that cannot build, or worker threads that cannot
+/// start.
+#[derive(Debug, thiserror::Error)]
+pub enum AccelError {
+    #[error(transparent)]
+    Embree(#[from] embree::EmbreeError),
+    #[error(transparent)]
+    Bvh(#[from] bvh::TooLarge),
+    #[error("cannot start {0} worker threads: {1}")]
+    Threads(usize, String),
+}
+
+/// A rayon pool of `n` threads.
+pub fn thread_pool(n: usize) -> Result<rayon::ThreadPool, AccelError> {
+    rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| AccelError::Threads(n, e.to_string()))
+}
+
 /// The backends a render can choose at run time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]

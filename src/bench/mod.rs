@@ -11,17 +11,6 @@ use crate::accel::{self, bvh::Bvh, Accel, Backend, Ray};
 use crate::scene::Scene;
 use rays::{RayKind, RaySets};
 
-/// A benchmark that could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum BenchError {
-    #[error(transparent)]
-    Embree(#[from] accel::embree::EmbreeError),
-    #[error(transparent)]
-    Bvh(#[from] accel::bvh::TooLarge),
-    #[error("cannot start {0} worker threads: {1}")]
-    Threads(usize, String),
-}
-
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct BenchAccelOptions {
@@ -116,7 +105,7 @@ pub fn bench_accel(
     scene: &Scene,
     options: &BenchAccelOptions,
     progress: &dyn Fn(usize, usize),
-) -> Result<BenchAccelReport, BenchError> {
+) -> Result<BenchAccelReport, accel::AccelError> {
     let (embree, embree_build) = best_of(3, || {
         let start = Instant::now();
         let e = accel::build_embree(scene, None);
@@ -141,10 +130,7 @@ pub fn bench_accel(
     for kind in RayKind::ALL {
         let rays = sets.get(kind);
         for &threads in &thread_counts {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| BenchError::Threads(threads, e.to_string()))?;
+            let pool = accel::thread_pool(threads)?;
             let (mut e, mut b, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
             pool.install(|| {
                 for _ in 0..options.rounds.max(1) {

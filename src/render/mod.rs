@@ -76,11 +76,7 @@ pub struct RenderOutput {
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error(transparent)]
-    Embree(#[from] accel::embree::EmbreeError),
-    #[error(transparent)]
-    Bvh(#[from] accel::bvh::TooLarge),
-    #[error("cannot start {0} worker threads: {1}")]
-    Threads(usize, String),
+    Accel(#[from] accel::AccelError),
     #[error("the image size {0}x{1} is empty or too large")]
     Size(u32, u32),
 }
@@ -95,33 +91,24 @@ pub fn render(
     if options.width == 0 || options.height == 0 || options.width as u64 * options.height as u64 > 1 << 30 {
         return Err(RenderError::Size(options.width, options.height));
     }
-    let run = || -> Result<RenderOutput, RenderError> {
+    let run = || -> Result<RenderOutput, accel::AccelError> {
+        // Build, then render with the backend's own monomorphised integrator.
         let start = Instant::now();
-        match options.accel {
+        let built = |mut out: RenderOutput| {
+            out.stats.build_seconds = start.elapsed().as_secs_f64() - out.stats.seconds;
+            out
+        };
+        Ok(match options.accel {
             Backend::Embree => {
-                let accel = accel::build_embree(scene, options.threads)?;
-                let build_seconds = start.elapsed().as_secs_f64();
-                let mut out = render_with(scene, &accel, options, progress);
-                out.stats.build_seconds = build_seconds;
-                Ok(out)
+                built(render_with(scene, &accel::build_embree(scene, options.threads)?, options, progress))
             }
-            Backend::Bvh => {
-                let accel = accel::bvh::Bvh::new(scene)?;
-                let build_seconds = start.elapsed().as_secs_f64();
-                let mut out = render_with(scene, &accel, options, progress);
-                out.stats.build_seconds = build_seconds;
-                Ok(out)
-            }
-        }
+            Backend::Bvh => built(render_with(scene, &accel::bvh::Bvh::new(scene)?, options, progress)),
+        })
     };
-    match options.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| RenderError::Threads(n, e.to_string()))?
-            .install(run),
-        None => run(),
-    }
+    Ok(match options.threads {
+        Some(n) => accel::thread_pool(n)?.install(run)?,
+        None => run()?,
+    })
 }
 
 /// One tile's pixels and counts.
