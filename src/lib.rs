@@ -6,6 +6,7 @@
 pub mod accel;
 pub mod bench;
 pub mod film;
+pub mod filter;
 pub mod math;
 pub mod render;
 pub mod scene;

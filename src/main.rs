@@ -175,7 +175,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    film::write(&out.image, &output, args.exposure).map_err(Failure::failed)?;
+    film::write(&out.film.raw, &output, args.exposure).map_err(Failure::failed)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);

@@ -106,9 +106,9 @@ fn images_agree_up_to_float_rounding() {
     options.width = 64;
     options.height = 64;
     options.spp = 8;
-    let a = render(&scene, &options, &|_| {}).expect("embree renders").image;
+    let a = render(&scene, &options, &|_| {}).expect("embree renders").film.raw;
     options.accel = Backend::Bvh;
-    let b = render(&scene, &options, &|_| {}).expect("bvh renders").image;
+    let b = render(&scene, &options, &|_| {}).expect("bvh renders").film.raw;
     let (mut largest, mut sum, mut identical) = (0.0f32, 0.0f64, 0usize);
     for (p, q) in a.pixels.iter().zip(&b.pixels) {
         let d = (*p - *q).abs().max_element();

@@ -41,12 +41,12 @@ fn white_furnace_mean_equals_sky_radiance() {
         radiance = [0.5, 1.0, 2.0]
     "#;
     let out = render_text(text, 32);
-    let mean = out.image.mean();
+    let mean = out.film.raw.mean();
     for (got, want) in mean.to_array().into_iter().zip([0.5f32, 1.0, 2.0]) {
         assert!((got / want - 1.0).abs() < 0.01, "mean {mean} vs sky");
     }
     // The sphere covers much of the image, so this is not just the background.
-    let centre = out.image.get(24, 24);
+    let centre = out.film.raw.get(24, 24);
     assert!((centre.y - 1.0).abs() < 0.35, "centre pixel {centre}");
 }
 
@@ -98,7 +98,7 @@ fn diffuse_plane_under_point_light_matches_the_formula() {
             let mean = values.iter().sum::<f32>() / 64.0;
             let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / 63.0;
             let tolerance = 5.0 * (var / spp as f32).sqrt() + 2e-3 * mean;
-            let got = out.image.get(x, y).x;
+            let got = out.film.raw.get(x, y).x;
             assert!((got - mean).abs() <= tolerance, "pixel ({x}, {y}): {got} vs {mean} +- {tolerance}");
             worst = worst.max((got / mean - 1.0).abs());
         }
@@ -151,6 +151,6 @@ fn emissive_closed_box_reaches_le_over_one_minus_albedo() {
         }
     }
     let out = render_text(&text, 16);
-    let mean = out.image.mean();
+    let mean = out.film.raw.mean();
     assert!((mean.x / 2.0 - 1.0).abs() < 0.01, "mean {mean}, expected 2");
 }

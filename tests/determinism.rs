@@ -14,7 +14,7 @@ fn cornell(threads: usize, seed: u64) -> lightsplit::film::Image {
     options.spp = 4;
     options.seed = seed;
     options.threads = Some(threads);
-    render(&scene, &options, &|_| {}).expect("renders").image
+    render(&scene, &options, &|_| {}).expect("renders").film.raw
 }
 
 #[test]

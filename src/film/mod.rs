@@ -42,6 +42,49 @@ impl Image {
     }
 }
 
+/// The names of the light-path components, in [`Film::components`] order (the paper's L_e,
+/// L_r,d,l, L_r,d,s and L_r,d,d).
+pub const COMPONENTS: [&str; 4] = ["emitted", "direct", "caustic", "indirect"];
+
+/// Everything a render measures per pixel: the beauty, its split by light path, and the guide
+/// buffers the edge-aware filter reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    /// The unfiltered beauty (the `raw` layer).
+    pub raw: Image,
+    /// emitted, direct, caustic, indirect: they sum to `raw` up to float rounding.
+    pub components: [Image; 4],
+    pub albedo: Image,
+    /// Unit shading normals (zero where the path left the scene).
+    pub normal: Image,
+    pub depth: Vec<f32>,
+    /// Object ID of one chosen sample per pixel, -1 for none; never averaged.
+    pub object: Vec<f32>,
+}
+
+impl Film {
+    pub fn new(width: u32, height: u32) -> Film {
+        let n = width as usize * height as usize;
+        Film {
+            width,
+            height,
+            raw: Image::new(width, height),
+            components: std::array::from_fn(|_| Image::new(width, height)),
+            albedo: Image::new(width, height),
+            normal: Image::new(width, height),
+            depth: vec![0.0; n],
+            object: vec![-1.0; n],
+        }
+    }
+
+    /// `indirect` (L_r,d,d) of this film.
+    pub fn indirect(&self) -> &Image {
+        &self.components[3]
+    }
+}
+
 /// The file formats lightsplit writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
@@ -104,30 +147,12 @@ pub fn srgb8(linear: f32, exposure: f32) -> u8 {
 /// Writes `image` to `path` in the format its extension names. `exposure` (stops) applies to
 /// PNG only: EXR and HDR keep the linear values.
 pub fn write(image: &Image, path: &Path, exposure: f32) -> Result<(), WriteError> {
-    let format = Format::from_path(path)?;
-    let io_err = |e: String| WriteError::Io(path.to_path_buf(), e);
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    // Same directory, so the rename is atomic; the same extension, for writers that look at it.
-    let tmp = parent_dir(path).join(format!(".{name}.{}.tmp.{}", std::process::id(), extension(format)));
-    let result = match format {
-        Format::Exr => write_exr(image, &tmp),
-        Format::Png => write_png(image, &tmp, exposure),
-        Format::Hdr => write_hdr(image, &tmp),
-    };
-    match result.and_then(|()| fs::rename(&tmp, path).map_err(|e| e.to_string())) {
-        Ok(()) => Ok(()),
-        Err(e) => {
-            let _ = fs::remove_file(&tmp);
-            Err(io_err(e))
-        }
-    }
-}
-
-fn extension(format: Format) -> &'static str {
-    match format {
-        Format::Exr => "exr",
-        Format::Png => "png",
-        Format::Hdr => "hdr",
+    // A temporary file in the same directory (so the rename is atomic), with the same
+    // extension, for writers that look at it.
+    match Format::from_path(path)? {
+        Format::Exr => atomically(path, |tmp| write_exr(image, tmp)),
+        Format::Png => atomically(path, |tmp| write_png(image, tmp, exposure)),
+        Format::Hdr => atomically(path, |tmp| write_hdr(image, tmp)),
     }
 }
 
@@ -160,6 +185,97 @@ fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
         .encode(&pixels, image.width as usize, image.height as usize)
         .map_err(|e| e.to_string())?;
     io::Write::flush(&mut out).map_err(|e| e.to_string())
+}
+
+/// Named single-float channels, in writing order.
+pub type Channels = Vec<(String, Vec<f32>)>;
+
+/// The channels of a film for a multi-layer EXR: the final image as `R`, `G`, `B`, then
+/// `raw`, the four components, `indirect_filtered` (when given), `albedo`, `normal` (X, Y, Z),
+/// `depth` (Z) and `objectid` (ID).
+pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option<&Image>) -> Channels {
+    let mut out: Channels = Vec::new();
+    let mut rgb = |prefix: &str, img: &Image, names: [&str; 3]| {
+        for (c, name) in names.iter().enumerate() {
+            let full = if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
+            out.push((full, img.pixels.iter().map(|p| p[c]).collect()));
+        }
+    };
+    rgb("", final_image, ["R", "G", "B"]);
+    rgb("raw", &film.raw, ["R", "G", "B"]);
+    for (name, layer) in COMPONENTS.iter().zip(&film.components) {
+        rgb(name, layer, ["R", "G", "B"]);
+    }
+    if let Some(f) = indirect_filtered {
+        rgb("indirect_filtered", f, ["R", "G", "B"]);
+    }
+    rgb("albedo", &film.albedo, ["R", "G", "B"]);
+    rgb("normal", &film.normal, ["X", "Y", "Z"]);
+    out.push(("depth.Z".into(), film.depth.clone()));
+    out.push(("objectid.ID".into(), film.object.clone()));
+    out
+}
+
+/// Writes a film: every layer into an EXR, or the final image alone into PNG or HDR.
+pub fn write_film(
+    film: &Film,
+    final_image: &Image,
+    indirect_filtered: Option<&Image>,
+    path: &Path,
+    exposure: f32,
+) -> Result<(), WriteError> {
+    match Format::from_path(path)? {
+        Format::Exr => {
+            let channels = film_channels(film, final_image, indirect_filtered);
+            atomically(path, |tmp| write_exr_channels(&channels, film.width, film.height, tmp))
+        }
+        _ => write(final_image, path, exposure),
+    }
+}
+
+/// Runs `write` on a temporary file beside `path`, then renames it over `path`.
+fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), WriteError> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = parent_dir(path).join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+    match write(&tmp).and_then(|()| fs::rename(&tmp, path).map_err(|e| e.to_string())) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            let _ = fs::remove_file(&tmp);
+            Err(WriteError::Io(path.to_path_buf(), e))
+        }
+    }
+}
+
+/// Writes named float channels as one single-part EXR (32-bit float, lossless).
+pub fn write_exr_channels(channels: &Channels, width: u32, height: u32, path: &Path) -> Result<(), String> {
+    use exr::prelude::*;
+    let list: Vec<AnyChannel<FlatSamples>> = channels
+        .iter()
+        .map(|(name, data)| AnyChannel::new(name.as_str(), FlatSamples::F32(data.clone())))
+        .collect();
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    exr::image::Image::from_layer(layer).write().to_file(path).map_err(|e| e.to_string())
+}
+
+/// Reads every float channel of an EXR's first layer, by name, with the image size.
+pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Channels), String> {
+    use exr::prelude::*;
+    let image = read_all_flat_layers_from_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let layer = image.layer_data.first().ok_or_else(|| format!("{}: no layers", path.display()))?;
+    let size = layer.size;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect::<Vec<f32>>()))
+        .collect();
+    Ok((size.width() as u32, size.height() as u32, channels))
 }
 
 /// Reads the RGB layer of an EXR file written by [`write`] (or any RGB EXR).
@@ -235,6 +351,36 @@ mod tests {
         let png = image::open(&path).expect("decode").into_rgb8();
         assert_eq!(png.get_pixel(4, 2).0, [255, 255, 255]);
         assert_eq!(png.get_pixel(0, 0).0[0], 0);
+    }
+
+    #[test]
+    fn every_exr_layer_reads_back_equal() {
+        let mut film = Film::new(5, 3);
+        for i in 0..15 {
+            let v = Vec3::new(i as f32, -(i as f32) * 0.5, 1e-3 * i as f32);
+            film.raw.pixels[i] = v;
+            for (k, layer) in film.components.iter_mut().enumerate() {
+                layer.pixels[i] = v * (k as f32 + 1.0);
+            }
+            film.albedo.pixels[i] = v * 0.1;
+            film.normal.pixels[i] = Vec3::Z;
+            film.depth[i] = 10.0 + i as f32;
+            film.object[i] = (i % 3) as f32 - 1.0;
+        }
+        let final_image = film.components[0].clone();
+        let filtered = film.components[3].clone();
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("film.exr");
+        write_film(&film, &final_image, Some(&filtered), &path, 0.0).expect("write");
+        let (w, h, read) = read_exr_channels(&path).expect("read");
+        assert_eq!((w, h), (5, 3));
+        let written = film_channels(&film, &final_image, Some(&filtered));
+        assert_eq!(read.len(), written.len());
+        for (name, data) in &written {
+            let back = read.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("{name} missing"));
+            assert_eq!(&back.1, data, "{name}");
+        }
+        assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
     }
 
     #[test]

@@ -22,6 +22,53 @@ pub struct Integrator<'a, A: Accel> {
     pub max_depth: u32,
 }
 
+/// The paper's light-path components (section 2), indices into [`PathSample::components`].
+pub const EMITTED: usize = 0;
+/// L_r,d,l: E S* D L.
+pub const DIRECT: usize = 1;
+/// L_r,d,s: E S* D S+ L.
+pub const CAUSTIC: usize = 2;
+/// L_r,d,d: a D vertex after the first one (or a diffuse source's light at the first).
+pub const INDIRECT: usize = 3;
+
+/// What one path sample found: its radiance, the same split by light path, and the guide
+/// values at the first diffuse vertex `x` (or the last vertex of an all-specular path).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathSample {
+    pub beauty: Vec3,
+    /// emitted, direct, caustic, indirect: they sum to `beauty` up to float rounding.
+    pub components: [Vec3; 4],
+    /// The object at `x`, or `None` when the path left the scene first.
+    pub object: Option<u32>,
+    pub normal: Vec3,
+    /// Distance travelled from the eye to `x`.
+    pub depth: f32,
+    pub albedo: Vec3,
+}
+
+/// Where the eye path is in Heckbert's notation: how many D vertices it has passed, and whether
+/// an S vertex followed the first D. That is all the component split needs.
+#[derive(Clone, Copy, Debug, Default)]
+struct PathClass {
+    diffuse: u32,
+    specular_after_first: bool,
+}
+
+impl PathClass {
+    /// The component of light that reaches the eye along the path so far: from a light hit
+    /// after the last vertex, or found by NEE at the current D vertex (already counted).
+    fn component(self, diffuse_source: bool) -> usize {
+        match self.diffuse {
+            0 => EMITTED,
+            // A diffuse source's light counts as already diffusely reflected once.
+            _ if diffuse_source => INDIRECT,
+            1 if self.specular_after_first => CAUSTIC,
+            1 => DIRECT,
+            _ => INDIRECT,
+        }
+    }
+}
+
 /// Veach's power heuristic with exponent 2.
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
@@ -33,11 +80,19 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
 }
 
 impl<A: Accel> Integrator<'_, A> {
-    /// The radiance arriving along `ray` (one path sample). `rays` counts traced rays.
-    pub fn radiance(&self, mut ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> Vec3 {
+    /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
+    /// traced rays.
+    pub fn sample(&self, mut ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
         let scene = self.scene;
         let lights = self.lights;
-        let mut l = Vec3::ZERO;
+        let mut out = PathSample::default();
+        let mut class = PathClass::default();
+        let mut travelled = 0.0f32;
+        // Adds a contribution to the beauty and to its component.
+        let add = |out: &mut PathSample, c: Vec3, component: usize| {
+            out.beauty += c;
+            out.components[component] += c;
+        };
         let mut beta = Vec3::ONE;
         // The camera counts as a specular vertex: emission seen directly takes no MIS weight.
         let mut specular = true;
@@ -51,7 +106,8 @@ impl<A: Accel> Integrator<'_, A> {
                     let (le, light_pdf) = lights.distant(i, ray.dir);
                     if le != Vec3::ZERO {
                         let w = if specular { 1.0 } else { power_heuristic(bsdf_pdf, light_pdf) };
-                        l += beta * le * w;
+                        let component = class.component(lights.diffuse_source[i as usize]);
+                        add(&mut out, beta * le * w, component);
                     }
                 }
                 break;
@@ -59,6 +115,7 @@ impl<A: Accel> Integrator<'_, A> {
             let s = surface(scene, &ray, &hit);
             let shape = &scene.shapes[hit.shape as usize];
             let wo = -ray.dir;
+            travelled += hit.t * ray.dir.length();
 
             // Emission, on the front side only.
             if shape.is_emissive() && s.ng.dot(wo) > 0.0 {
@@ -68,7 +125,8 @@ impl<A: Accel> Integrator<'_, A> {
                     }
                     _ => 1.0,
                 };
-                l += beta * shape.emission * w;
+                let source = lights.of_shape(hit.shape).is_some_and(|i| lights.diffuse_source[i as usize]);
+                add(&mut out, beta * shape.emission * w, class.component(source));
             }
             if depth >= self.max_depth {
                 break;
@@ -78,6 +136,14 @@ impl<A: Accel> Integrator<'_, A> {
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
             let ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
             let Material::Diffuse { albedo } = scene.materials[shape.material as usize];
+            // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
+            class.diffuse += 1;
+            if class.diffuse == 1 {
+                out.object = Some(shape.object);
+                out.normal = ns;
+                out.depth = travelled;
+                out.albedo = albedo;
+            }
             // Every ray leaving this point (shadow or bounce) goes to the side of `ng`.
             let origin = offset_ray_origin(s.p, ng);
 
@@ -94,7 +160,8 @@ impl<A: Accel> Integrator<'_, A> {
                     if !self.accel.occluded(&shadow) {
                         let f = albedo * FRAC_1_PI;
                         let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
-                        l += beta * f * ls.radiance * (cos * w / ls.pdf);
+                        let component = class.component(lights.diffuse_source[ls.light as usize]);
+                        add(&mut out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
                     }
                 }
             }
@@ -125,6 +192,6 @@ impl<A: Accel> Integrator<'_, A> {
             }
             ray = Ray::new(origin, wi);
         }
-        l
+        out
     }
 }

@@ -13,7 +13,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::{self, Accel, Backend};
-use crate::film::Image;
+use crate::film::Film;
 use crate::scene::Scene;
 use camera::PinholeCamera;
 use integrator::Integrator;
@@ -68,7 +68,7 @@ pub struct RenderStats {
 
 /// A finished render.
 pub struct RenderOutput {
-    pub image: Image,
+    pub film: Film,
     pub stats: RenderStats,
 }
 
@@ -111,12 +111,23 @@ pub fn render(
     })
 }
 
+/// One pixel's means over its samples (the object ID is sample 0's, never averaged).
+#[derive(Clone, Copy, Default)]
+struct Pixel {
+    beauty: Vec3,
+    components: [Vec3; 4],
+    albedo: Vec3,
+    normal: Vec3,
+    depth: f32,
+    object: Option<u32>,
+}
+
 /// One tile's pixels and counts.
 struct Tile {
     x0: u32,
     y0: u32,
     w: u32,
-    pixels: Vec<Vec3>,
+    pixels: Vec<Pixel>,
     rays: u64,
     nonfinite: u64,
 }
@@ -148,18 +159,33 @@ pub fn render_with<A: Accel>(
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
                     let pixel = y as u64 * width as u64 + x as u64;
-                    let mut sum = Vec3::ZERO;
+                    let mut sum = Pixel::default();
                     for i in 0..spp {
                         let mut sampler = Sampler::new(options.seed, pixel, i as u64);
                         let ray = camera.ray(x, y, sampler.next_2d());
-                        let l = integrator.radiance(ray, &mut sampler, &mut tile.rays);
-                        if l.is_finite() {
-                            sum += l;
-                        } else {
-                            tile.nonfinite += 1;
+                        let s = integrator.sample(ray, &mut sampler, &mut tile.rays);
+                        if i == 0 {
+                            sum.object = s.object;
                         }
+                        if !s.beauty.is_finite() || s.components.iter().any(|c| !c.is_finite()) {
+                            tile.nonfinite += 1;
+                            continue; // dropped: counts as a zero sample
+                        }
+                        sum.beauty += s.beauty;
+                        for (a, c) in sum.components.iter_mut().zip(s.components) {
+                            *a += c;
+                        }
+                        sum.albedo += s.albedo;
+                        sum.normal += s.normal;
+                        sum.depth += s.depth;
                     }
-                    tile.pixels.push(sum / spp as f32);
+                    let inv = 1.0 / spp as f32;
+                    sum.beauty *= inv;
+                    sum.components = sum.components.map(|c| c * inv);
+                    sum.albedo *= inv;
+                    sum.normal = sum.normal.normalize_or_zero();
+                    sum.depth *= inv;
+                    tile.pixels.push(sum);
                 }
             }
             progress((w * h) as u64);
@@ -167,16 +193,24 @@ pub fn render_with<A: Accel>(
         })
         .collect();
 
-    let mut image = Image::new(width, height);
+    let mut film = Film::new(width, height);
     let mut stats = RenderStats { samples: width as u64 * height as u64 * spp as u64, ..Default::default() };
     for tile in done {
         for (i, p) in tile.pixels.iter().enumerate() {
             let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
-            image.set(x, y, *p);
+            film.raw.set(x, y, p.beauty);
+            for (layer, c) in film.components.iter_mut().zip(p.components) {
+                layer.set(x, y, c);
+            }
+            film.albedo.set(x, y, p.albedo);
+            film.normal.set(x, y, p.normal);
+            let at = (y * width + x) as usize;
+            film.depth[at] = p.depth;
+            film.object[at] = p.object.map_or(-1.0, |o| o as f32);
         }
         stats.rays += tile.rays;
         stats.nonfinite_samples += tile.nonfinite;
     }
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { image, stats }
+    RenderOutput { film, stats }
 }
