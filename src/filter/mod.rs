@@ -36,7 +36,7 @@ impl Kernel {
                     format!("unknown filter `{custom}` (box3, weighted3, median3, box5, or comma-separated weights)")
                 })?;
                 let size = (weights.len() as f64).sqrt() as usize;
-                if size * size != weights.len() || size % 2 == 0 {
+                if size * size != weights.len() || size.is_multiple_of(2) {
                     return Err(format!(
                         "a custom kernel needs an odd square number of weights, not {}",
                         weights.len()
@@ -159,7 +159,7 @@ fn median(values: &mut [Vec3]) -> Vec3 {
         }
         let ch = &mut channel[..n];
         ch.sort_unstable_by(f32::total_cmp);
-        *o = if n % 2 == 1 { ch[n / 2] } else { 0.5 * (ch[n / 2 - 1] + ch[n / 2]) };
+        *o = if !n.is_multiple_of(2) { ch[n / 2] } else { 0.5 * (ch[n / 2 - 1] + ch[n / 2]) };
     }
     Vec3::from(out)
 }
