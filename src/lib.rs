@@ -8,5 +8,6 @@ pub mod bench;
 pub mod film;
 pub mod filter;
 pub mod math;
+pub mod metrics;
 pub mod render;
 pub mod scene;

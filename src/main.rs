@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use lightsplit::accel::Backend;
 use lightsplit::film;
+use lightsplit::filter::{composite, EdgeStops, Kernel, Target};
 use lightsplit::render::{self, RenderOptions};
 use lightsplit::scene;
 
@@ -28,8 +29,95 @@ struct Cli {
 enum Command {
     /// Render a scene file to an image.
     Render(RenderArgs),
+    /// Re-filter a saved multi-layer EXR without rendering again.
+    Filter(FilterCommandArgs),
+    /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
+    Compare(CompareArgs),
     /// Measure Embree and the BVH side by side on identical ray sets.
     BenchAccel(BenchAccelArgs),
+}
+
+/// How to filter: shared by `render` and `filter`.
+#[derive(clap::Args, Clone)]
+struct FilterArgs {
+    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, or an odd
+    /// square kernel as comma-separated weights.
+    #[arg(long)]
+    filter: Option<String>,
+    /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
+    #[arg(long, value_enum)]
+    filter_target: Option<Target>,
+    /// Average only neighbours that show the same object as the centre pixel.
+    #[arg(long)]
+    edge_aware: bool,
+    /// Also stop at creases: only neighbours whose normal is within DEG degrees.
+    #[arg(long, value_name = "DEG")]
+    edge_normal: Option<f32>,
+    /// Also stop at depth steps: only neighbours whose depth differs by at most REL (relative).
+    #[arg(long, value_name = "REL")]
+    edge_depth: Option<f32>,
+}
+
+/// A checked filter setting.
+struct FilterSetting {
+    kernel: Option<Kernel>,
+    target: Target,
+    stops: EdgeStops,
+}
+
+impl FilterArgs {
+    fn check(&self) -> Result<FilterSetting, Failure> {
+        let kernel = self.filter.as_deref().map(Kernel::parse).transpose().map_err(Failure::input)?;
+        let target =
+            self.filter_target.unwrap_or(if kernel.is_some() { Target::Indirect } else { Target::None });
+        if target != Target::None && kernel.is_none() {
+            return Err(Failure::input("--filter-target needs --filter"));
+        }
+        if let Some(d) = self.edge_normal {
+            if !(d.is_finite() && d > 0.0 && d <= 180.0) {
+                return Err(Failure::input("--edge-normal must lie in (0, 180] degrees"));
+            }
+        }
+        if let Some(r) = self.edge_depth {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err(Failure::input("--edge-depth must be a non-negative number"));
+            }
+        }
+        let stops = EdgeStops {
+            object: self.edge_aware,
+            normal_degrees: self.edge_normal,
+            depth_relative: self.edge_depth,
+        };
+        Ok(FilterSetting { kernel, target, stops })
+    }
+}
+
+#[derive(clap::Args)]
+struct FilterCommandArgs {
+    /// A multi-layer EXR written by `lightsplit render`.
+    input: PathBuf,
+    /// The output: .exr (every layer), .png or .hdr (the final image).
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    filter: FilterArgs,
+    /// Exposure in stops for PNG output.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// The image to judge (.exr or .hdr).
+    test: PathBuf,
+    /// The reference (.exr or .hdr), e.g. a high-sample render of the same scene.
+    reference: PathBuf,
+    /// Write a brightened difference image (the paper's Figure 6): darker is a larger difference.
+    #[arg(long)]
+    diff: Option<PathBuf>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -82,6 +170,8 @@ struct RenderArgs {
     /// Most scattering events per path (default: the scene file's).
     #[arg(long)]
     max_depth: Option<u32>,
+    #[command(flatten)]
+    filter: FilterArgs,
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
@@ -109,6 +199,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render_command(args),
+        Command::Filter(args) => filter_command(args),
+        Command::Compare(args) => compare_command(args),
         Command::BenchAccel(args) => bench_accel_command(args),
     };
     match result {
@@ -171,11 +263,17 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if !args.exposure.is_finite() {
         return Err(Failure::input("--exposure must be a finite number"));
     }
+    let setting = args.filter.check()?;
 
     let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    film::write(&out.film.raw, &output, args.exposure).map_err(Failure::failed)?;
+    let filter_start = std::time::Instant::now();
+    let (final_image, filtered) =
+        composite(&out.film, setting.kernel.as_ref(), setting.target, &setting.stops);
+    let filter_seconds = filter_start.elapsed().as_secs_f64();
+    film::write_film(&out.film, &final_image, filtered.as_ref(), &output, args.exposure)
+        .map_err(Failure::failed)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -195,6 +293,10 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "samples_per_second": samples_per_second,
             "rays_per_second": rays_per_second,
             "nonfinite_samples": s.nonfinite_samples,
+            "filter": args.filter.filter,
+            "filter_target": format!("{:?}", setting.target).to_lowercase(),
+            "edge_aware": args.filter.edge_aware,
+            "filter_seconds": filter_seconds,
             "outputs": [output],
         });
         println!("{json}");
@@ -259,6 +361,48 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
         println!("{json}");
     } else {
         print!("{}", report.table());
+    }
+    Ok(())
+}
+
+fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
+    let setting = args.filter.check()?;
+    film::check_output(&args.output).map_err(Failure::input)?;
+    if !args.exposure.is_finite() {
+        return Err(Failure::input("--exposure must be a finite number"));
+    }
+    let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
+    let film = film::Film::from_channels(width, height, &channels)
+        .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
+    let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
+    film::write_film(&film, &final_image, filtered.as_ref(), &args.output, args.exposure)
+        .map_err(Failure::failed)
+}
+
+fn compare_command(args: CompareArgs) -> Result<(), Failure> {
+    if let Some(diff) = &args.diff {
+        film::check_output(diff).map_err(Failure::input)?;
+    }
+    let test = film::read_image(&args.test).map_err(Failure::input)?;
+    let reference = film::read_image(&args.reference).map_err(Failure::input)?;
+    let errors = lightsplit::metrics::compare(&test, &reference).map_err(Failure::input)?;
+    if let Some(diff) = &args.diff {
+        let image = lightsplit::metrics::difference_image(&test, &reference);
+        film::write(&image, diff, 0.0).map_err(Failure::failed)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&errors).map_err(Failure::failed)?);
+    } else {
+        println!(
+            "{} against {}: sse {:.6e}  rmse {:.6e}  relmse {:.6e}  (worst 0.1% dropped: rmse {:.6e}  relmse {:.6e})",
+            args.test.display(),
+            args.reference.display(),
+            errors.sse,
+            errors.rmse,
+            errors.relmse,
+            errors.rmse_trimmed,
+            errors.relmse_trimmed
+        );
     }
     Ok(())
 }

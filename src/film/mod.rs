@@ -278,6 +278,69 @@ pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Channels), String> {
     Ok((size.width() as u32, size.height() as u32, channels))
 }
 
+impl Film {
+    /// A film back from the channels of a multi-layer EXR written by [`write_film`]. Every layer
+    /// the filters need must be there; `albedo` may be missing.
+    pub fn from_channels(width: u32, height: u32, channels: &Channels) -> Result<Film, String> {
+        let find = |name: &str| -> Result<&Vec<f32>, String> {
+            channels
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, d)| d)
+                .ok_or_else(|| format!("no `{name}` channel"))
+        };
+        let rgb = |prefix: &str, names: [&str; 3]| -> Result<Image, String> {
+            let [r, g, b] = names.map(|c| find(&format!("{prefix}.{c}")));
+            let (r, g, b) = (r?, g?, b?);
+            Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
+        };
+        let mut film = Film::new(width, height);
+        film.raw = rgb("raw", ["R", "G", "B"])?;
+        for (layer, name) in film.components.iter_mut().zip(COMPONENTS) {
+            *layer = rgb(name, ["R", "G", "B"])?;
+        }
+        film.normal = rgb("normal", ["X", "Y", "Z"])?;
+        if let Ok(albedo) = rgb("albedo", ["R", "G", "B"]) {
+            film.albedo = albedo;
+        }
+        film.depth = find("depth.Z")?.clone();
+        film.object = find("objectid.ID")?.clone();
+        let n = width as usize * height as usize;
+        if film.depth.len() != n || film.raw.pixels.len() != n {
+            return Err("channel sizes do not match the image".into());
+        }
+        Ok(film)
+    }
+}
+
+/// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
+/// Radiance HDR.
+pub fn read_image(path: &Path) -> Result<Image, String> {
+    match Format::from_path(path).map_err(|e| e.to_string())? {
+        Format::Exr => {
+            let (width, height, channels) = read_exr_channels(path)?;
+            let get = |name: &str| {
+                channels
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map(|(_, d)| d)
+                    .ok_or_else(|| format!("{}: no `{name}` channel", path.display()))
+            };
+            let (r, g, b) = (get("R")?, get("G")?, get("B")?);
+            Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
+        }
+        Format::Hdr => {
+            let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb32f();
+            Ok(Image {
+                width: img.width(),
+                height: img.height(),
+                pixels: img.pixels().map(|p| Vec3::from(p.0)).collect(),
+            })
+        }
+        Format::Png => Err(format!("{}: compare needs linear values: use .exr or .hdr", path.display())),
+    }
+}
+
 /// Reads the RGB layer of an EXR file written by [`write`] (or any RGB EXR).
 pub fn read_exr(path: &Path) -> Result<self::Image, String> {
     use exr::prelude::*;

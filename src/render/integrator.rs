@@ -7,7 +7,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3;
 
-use super::lights::{Lights, ShadowEnd};
+use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::surface;
 use crate::accel::{Accel, Ray};
@@ -147,8 +147,9 @@ impl<A: Accel> Integrator<'_, A> {
             // Every ray leaving this point (shadow or bounce) goes to the side of `ng`.
             let origin = offset_ray_origin(s.p, ng);
 
-            // Next-event estimation.
-            if let Some(ls) = lights.sample(scene, s.p, sampler.next_1d(), sampler.next_2d()) {
+            // Next-event estimation: every light when there are few, else one picked by power.
+            let f = albedo * FRAC_1_PI;
+            let nee = |ls: LightSample, out: &mut PathSample, rays: &mut u64| {
                 let cos = ns.dot(ls.wi);
                 if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
                     let shadow = match ls.end {
@@ -158,12 +159,20 @@ impl<A: Accel> Integrator<'_, A> {
                     };
                     *rays += 1;
                     if !self.accel.occluded(&shadow) {
-                        let f = albedo * FRAC_1_PI;
                         let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
                         let component = class.component(lights.diffuse_source[ls.light as usize]);
-                        add(&mut out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
+                        add(out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
                     }
                 }
+            };
+            if lights.sample_all() {
+                for i in 0..lights.emitters.len() {
+                    if let Some(ls) = lights.sample_one(scene, i, s.p, sampler.next_2d()) {
+                        nee(ls, &mut out, rays);
+                    }
+                }
+            } else if let Some(ls) = lights.sample(scene, s.p, sampler.next_1d(), sampler.next_2d()) {
+                nee(ls, &mut out, rays);
             }
 
             // Continue the path by sampling the BSDF.

@@ -15,6 +15,8 @@ use crate::scene::{Geometry, Light, Mesh, Scene};
 
 /// No light on this shape.
 const NONE: u32 = u32::MAX;
+/// Scenes with at most this many lights sample all of them at every vertex.
+const SAMPLE_ALL: usize = 8;
 
 /// One light, ready to sample.
 #[derive(Clone, Debug)]
@@ -148,7 +150,22 @@ impl Lights {
 
     /// The probability of picking light `i`.
     pub fn select_pdf(&self, i: u32) -> f32 {
+        if self.sample_all() {
+            return 1.0;
+        }
         self.select.as_ref().map_or(0.0, |d| d.pdf(i as usize))
+    }
+
+    /// With few lights, next-event estimation samples every light at each vertex instead of
+    /// picking one: no selection noise (a scene lit by a sun and a sky would otherwise see the
+    /// sun only when it is picked), at one shadow ray per light.
+    pub fn sample_all(&self) -> bool {
+        self.emitters.len() <= SAMPLE_ALL
+    }
+
+    /// Samples light `i` as seen from `p` (its selection probability is [`Lights::select_pdf`]).
+    pub fn sample_one(&self, scene: &Scene, i: usize, p: Vec3, u: Vec2) -> Option<LightSample> {
+        self.sample_emitter(scene, i, self.select_pdf(i as u32), p, u)
     }
 
     /// Samples a light as seen from `p`, with uniform numbers `u_select` and `u`.
@@ -158,6 +175,10 @@ impl Lights {
             1 => (0, 1.0),
             _ => self.select.as_ref()?.sample(u_select),
         };
+        self.sample_emitter(scene, i, select, p, u)
+    }
+
+    fn sample_emitter(&self, scene: &Scene, i: usize, select: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
         let light = i as u32;
         match &self.emitters[i] {
             Emitter::Point { position, intensity } => {

@@ -1,0 +1,109 @@
+//! Error metrics behind `compare` and `converge`: the paper's sum of squared differences, RMSE
+//! and relative MSE, each also with the worst 0.1% of pixels dropped.
+
+use glam::Vec3;
+
+use crate::film::Image;
+
+/// How far a test image is from a reference.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Errors {
+    /// The paper's metric: the sum over pixels (and channels) of the squared difference.
+    pub sse: f64,
+    pub rmse: f64,
+    /// Mean of (x - y)^2 / (y^2 + 0.01) over pixels and channels.
+    pub relmse: f64,
+    pub rmse_trimmed: f64,
+    pub relmse_trimmed: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// Compares `test` with `reference`; they must have the same size.
+pub fn compare(test: &Image, reference: &Image) -> Result<Errors, String> {
+    if (test.width, test.height) != (reference.width, reference.height) {
+        return Err(format!(
+            "the images differ in size: {}x{} against a {}x{} reference",
+            test.width, test.height, reference.width, reference.height
+        ));
+    }
+    // Per pixel: squared error and relative squared error, summed over channels.
+    let per_pixel: Vec<(f64, f64)> = test
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(x, y)| {
+            let (x, y) = (x.as_dvec3(), y.as_dvec3());
+            let d = x - y;
+            let sq = d * d;
+            let rel = sq / (y * y + glam::DVec3::splat(0.01));
+            (sq.element_sum(), rel.element_sum())
+        })
+        .collect();
+    let n = per_pixel.len().max(1) as f64;
+    let sse: f64 = per_pixel.iter().map(|p| p.0).sum();
+    let rel: f64 = per_pixel.iter().map(|p| p.1).sum();
+    // Drop the worst 0.1% of pixels by squared error (by relative error for relMSE).
+    let drop = per_pixel.len() / 1000;
+    let trimmed = |key: fn(&(f64, f64)) -> f64| -> f64 {
+        let mut v: Vec<f64> = per_pixel.iter().map(key).collect();
+        v.sort_by(f64::total_cmp);
+        let kept = &v[..v.len() - drop];
+        kept.iter().sum::<f64>() / (3.0 * kept.len().max(1) as f64)
+    };
+    Ok(Errors {
+        sse,
+        rmse: (sse / (3.0 * n)).sqrt(),
+        relmse: rel / (3.0 * n),
+        rmse_trimmed: trimmed(|p| p.0).sqrt(),
+        relmse_trimmed: trimmed(|p| p.1),
+        width: test.width,
+        height: test.height,
+    })
+}
+
+/// A brightened difference image in the manner of the paper's Figure 6: white where the images
+/// agree, darker where they differ, scaled so that the 99th percentile of the difference is black.
+pub fn difference_image(test: &Image, reference: &Image) -> Image {
+    let diffs: Vec<f32> =
+        test.pixels.iter().zip(&reference.pixels).map(|(a, b)| (*a - *b).abs().max_element()).collect();
+    let mut sorted = diffs.clone();
+    sorted.sort_by(f32::total_cmp);
+    let p99 = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(0.0).max(f32::MIN_POSITIVE);
+    let mut out = Image::new(test.width, test.height);
+    for (o, d) in out.pixels.iter_mut().zip(diffs) {
+        *o = Vec3::splat(1.0 - (d / p99).min(1.0));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metrics_of_a_known_difference() {
+        let reference = Image::new(10, 100);
+        let mut test = reference.clone();
+        // One pixel off by 3 in every channel: sse 27, rmse sqrt(27 / 3000).
+        test.pixels[5] = Vec3::splat(3.0);
+        let e = compare(&test, &reference).expect("same size");
+        assert!((e.sse - 27.0).abs() < 1e-9);
+        assert!((e.rmse - (27.0f64 / 3000.0).sqrt()).abs() < 1e-12);
+        assert!((e.relmse - 3.0 * 9.0 / 0.01 / 3000.0).abs() < 1e-6);
+        // 1000 pixels: the worst one is dropped.
+        assert_eq!(e.rmse_trimmed, 0.0);
+        assert_eq!(compare(&reference, &reference).expect("same").sse, 0.0);
+        assert!(compare(&Image::new(3, 3), &reference).is_err());
+    }
+
+    #[test]
+    fn difference_image_is_white_where_equal() {
+        let a = Image::new(4, 4);
+        let mut b = a.clone();
+        b.pixels[3] = Vec3::ONE;
+        let d = difference_image(&b, &a);
+        assert_eq!(d.pixels[0], Vec3::ONE);
+        assert_eq!(d.pixels[3], Vec3::ZERO);
+    }
+}
