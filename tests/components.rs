@@ -153,3 +153,119 @@ fn object_ids_come_from_one_sample_and_are_never_averaged() {
         }
     }
 }
+
+/// Looking into a mirror, a pixel carries the reflected object's ID and its light: E S D L is
+/// direct light, and the mirror itself is no object of the guide buffers.
+#[test]
+fn through_a_mirror_a_pixel_carries_the_reflected_object() {
+    let text = r#"
+        [camera]
+        position = [0, 0, 0]
+        look_at = [0, 0, 1]
+        fov = 20
+        [film]
+        width = 16
+        height = 16
+        [[material]]
+        name = "mirror"
+        type = "mirror"
+        [[shape]]
+        type = "quad"
+        name = "mirror"
+        material = "mirror"
+        vertices = [[-3, -3, 2], [3, -3, 2], [3, 3, 2], [-3, 3, 2]]
+        [[shape]]
+        type = "sphere"
+        name = "ball"
+        center = [0, 0, -3]
+        radius = 1.5
+        [[light]]
+        type = "point"
+        position = [0, 3, 0]
+        intensity = [20, 20, 20]
+    "#;
+    let f = film(text, 4);
+    let centre = (8 * 16 + 8) as usize;
+    // Objects are numbered in the order of the scene file: mirror 0, ball 1.
+    assert_eq!(f.object[centre], 1.0, "the pixel shows the mirror, not the ball it reflects");
+    assert!(f.components[1].pixels[centre].x > 0.0, "E S D L must be direct");
+    assert_eq!(f.components[0].pixels[centre], Vec3::ZERO);
+    assert_eq!(f.components[2].pixels[centre], Vec3::ZERO);
+    // The depth is the whole way: 2 to the mirror, then about 3.5 back to the ball.
+    assert!((f.depth[centre] - 5.5).abs() < 0.1, "depth {}", f.depth[centre]);
+}
+
+/// A glass sphere above a diffuse floor focuses a small light onto the floor: that light,
+/// E D S+ L, is the caustic component. (A point light cannot make a caustic in a path tracer:
+/// no sampled direction from the floor can hit it, so the light here is a small sphere.)
+#[test]
+fn a_glass_sphere_puts_its_focused_light_in_caustic() {
+    let text = r#"
+        [camera]
+        position = [0, 2.5, -3]
+        look_at = [0, 0, 0]
+        fov = 40
+        [film]
+        width = 24
+        height = 24
+        [render]
+        max_depth = 8
+        [[material]]
+        name = "glass"
+        type = "glass"
+        ior = 1.5
+        [[shape]]
+        type = "sphere"
+        material = "glass"
+        center = [0, 1, 0]
+        radius = 0.5
+        [[shape]]
+        type = "quad"
+        vertices = [[-5, 0, -5], [-5, 0, 5], [5, 0, 5], [5, 0, -5]]
+        [[shape]]
+        type = "sphere"
+        name = "lamp"
+        center = [0, 4, 0]
+        radius = 0.1
+        emission = [400, 400, 400]
+    "#;
+    let f = film(text, 64);
+    let caustic = f.components[2].mean();
+    assert!(caustic.x > 0.0, "no caustic at all");
+    // The caustic is concentrated (under the sphere): its brightest pixel is far above its mean.
+    let max = f.components[2].pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
+    assert!(max > 5.0 * caustic.x, "the caustic is not focused: max {max}, mean {}", caustic.x);
+}
+
+/// Mirror and glass spheres of colour 1 inside a uniform sky reflect and transmit exactly the
+/// sky: a white furnace for the specular materials (energy kept through the 1/eta^2 scaling).
+#[test]
+fn specular_white_furnace() {
+    for material in ["type = \"mirror\"", "type = \"glass\"\nior = 1.5"] {
+        let text = format!(
+            r#"
+            [camera]
+            position = [0, 0, -4]
+            look_at = [0, 0, 0]
+            fov = 40
+            [film]
+            width = 32
+            height = 32
+            [render]
+            max_depth = 64
+            [[material]]
+            name = "m"
+            {material}
+            [[shape]]
+            type = "sphere"
+            material = "m"
+            radius = 1
+            [[light]]
+            type = "sky"
+            radiance = [1, 1, 1]
+            "#
+        );
+        let mean = film(&text, 16).raw.mean();
+        assert!((mean.x - 1.0).abs() < 0.01, "{material}: mean {mean}");
+    }
+}

@@ -69,6 +69,31 @@ impl PathClass {
     }
 }
 
+/// The mirror direction of `wo` about `n`.
+fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
+    2.0 * wo.dot(n) * n - wo
+}
+
+/// The refracted direction of `wo` (on `n`'s side, cos_i = n.wo) through a boundary with index
+/// ratio `eta` (transmitted over incident); only called below total internal reflection.
+fn refract(wo: Vec3, n: Vec3, eta: f32, cos_i: f32) -> Vec3 {
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    (-wo / eta + (cos_i / eta - cos_t) * n).normalize()
+}
+
+/// Unpolarised Fresnel reflectance of a dielectric boundary (1 under total internal reflection).
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
 /// Veach's power heuristic with exponent 2.
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
@@ -80,6 +105,34 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
 }
 
 impl<A: Accel> Integrator<'_, A> {
+    /// Bookkeeping of an S vertex: before any D vertex the guide buffers follow the specular
+    /// chain (the last vertex of an all-specular path is what a pixel shows); after the first D
+    /// vertex an S bounce makes light arriving next a caustic. Returns false when the new
+    /// direction is unusable.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn specular_bounce(
+        &self,
+        out: &mut PathSample,
+        class: &mut PathClass,
+        object: u32,
+        normal: Vec3,
+        travelled: f32,
+        color: Vec3,
+        wi: Vec3,
+        side: Vec3,
+    ) -> bool {
+        if class.diffuse == 0 {
+            out.object = Some(object);
+            out.normal = normal;
+            out.depth = travelled;
+            out.albedo = color;
+        } else if class.diffuse == 1 {
+            class.specular_after_first = true;
+        }
+        wi.is_finite() && side.is_finite()
+    }
+
     /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
     /// traced rays.
     pub fn sample(&self, mut ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
@@ -135,7 +188,46 @@ impl<A: Accel> Integrator<'_, A> {
             // Both normals on the side the ray came from (surfaces are two-sided).
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
             let ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-            let Material::Diffuse { albedo } = scene.materials[shape.material as usize];
+            let albedo = match scene.materials[shape.material as usize] {
+                Material::Diffuse { albedo } => albedo,
+                Material::Mirror { color } => {
+                    let wi = reflect(wo, ns);
+                    if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, ng)
+                    {
+                        break;
+                    }
+                    beta *= color;
+                    ray = Ray::new(offset_ray_origin(s.p, ng), wi);
+                    specular = true;
+                    continue;
+                }
+                Material::Glass { ior, color } => {
+                    // Entering when the ray meets the outside (the side the geometric normal
+                    // points to); eta is the ratio of the indices across the boundary.
+                    let entering = s.ng.dot(wo) > 0.0;
+                    let eta = if entering { ior } else { 1.0 / ior };
+                    let cos_i = ns.dot(wo).clamp(0.0, 1.0);
+                    let reflectance = fresnel_dielectric(cos_i, eta);
+                    let (wi, scale) = if sampler.next_1d() < reflectance {
+                        (reflect(wo, ns), color)
+                    } else {
+                        // Radiance is squeezed into the denser medium's smaller solid angle.
+                        (refract(wo, ns, eta, cos_i), color / (eta * eta))
+                    };
+                    if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, wi)
+                    {
+                        break;
+                    }
+                    beta *= scale;
+                    let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
+                    ray = Ray::new(offset_ray_origin(s.p, side), wi);
+                    specular = true;
+                    if beta == Vec3::ZERO {
+                        break;
+                    }
+                    continue;
+                }
+            };
             // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
             class.diffuse += 1;
             if class.diffuse == 1 {

@@ -103,6 +103,7 @@ struct FileMaterial {
     #[serde(rename = "type")]
     kind: String,
     color: Option<V3>,
+    ior: Option<F>,
 }
 
 #[derive(Deserialize)]
@@ -243,9 +244,35 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 if color.min_element() < 0.0 || color.max_element() > 1.0 {
                     return ctx.err(span, "a diffuse `color` must lie in [0, 1]");
                 }
+                if m.ior.is_some() {
+                    return ctx.err(span, "a diffuse material does not take `ior`");
+                }
                 Material::Diffuse { albedo: color }
             }
-            other => return ctx.err(span, format!("unknown material type `{other}` (expected diffuse)")),
+            "mirror" | "glass" => {
+                let color = v3(m.color.unwrap_or([F(1.0); 3]));
+                if color.min_element() < 0.0 || color.max_element() > 1.0 {
+                    return ctx.err(span, "a `color` must lie in [0, 1]");
+                }
+                if m.kind == "mirror" {
+                    if m.ior.is_some() {
+                        return ctx.err(span, "a mirror does not take `ior`");
+                    }
+                    Material::Mirror { color }
+                } else {
+                    let ior = m.ior.map_or(1.5, |i| i.0);
+                    if ior <= 0.0 {
+                        return ctx.err(span, "`ior` must be positive");
+                    }
+                    Material::Glass { ior, color }
+                }
+            }
+            other => {
+                return ctx.err(
+                    span,
+                    format!("unknown material type `{other}` (expected diffuse, mirror or glass)"),
+                )
+            }
         };
         material_ids.insert(m.name.clone(), materials.len() as u32);
         materials.push(material);

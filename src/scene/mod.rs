@@ -71,6 +71,18 @@ pub struct RenderSettings {
 pub enum Material {
     /// Lambertian reflection with the given albedo (a D vertex in the paper's notation).
     Diffuse { albedo: Vec3 },
+    /// Perfect specular reflection, tinted by `color` (an S vertex).
+    Mirror { color: Vec3 },
+    /// A smooth dielectric: Fresnel reflection and refraction with index `ior` (an S vertex).
+    Glass { ior: f32, color: Vec3 },
+}
+
+impl Material {
+    /// Whether the paper counts this material's scattering as specular-like (S) rather than
+    /// diffuse-like (D).
+    pub fn is_specular(&self) -> bool {
+        !matches!(self, Material::Diffuse { .. })
+    }
 }
 
 /// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex
