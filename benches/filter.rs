@@ -1,0 +1,45 @@
+//! Criterion benchmarks of one filter pass (the paper's filters, plain and edge-aware) at
+//! 256x256 and at 3840x2160, on a noisy film with several objects.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use glam::Vec3;
+use lightsplit::film::Film;
+use lightsplit::filter::{filter, EdgeStops, Kernel};
+
+fn noisy_film(width: u32, height: u32) -> Film {
+    let mut film = Film::new(width, height);
+    let mut state = 0x9e37_79b9u32;
+    for (i, p) in film.components[3].pixels.iter_mut().enumerate() {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        *p = Vec3::splat((state >> 8) as f32 / 16_777_216.0);
+        let (x, y) = (i as u32 % width, i as u32 / width);
+        film.object[i] = ((x / 64 + y / 64) % 5) as f32;
+        film.normal.pixels[i] = Vec3::Z;
+        film.depth[i] = 1.0;
+    }
+    film
+}
+
+fn bench(c: &mut Criterion) {
+    for (w, h) in [(256, 256), (3840, 2160)] {
+        let film = noisy_film(w, h);
+        let mut group = c.benchmark_group(format!("filter/{w}x{h}"));
+        group.sample_size(10);
+        for name in ["box3", "weighted3", "median3", "box5"] {
+            let kernel = Kernel::parse(name).expect("kernel");
+            group.bench_function(BenchmarkId::new(name, "plain"), |b| {
+                b.iter(|| filter(film.indirect(), &kernel, &film, &EdgeStops::default()))
+            });
+            let stops = EdgeStops { object: true, ..Default::default() };
+            group.bench_function(BenchmarkId::new(name, "edge-aware"), |b| {
+                b.iter(|| filter(film.indirect(), &kernel, &film, &stops))
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
