@@ -174,3 +174,63 @@ fn json_summary_has_the_documented_keys() {
     // Nothing but the output is left in the directory (no temporary files).
     assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 1);
 }
+
+/// `render --filter` writes every layer of DESIGN's list; `filter` re-filters the saved file
+/// and `compare` measures it; mismatched sizes and missing layers are clear errors (status 2).
+#[test]
+fn render_filter_and_compare_work_together() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml");
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let scene = scene.to_string_lossy().into_owned();
+    let small = ["--width", "32", "--height", "24", "--spp", "4"];
+    let run = |args: &[&str]| {
+        let out = lightsplit(args);
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+        out
+    };
+    let out = run(&[&["render", &scene, "-o", &p("f.exr"), "--filter", "weighted3"][..], &small].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_, _, channels) = lightsplit::film::read_exr_channels(Path::new(&p("f.exr"))).expect("reads");
+    let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+    for layer in ["raw", "emitted", "direct", "caustic", "indirect", "indirect_filtered", "albedo"] {
+        for c in ["R", "G", "B"] {
+            assert!(names.contains(&format!("{layer}.{c}").as_str()), "{layer}.{c} missing: {names:?}");
+        }
+    }
+    for name in ["R", "G", "B", "normal.X", "normal.Y", "normal.Z", "depth.Z", "objectid.ID"] {
+        assert!(names.contains(&name), "{name} missing");
+    }
+
+    let out = run(&["filter", &p("f.exr"), "-o", &p("g.exr"), "--filter", "median3", "--edge-aware"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run(&["compare", &p("g.exr"), &p("f.exr"), "--json", "--diff", &p("d.png")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    for key in ["sse", "rmse", "relmse", "rmse_trimmed", "relmse_trimmed", "width", "height"] {
+        assert!(v.get(key).is_some(), "{key}");
+    }
+    assert!(v["rmse"].as_f64().expect("rmse") > 0.0);
+    assert!(Path::new(&p("d.png")).exists());
+    let same = run(&["compare", &p("f.exr"), &p("f.exr"), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&same.stdout).expect("json");
+    assert_eq!(v["sse"], 0.0);
+
+    // A different size, a file without the layers, a bad kernel: status 2 each.
+    run(&["render", &scene, "-o", &p("other.exr"), "--width", "16", "--height", "16", "--spp", "1"]);
+    let out = run(&["compare", &p("f.exr"), &p("other.exr")]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("size"));
+    let rgb_only = p("rgb.exr");
+    lightsplit::film::write(&lightsplit::film::Image::new(4, 4), Path::new(&rgb_only), 0.0).expect("write");
+    let out = run(&["filter", &rgb_only, "-o", &p("h.exr"), "--filter", "box3"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("raw.R"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run(&["filter", &p("f.exr"), "-o", &p("h.exr"), "--filter", "gauss"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!Path::new(&p("h.exr")).exists());
+}
