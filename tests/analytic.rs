@@ -1,5 +1,7 @@
 //! Renders with a known answer: a white furnace and a diffuse plane under a point light.
 
+mod common;
+
 use std::path::Path;
 
 use glam::Vec2;
@@ -129,27 +131,7 @@ fn emissive_closed_box_reaches_le_over_one_minus_albedo() {
         color = [0.5, 0.5, 0.5]
         "#,
     );
-    // Six faces of [-1, 1]^3, wound so that their front (emitting) side faces inwards.
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let corner = |a: f32, b: f32| {
-                let mut p = [0.0f32; 3];
-                p[axis] = sign;
-                p[(axis + 1) % 3] = a;
-                p[(axis + 2) % 3] = b;
-                format!("[{}, {}, {}]", p[0], p[1], p[2])
-            };
-            // (a, b) counter-clockwise gives a normal along +axis; reverse it on the + side.
-            let mut quad = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
-            if sign > 0.0 {
-                quad.reverse();
-            }
-            text.push_str(&format!(
-                "[[shape]]\ntype = \"quad\"\nmaterial = \"half\"\nemission = [1, 1, 1]\nvertices = [{}]\n",
-                quad.join(", ")
-            ));
-        }
-    }
+    text.push_str(&common::inward_cube("material = \"half\"\nemission = [1, 1, 1]"));
     let out = render_text(&text, 16);
     let mean = out.film.raw.mean();
     assert!((mean.x / 2.0 - 1.0).abs() < 0.01, "mean {mean}, expected 2");

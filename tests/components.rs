@@ -1,6 +1,8 @@
 //! The paper's component split: the four components sum to the beauty, each lands where its
 //! light path says, and the guide buffers see the first diffuse vertex.
 
+mod common;
+
 use std::path::Path;
 
 use glam::Vec3;
@@ -80,23 +82,7 @@ fn closed_box_has_indirect_everywhere_and_no_direct_in_shadow() {
         intensity = [2, 2, 2]
         "#,
     );
-    // The room: six inward-facing quads of [-1, 1]^3.
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let corner = |a: f32, b: f32| {
-                let mut p = [0.0f32; 3];
-                p[axis] = sign;
-                p[(axis + 1) % 3] = a;
-                p[(axis + 2) % 3] = b;
-                format!("[{}, {}, {}]", p[0], p[1], p[2])
-            };
-            let quad = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
-            text.push_str(&format!(
-                "[[shape]]\ntype = \"quad\"\nobject = \"room\"\nmaterial = \"white\"\nvertices = [{}]\n",
-                quad.join(", ")
-            ));
-        }
-    }
+    text.push_str(&common::inward_cube("object = \"room\"\nmaterial = \"white\""));
     let f = film(&text, 16);
     // The camera looks down at the floor under the blocker: its centre is in the block's shadow.
     let centre = (16 * 32 + 16) as usize;

@@ -1,0 +1,25 @@
+//! Helpers shared by the integration tests.
+
+/// The six faces of the cube [-1, 1]^3 as scene-file quads, wound so that their front (emitting)
+/// side faces inwards; `keys` (TOML lines such as `material = "white"`) go into each.
+pub fn inward_cube(keys: &str) -> String {
+    let mut text = String::new();
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let corner = |a: f32, b: f32| {
+                let mut p = [0.0f32; 3];
+                p[axis] = sign;
+                p[(axis + 1) % 3] = a;
+                p[(axis + 2) % 3] = b;
+                format!("[{}, {}, {}]", p[0], p[1], p[2])
+            };
+            // (a, b) counter-clockwise gives a normal along +axis; reverse it on the + side.
+            let mut quad = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
+            if sign > 0.0 {
+                quad.reverse();
+            }
+            text.push_str(&format!("[[shape]]\ntype = \"quad\"\n{keys}\nvertices = [{}]\n", quad.join(", ")));
+        }
+    }
+    text
+}
