@@ -241,3 +241,93 @@ mod tests {
         }
     }
 }
+
+/// Chi-square tests of the direction sampling routines against their densities (as pbrt does):
+/// directions binned in (cos theta, phi), expected counts from integrating the pdf over each bin,
+/// bins with fewer than 5 expected samples pooled, and the statistic's tail probability from the
+/// Wilson-Hilferty normal approximation. The samplers are seeded, so the tests are repeatable.
+#[cfg(test)]
+mod chi_square {
+    use super::*;
+    use crate::render::sampler::Sampler;
+
+    const THETA: usize = 16;
+    const PHI: usize = 32;
+    const SAMPLES: usize = 200_000;
+
+    fn bin(d: Vec3) -> usize {
+        let t = (((d.z.clamp(-1.0, 1.0) + 1.0) * 0.5 * THETA as f32) as usize).min(THETA - 1);
+        let phi = d.y.atan2(d.x).rem_euclid(TAU);
+        let p = ((phi / TAU * PHI as f32) as usize).min(PHI - 1);
+        t * PHI + p
+    }
+
+    /// The z-score of the chi-square statistic; fails the test above 4 (p below about 3e-5).
+    fn z_score(sample: impl Fn(Vec2) -> Vec3, pdf: impl Fn(Vec3) -> f32) -> f64 {
+        let mut observed = vec![0.0f64; THETA * PHI];
+        let mut s = Sampler::new(17, 3, 5);
+        for _ in 0..SAMPLES {
+            let d = sample(s.next_2d());
+            assert!((d.length() - 1.0).abs() < 1e-4, "not a unit direction: {d}");
+            observed[bin(d)] += 1.0;
+        }
+        // Expected: the pdf integrated over each bin (midpoint rule, 8x8 per bin).
+        let mut expected = vec![0.0f64; THETA * PHI];
+        let sub = 8;
+        for t in 0..THETA * sub {
+            let z = -1.0 + (t as f64 + 0.5) / (THETA * sub) as f64 * 2.0;
+            for p in 0..PHI * sub {
+                let phi = (p as f64 + 0.5) / (PHI * sub) as f64 * std::f64::consts::TAU;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                let area = 2.0 / (THETA * sub) as f64 * std::f64::consts::TAU / (PHI * sub) as f64;
+                expected[(t / sub) * PHI + p / sub] += pdf(d) as f64 * area * SAMPLES as f64;
+            }
+        }
+        let (mut chi2, mut dof, mut pool_o, mut pool_e) = (0.0, 0usize, 0.0, 0.0);
+        for (o, e) in observed.iter().zip(&expected) {
+            if *e < 5.0 {
+                pool_o += o;
+                pool_e += e;
+            } else {
+                chi2 += (o - e) * (o - e) / e;
+                dof += 1;
+            }
+        }
+        if pool_e >= 5.0 {
+            chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+            dof += 1;
+        } else {
+            assert!(pool_o <= 5.0 + 5.0 * pool_e, "{pool_o} samples where the pdf expects {pool_e}");
+        }
+        let k = (dof - 1) as f64;
+        ((chi2 / k).cbrt() - (1.0 - 2.0 / (9.0 * k))) / (2.0 / (9.0 * k)).sqrt()
+    }
+
+    #[test]
+    fn cosine_hemisphere_matches_cos_over_pi() {
+        let z = z_score(cosine_hemisphere, |d| d.z.max(0.0) / PI);
+        assert!(z < 4.0, "z = {z}");
+    }
+
+    #[test]
+    fn uniform_sphere_matches_one_over_four_pi() {
+        let z = z_score(uniform_sphere, |_| 1.0 / FOUR_PI);
+        assert!(z < 4.0, "z = {z}");
+    }
+
+    #[test]
+    fn uniform_cone_matches_its_density() {
+        // The cone edge on a bin edge (cos theta = 0.75), so bins are either in or out.
+        let omc = 0.25;
+        let z = z_score(|u| uniform_cone(u, omc), |d| if 1.0 - d.z <= omc { 1.0 / (TAU * omc) } else { 0.0 });
+        assert!(z < 4.0, "z = {z}");
+    }
+
+    #[test]
+    fn a_wrong_density_fails() {
+        // The test has power: cosine samples judged against a uniform hemisphere must fail.
+        let z = z_score(cosine_hemisphere, |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 });
+        assert!(z > 10.0, "z = {z}");
+    }
+}

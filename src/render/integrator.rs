@@ -296,3 +296,35 @@ impl<A: Accel> Integrator<'_, A> {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fresnel_at_normal_incidence_grazing_and_beyond_the_critical_angle() {
+        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
+        assert!((fresnel_dielectric(1e-4, 1.5) - 1.0).abs() < 1e-2);
+        // From inside glass (eta = 1/1.5) beyond asin(1/1.5) = 41.8 degrees: total reflection.
+        assert_eq!(fresnel_dielectric(43f32.to_radians().cos(), 1.0 / 1.5), 1.0);
+        assert!(fresnel_dielectric(40f32.to_radians().cos(), 1.0 / 1.5) < 1.0);
+        // The same boundary crossed either way reflects the same fraction.
+        for cos_i in [0.2f32, 0.5, 0.9] {
+            let sin_t = (1.0 - cos_i * cos_i).sqrt() / 1.5;
+            let cos_t = (1.0 - sin_t * sin_t).sqrt();
+            assert!((fresnel_dielectric(cos_i, 1.5) - fresnel_dielectric(cos_t, 1.0 / 1.5)).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn refraction_obeys_snell() {
+        let n = Vec3::Z;
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let wt = refract(wo, n, 1.5, wo.dot(n));
+        let sin_i = 0.6;
+        let sin_t = (1.0 - wt.z * wt.z).sqrt();
+        assert!((sin_i - 1.5 * sin_t).abs() < 1e-5, "{wt}");
+        assert!(wt.z < 0.0 && wt.x < 0.0, "goes through, on the far side of the normal: {wt}");
+        assert!((reflect(wo, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
+    }
+}
