@@ -20,7 +20,9 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 if [ ! -f "$root/usr/include/embree4/rtcore.h" ] || [ ! -x "$root/usr/bin/gcc" ]; then
-  command -v debootstrap >/dev/null || apt-get install -y -qq debootstrap >/dev/null
+  if ! command -v debootstrap >/dev/null; then
+    apt-get install -y -qq debootstrap >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null; }
+  fi
   echo "debian13: creating $root with debootstrap (about a minute)"
   rm -rf "$root.partial"
   # shellcheck disable=SC2086
