@@ -341,25 +341,6 @@ pub fn read_image(path: &Path) -> Result<Image, String> {
     }
 }
 
-/// Reads the RGB layer of an EXR file written by [`write`] (or any RGB EXR).
-pub fn read_exr(path: &Path) -> Result<self::Image, String> {
-    use exr::prelude::*;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), vec![Vec3::ZERO; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
-        },
-    )
-    .map_err(|e| format!("{}: {e}", path.display()))?;
-    let size = img.layer_data.size;
-    Ok(self::Image {
-        width: size.width() as u32,
-        height: size.height() as u32,
-        pixels: img.layer_data.channel_data.pixels.1,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -380,7 +361,7 @@ mod tests {
         let path = dir.path().join("a.exr");
         let img = gradient();
         write(&img, &path, 0.0).expect("write");
-        assert_eq!(read_exr(&path).expect("read"), img);
+        assert_eq!(read_image(&path).expect("read"), img);
         // Only the final file is left behind.
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
     }
