@@ -26,6 +26,11 @@ impl Frame {
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.s * v.x + self.t * v.y + self.n * v.z
     }
+
+    /// From world coordinates to the frame's.
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(self.s.dot(v), self.t.dot(v), self.n.dot(v))
+    }
 }
 
 /// Cosine-weighted direction on the hemisphere around +z; pdf = cos(theta) / pi.
@@ -247,7 +252,7 @@ mod tests {
 /// bins with fewer than 5 expected samples pooled, and the statistic's tail probability from the
 /// Wilson-Hilferty normal approximation. The samplers are seeded, so the tests are repeatable.
 #[cfg(test)]
-mod chi_square {
+pub(crate) mod chi_square {
     use super::*;
     use crate::render::sampler::Sampler;
 
@@ -262,18 +267,21 @@ mod chi_square {
         t * PHI + p
     }
 
-    /// The z-score of the chi-square statistic; fails the test above 4 (p below about 3e-5).
-    fn z_score(sample: impl Fn(Vec2) -> Vec3, pdf: impl Fn(Vec3) -> f32) -> f64 {
+    /// The z-score of the chi-square statistic of `SAMPLES` calls of `sample` (a call may give
+    /// no direction: the pdf then integrates to less than one) against `pdf`; tests fail above 4
+    /// (p below about 3e-5).
+    pub fn z_score(mut sample: impl FnMut(&mut Sampler) -> Option<Vec3>, pdf: impl Fn(Vec3) -> f32) -> f64 {
         let mut observed = vec![0.0f64; THETA * PHI];
         let mut s = Sampler::new(17, 3, 5);
         for _ in 0..SAMPLES {
-            let d = sample(s.next_2d());
+            let Some(d) = sample(&mut s) else { continue };
             assert!((d.length() - 1.0).abs() < 1e-4, "not a unit direction: {d}");
             observed[bin(d)] += 1.0;
         }
-        // Expected: the pdf integrated over each bin (midpoint rule, 8x8 per bin).
+        // Expected: the pdf integrated over each bin (midpoint rule, 32x32 per bin, fine enough
+        // for densities with edges inside a bin).
         let mut expected = vec![0.0f64; THETA * PHI];
-        let sub = 8;
+        let sub = 32;
         for t in 0..THETA * sub {
             let z = -1.0 + (t as f64 + 0.5) / (THETA * sub) as f64 * 2.0;
             for p in 0..PHI * sub {
@@ -306,13 +314,13 @@ mod chi_square {
 
     #[test]
     fn cosine_hemisphere_matches_cos_over_pi() {
-        let z = z_score(cosine_hemisphere, |d| d.z.max(0.0) / PI);
+        let z = z_score(|s| Some(cosine_hemisphere(s.next_2d())), |d| d.z.max(0.0) / PI);
         assert!(z < 4.0, "z = {z}");
     }
 
     #[test]
     fn uniform_sphere_matches_one_over_four_pi() {
-        let z = z_score(uniform_sphere, |_| 1.0 / FOUR_PI);
+        let z = z_score(|s| Some(uniform_sphere(s.next_2d())), |_| 1.0 / FOUR_PI);
         assert!(z < 4.0, "z = {z}");
     }
 
@@ -320,14 +328,18 @@ mod chi_square {
     fn uniform_cone_matches_its_density() {
         // The cone edge on a bin edge (cos theta = 0.75), so bins are either in or out.
         let omc = 0.25;
-        let z = z_score(|u| uniform_cone(u, omc), |d| if 1.0 - d.z <= omc { 1.0 / (TAU * omc) } else { 0.0 });
+        let z = z_score(
+            |s| Some(uniform_cone(s.next_2d(), omc)),
+            |d| if 1.0 - d.z <= omc { 1.0 / (TAU * omc) } else { 0.0 },
+        );
         assert!(z < 4.0, "z = {z}");
     }
 
     #[test]
     fn a_wrong_density_fails() {
         // The test has power: cosine samples judged against a uniform hemisphere must fail.
-        let z = z_score(cosine_hemisphere, |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 });
+        let z =
+            z_score(|s| Some(cosine_hemisphere(s.next_2d())), |d| if d.z > 0.0 { 1.0 / TAU } else { 0.0 });
         assert!(z > 10.0, "z = {z}");
     }
 }

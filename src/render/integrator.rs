@@ -7,6 +7,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3;
 
+use super::bsdf::{Glossy, Lobe};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::surface;
@@ -66,6 +67,17 @@ impl PathClass {
             1 => DIRECT,
             _ => INDIRECT,
         }
+    }
+
+    /// The class after one more D vertex.
+    fn through_diffuse(self) -> Self {
+        PathClass { diffuse: self.diffuse + 1, ..self }
+    }
+
+    /// The class after one more S vertex: after the first D vertex, light arriving next is a
+    /// caustic.
+    fn through_specular(self) -> Self {
+        PathClass { specular_after_first: self.specular_after_first || self.diffuse == 1, ..self }
     }
 }
 
@@ -127,10 +139,51 @@ impl<A: Accel> Integrator<'_, A> {
             out.normal = normal;
             out.depth = travelled;
             out.albedo = color;
-        } else if class.diffuse == 1 {
-            class.specular_after_first = true;
         }
+        *class = class.through_specular();
         wi.is_finite() && side.is_finite()
+    }
+
+    /// Next-event estimation at a reflecting vertex at `p` (shading normal `ns`, geometric `ng`,
+    /// both on the side the path came from): samples every light when there are few, else one
+    /// picked by power, traces a shadow ray from `origin` for each sample that can reflect, and
+    /// hands the unoccluded ones to `gather` with their cosine at `ns`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn next_event(
+        &self,
+        p: Vec3,
+        origin: Vec3,
+        ns: Vec3,
+        ng: Vec3,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+        mut gather: impl FnMut(&LightSample, f32),
+    ) {
+        let mut trace = |ls: LightSample, rays: &mut u64| {
+            let cos = ns.dot(ls.wi);
+            if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
+                let shadow = match ls.end {
+                    // Unnormalised direction: t in [0, 1] ends exactly at the light point.
+                    ShadowEnd::Point(q) => Ray { origin, dir: q - origin, t_max: 1.0 },
+                    ShadowEnd::Infinite => Ray::new(origin, ls.wi),
+                };
+                *rays += 1;
+                if !self.accel.occluded(&shadow) {
+                    gather(&ls, cos);
+                }
+            }
+        };
+        let (scene, lights) = (self.scene, self.lights);
+        if lights.sample_all() {
+            for i in 0..lights.emitters.len() {
+                if let Some(ls) = lights.sample_one(scene, i, p, sampler.next_2d()) {
+                    trace(ls, rays);
+                }
+            }
+        } else if let Some(ls) = lights.sample(scene, p, sampler.next_1d(), sampler.next_2d()) {
+            trace(ls, rays);
+        }
     }
 
     /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
@@ -188,8 +241,100 @@ impl<A: Accel> Integrator<'_, A> {
             // Both normals on the side the ray came from (surfaces are two-sided).
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
             let ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-            let albedo = match scene.materials[shape.material as usize] {
-                Material::Diffuse { albedo } => albedo,
+            // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
+            let origin = offset_ray_origin(s.p, ng);
+            let wi = match scene.materials[shape.material as usize] {
+                Material::Diffuse { albedo } => {
+                    // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
+                    class = class.through_diffuse();
+                    if class.diffuse == 1 {
+                        out.object = Some(shape.object);
+                        out.normal = ns;
+                        out.depth = travelled;
+                        out.albedo = albedo;
+                    }
+                    let f = albedo * FRAC_1_PI;
+                    self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
+                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
+                        let component = class.component(lights.diffuse_source[ls.light as usize]);
+                        add(&mut out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
+                    });
+
+                    // Continue the path by sampling the BSDF.
+                    let local = cosine_hemisphere(sampler.next_2d());
+                    let wi = Frame::new(ns).to_world(local);
+                    bsdf_pdf = local.z * FRAC_1_PI;
+                    if bsdf_pdf <= 0.0 || ng.dot(wi) <= 0.0 {
+                        break;
+                    }
+                    beta *= albedo; // f cos / pdf for a Lambertian lobe
+                    wi
+                }
+                Material::Glossy { specular, alpha, base } => {
+                    // Each lobe is its own vertex type: the GGX lobe S, the base D. Light found
+                    // through each lobe goes to the component that lobe makes, with its own MIS
+                    // weight, so the split stays exact in expectation.
+                    let g = Glossy { specular, alpha, base };
+                    let frame = Frame::new(ns);
+                    let wo_l = frame.to_local(wo);
+                    if wo_l.z <= 0.0 {
+                        break;
+                    }
+                    let p_spec = g.specular_probability(wo_l);
+                    let (spec_class, base_class) = (class.through_specular(), class.through_diffuse());
+                    self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, _| {
+                        let wi_l = frame.to_local(ls.wi);
+                        let source = lights.diffuse_source[ls.light as usize];
+                        let lobes = [
+                            (g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l), spec_class),
+                            (g.eval_base(wo_l, wi_l), (1.0 - p_spec) * g.pdf_base(wi_l), base_class),
+                        ];
+                        for (f, pdf, lobe_class) in lobes {
+                            if f != Vec3::ZERO {
+                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+                                let c = beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
+                                add(&mut out, c, lobe_class.component(source));
+                            }
+                        }
+                    });
+
+                    let (wi_l, lobe) = g.sample(wo_l, sampler.next_1d(), sampler.next_2d());
+                    let wi = frame.to_world(wi_l);
+                    if wi_l.z <= 0.0 || ng.dot(wi) <= 0.0 || !wi.is_finite() {
+                        break;
+                    }
+                    match lobe {
+                        Lobe::Specular => {
+                            self.specular_bounce(
+                                &mut out,
+                                &mut class,
+                                shape.object,
+                                ns,
+                                travelled,
+                                specular,
+                                wi,
+                                ng,
+                            );
+                            bsdf_pdf = p_spec * g.pdf_specular(wo_l, wi_l);
+                            beta *= g.specular_weight(wo_l, wi_l) / p_spec;
+                        }
+                        Lobe::Base => {
+                            class = base_class;
+                            if class.diffuse == 1 {
+                                out.object = Some(shape.object);
+                                out.normal = ns;
+                                out.depth = travelled;
+                                out.albedo = base;
+                            }
+                            bsdf_pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
+                            beta *= g.eval_base(wo_l, wi_l) * (wi_l.z / bsdf_pdf);
+                        }
+                    }
+                    if bsdf_pdf <= 0.0 {
+                        break;
+                    }
+                    wi
+                }
                 Material::Mirror { color } => {
                     let wi = reflect(wo, ns);
                     if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, ng)
@@ -197,7 +342,7 @@ impl<A: Accel> Integrator<'_, A> {
                         break;
                     }
                     beta *= color;
-                    ray = Ray::new(offset_ray_origin(s.p, ng), wi);
+                    ray = Ray::new(origin, wi);
                     specular = true;
                     continue;
                 }
@@ -228,53 +373,6 @@ impl<A: Accel> Integrator<'_, A> {
                     continue;
                 }
             };
-            // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
-            class.diffuse += 1;
-            if class.diffuse == 1 {
-                out.object = Some(shape.object);
-                out.normal = ns;
-                out.depth = travelled;
-                out.albedo = albedo;
-            }
-            // Every ray leaving this point (shadow or bounce) goes to the side of `ng`.
-            let origin = offset_ray_origin(s.p, ng);
-
-            // Next-event estimation: every light when there are few, else one picked by power.
-            let f = albedo * FRAC_1_PI;
-            let nee = |ls: LightSample, out: &mut PathSample, rays: &mut u64| {
-                let cos = ns.dot(ls.wi);
-                if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
-                    let shadow = match ls.end {
-                        // Unnormalised direction: t in [0, 1] ends exactly at the light point.
-                        ShadowEnd::Point(q) => Ray { origin, dir: q - origin, t_max: 1.0 },
-                        ShadowEnd::Infinite => Ray::new(origin, ls.wi),
-                    };
-                    *rays += 1;
-                    if !self.accel.occluded(&shadow) {
-                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
-                        let component = class.component(lights.diffuse_source[ls.light as usize]);
-                        add(out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
-                    }
-                }
-            };
-            if lights.sample_all() {
-                for i in 0..lights.emitters.len() {
-                    if let Some(ls) = lights.sample_one(scene, i, s.p, sampler.next_2d()) {
-                        nee(ls, &mut out, rays);
-                    }
-                }
-            } else if let Some(ls) = lights.sample(scene, s.p, sampler.next_1d(), sampler.next_2d()) {
-                nee(ls, &mut out, rays);
-            }
-
-            // Continue the path by sampling the BSDF.
-            let local = cosine_hemisphere(sampler.next_2d());
-            let wi = Frame::new(ns).to_world(local);
-            bsdf_pdf = local.z * FRAC_1_PI;
-            if bsdf_pdf <= 0.0 || ng.dot(wi) <= 0.0 {
-                break;
-            }
-            beta *= albedo; // f cos / pdf for a Lambertian lobe
             if beta == Vec3::ZERO {
                 break; // nothing more can reach the eye along this path
             }

@@ -1,6 +1,7 @@
 //! Rendering: camera rays, the sampler, lights, the path integrator, and the driver that renders
 //! tiles in parallel with rayon and gathers them into a [`crate::film::Image`].
 
+pub mod bsdf;
 pub mod camera;
 pub mod integrator;
 pub mod lights;

@@ -12,6 +12,8 @@ use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::render::bsdf::MIN_ALPHA;
+
 use super::{
     obj, procedural, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene,
     SceneError, Shape,
@@ -104,6 +106,8 @@ struct FileMaterial {
     kind: String,
     color: Option<V3>,
     ior: Option<F>,
+    roughness: Option<F>,
+    base: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -238,14 +242,25 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         if material_ids.contains_key(&m.name) {
             return ctx.err(span, format!("material `{}` is defined twice", m.name));
         }
+        let only = |key: &str, present: bool, kinds: &str| -> Result<(), SceneError> {
+            if present {
+                ctx.err(span.clone(), format!("a {} material does not take `{key}` (only {kinds})", m.kind))
+            } else {
+                Ok(())
+            }
+        };
+        if m.kind != "glass" {
+            only("ior", m.ior.is_some(), "glass")?;
+        }
+        if m.kind != "glossy" {
+            only("roughness", m.roughness.is_some(), "glossy")?;
+            only("base", m.base.is_some(), "glossy")?;
+        }
         let material = match m.kind.as_str() {
             "diffuse" => {
                 let color = v3(m.color.unwrap_or([F(0.8); 3]));
                 if color.min_element() < 0.0 || color.max_element() > 1.0 {
                     return ctx.err(span, "a diffuse `color` must lie in [0, 1]");
-                }
-                if m.ior.is_some() {
-                    return ctx.err(span, "a diffuse material does not take `ior`");
                 }
                 Material::Diffuse { albedo: color }
             }
@@ -255,9 +270,6 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                     return ctx.err(span, "a `color` must lie in [0, 1]");
                 }
                 if m.kind == "mirror" {
-                    if m.ior.is_some() {
-                        return ctx.err(span, "a mirror does not take `ior`");
-                    }
                     Material::Mirror { color }
                 } else {
                     let ior = m.ior.map_or(1.5, |i| i.0);
@@ -267,10 +279,26 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                     Material::Glass { ior, color }
                 }
             }
+            "glossy" => {
+                let specular = v3(m.color.unwrap_or([F(0.9); 3]));
+                let base = v3(m.base.unwrap_or([F(0.0); 3]));
+                if specular.min_element() < 0.0 || specular.max_element() > 1.0 {
+                    return ctx.err(span, "a glossy `color` must lie in [0, 1]");
+                }
+                if base.min_element() < 0.0 || base.max_element() > 1.0 {
+                    return ctx.err(span, "a glossy `base` must lie in [0, 1]");
+                }
+                let roughness = m.roughness.map_or(0.3, |r| r.0);
+                if !(0.0..=1.0).contains(&roughness) {
+                    return ctx.err(span, "`roughness` must lie in [0, 1]");
+                }
+                let alpha = (roughness * roughness).max(MIN_ALPHA);
+                Material::Glossy { specular, alpha, base }
+            }
             other => {
                 return ctx.err(
                     span,
-                    format!("unknown material type `{other}` (expected diffuse, mirror or glass)"),
+                    format!("unknown material type `{other}` (expected diffuse, mirror, glass or glossy)"),
                 )
             }
         };
@@ -700,6 +728,26 @@ mod tests {
         let (line, msg) = error_line(&text);
         assert_eq!(line, Some(4), "{msg}");
         assert!(msg.contains("vertices"), "{msg}");
+    }
+
+    #[test]
+    fn material_keys_belong_to_their_types() {
+        let glossy = "[[material]]\nname = \"g\"\ntype = \"glossy\"\n";
+        let s =
+            parse_str(&format!("{MINIMAL}{glossy}roughness = 0.5\nbase = [0.5, 0, 0]\n")).expect("parses");
+        let Material::Glossy { alpha, base, specular } = s.materials[0] else { panic!("{:?}", s.materials) };
+        assert_eq!((alpha, base, specular), (0.25, Vec3::new(0.5, 0.0, 0.0), Vec3::splat(0.9)));
+        for (extra, needle) in
+            [("roughness = 1.5\n", "roughness"), ("ior = 1.5\n", "ior"), ("base = [2, 0, 0]\n", "base")]
+        {
+            let (line, msg) = error_line(&format!("{MINIMAL}{glossy}{extra}"));
+            assert_eq!(line, Some(4), "{msg}");
+            assert!(msg.contains(needle), "{msg}");
+        }
+        let (_, msg) = error_line(&format!(
+            "{MINIMAL}[[material]]\nname = \"d\"\ntype = \"diffuse\"\nbase = [1, 1, 1]\n"
+        ));
+        assert!(msg.contains("base") && msg.contains("only glossy"), "{msg}");
     }
 
     #[test]

@@ -75,6 +75,9 @@ pub enum Material {
     Mirror { color: Vec3 },
     /// A smooth dielectric: Fresnel reflection and refraction with index `ior` (an S vertex).
     Glass { ior: f32, color: Vec3 },
+    /// A GGX microfacet lobe with reflectance `specular` at normal incidence and GGX `alpha`
+    /// (an S vertex), over a diffuse `base` (a D vertex; black for none).
+    Glossy { specular: Vec3, alpha: f32, base: Vec3 },
 }
 
 impl Material {
