@@ -306,7 +306,10 @@ pub(crate) mod chi_square {
             chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
             dof += 1;
         } else {
-            assert!(pool_o <= 5.0 + 5.0 * pool_e, "{pool_o} samples where the pdf expects {pool_e}");
+            // Bins with almost no expected samples: a density edge that grazes a bin can put a
+            // few samples where the quadrature sees next to nothing.
+            let slack = 1e-4 * SAMPLES as f64;
+            assert!(pool_o <= slack + 5.0 * pool_e, "{pool_o} samples where the pdf expects {pool_e}");
         }
         let k = (dof - 1) as f64;
         ((chi2 / k).cbrt() - (1.0 - 2.0 / (9.0 * k))) / (2.0 / (9.0 * k)).sqrt()
