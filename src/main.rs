@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use lightsplit::accel::Backend;
 use lightsplit::film;
-use lightsplit::filter::{composite, EdgeStops, Kernel, Target};
+use lightsplit::filter::{composite, EdgeStops, Kernel, Setting, Target};
 use lightsplit::render::{self, RenderOptions};
 use lightsplit::scene;
 
@@ -58,37 +58,29 @@ struct FilterArgs {
     edge_depth: Option<f32>,
 }
 
-/// A checked filter setting.
-struct FilterSetting {
-    kernel: Option<Kernel>,
-    target: Target,
-    stops: EdgeStops,
-}
-
 impl FilterArgs {
-    fn check(&self) -> Result<FilterSetting, Failure> {
-        let kernel = self.filter.as_deref().map(Kernel::parse).transpose().map_err(Failure::input)?;
-        let target =
-            self.filter_target.unwrap_or(if kernel.is_some() { Target::Indirect } else { Target::None });
+    /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
+    fn check(&self, base: &Setting) -> Result<Setting, Failure> {
+        let kernel = match self.filter.as_deref() {
+            Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
+            None => base.kernel.clone(),
+        };
+        let target = match (self.filter_target, &self.filter) {
+            (Some(t), _) => t,
+            // A filter named here applies to its default target, not to the scene's.
+            (None, Some(_)) => Target::Indirect,
+            (None, None) => base.target,
+        };
         if target != Target::None && kernel.is_none() {
             return Err(Failure::input("--filter-target needs --filter"));
         }
-        if let Some(d) = self.edge_normal {
-            if !(d.is_finite() && d > 0.0 && d <= 180.0) {
-                return Err(Failure::input("--edge-normal must lie in (0, 180] degrees"));
-            }
-        }
-        if let Some(r) = self.edge_depth {
-            if !(r.is_finite() && r >= 0.0) {
-                return Err(Failure::input("--edge-depth must be a non-negative number"));
-            }
-        }
         let stops = EdgeStops {
-            object: self.edge_aware,
-            normal_degrees: self.edge_normal,
-            depth_relative: self.edge_depth,
+            object: self.edge_aware || base.stops.object,
+            normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
+            depth_relative: self.edge_depth.or(base.stops.depth_relative),
         };
-        Ok(FilterSetting { kernel, target, stops })
+        stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
+        Ok(Setting { kernel, target, stops })
     }
 }
 
@@ -263,7 +255,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if !args.exposure.is_finite() {
         return Err(Failure::input("--exposure must be a finite number"));
     }
-    let setting = args.filter.check()?;
+    let setting = args.filter.check(&scene.filter)?;
 
     let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
@@ -293,9 +285,9 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "samples_per_second": samples_per_second,
             "rays_per_second": rays_per_second,
             "nonfinite_samples": s.nonfinite_samples,
-            "filter": args.filter.filter,
+            "filter": setting.kernel.as_ref().map(Kernel::name),
             "filter_target": format!("{:?}", setting.target).to_lowercase(),
-            "edge_aware": args.filter.edge_aware,
+            "edge_aware": setting.stops.object,
             "filter_seconds": filter_seconds,
             "outputs": [output],
         });
@@ -366,7 +358,7 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 }
 
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
-    let setting = args.filter.check()?;
+    let setting = args.filter.check(&Setting::default())?;
     film::check_output(&args.output).map_err(Failure::input)?;
     if !args.exposure.is_finite() {
         return Err(Failure::input("--exposure must be a finite number"));

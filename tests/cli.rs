@@ -234,3 +234,54 @@ fn render_filter_and_compare_work_together() {
     assert_eq!(out.status.code(), Some(2));
     assert!(!Path::new(&p("h.exr")).exists());
 }
+
+/// A scene file's `[filter]` applies unless the command line says otherwise: `--filter` replaces
+/// its kernel, `--filter-target none` turns it off.
+#[test]
+fn the_scene_file_filter_applies_and_the_command_line_overrides_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let base = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml"))
+        .expect("scene");
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        format!("{base}\n[filter]\nkernel = [1, 2, 1, 2, 4, 2, 1, 2, 1]\nedge_aware = true\n"),
+    )
+    .expect("write");
+    let scene = scene.to_string_lossy().into_owned();
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let render = |out: &str, extra: &[&str]| {
+        let path = p(out);
+        let args = [
+            &["render", &scene, "-o", &path, "--json"][..],
+            &["--width", "32", "--height", "24", "--spp", "4"],
+            extra,
+        ]
+        .concat();
+        let out = lightsplit(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("json")
+    };
+    let layers = |f: &str| {
+        let (_, _, channels) = lightsplit::film::read_exr_channels(Path::new(&p(f))).expect("reads");
+        channels.into_iter().collect::<std::collections::HashMap<_, _>>()
+    };
+    let v = render("scene.exr", &[]);
+    assert_eq!(
+        (v["filter"].as_str(), v["filter_target"].as_str(), v["edge_aware"].as_bool()),
+        (Some("weighted3"), Some("indirect"), Some(true))
+    );
+    let scene_layers = layers("scene.exr");
+    assert!(scene_layers.contains_key("indirect_filtered.R"));
+    // The same setting from the command line gives the same image.
+    render("cli.exr", &["--filter", "weighted3", "--edge-aware"]);
+    assert_eq!(layers("cli.exr")["R"], scene_layers["R"]);
+    // Another kernel replaces the scene's; target none turns filtering off.
+    let v = render("box.exr", &["--filter", "box5"]);
+    assert_eq!(v["filter"].as_str(), Some("box5"));
+    assert_ne!(layers("box.exr")["R"], scene_layers["R"]);
+    let v = render("none.exr", &["--filter-target", "none"]);
+    assert_eq!(v["filter_target"].as_str(), Some("none"));
+    let none = layers("none.exr");
+    assert_eq!(none["R"], none["raw.R"]);
+}

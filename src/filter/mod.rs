@@ -35,19 +35,53 @@ impl Kernel {
                 let weights = weights.map_err(|_| {
                     format!("unknown filter `{custom}` (box3, weighted3, median3, box5, or comma-separated weights)")
                 })?;
-                let size = (weights.len() as f64).sqrt() as usize;
-                if size * size != weights.len() || size.is_multiple_of(2) {
-                    return Err(format!(
-                        "a custom kernel needs an odd square number of weights, not {}",
-                        weights.len()
-                    ));
-                }
-                if weights.iter().any(|w| !w.is_finite() || *w < 0.0) || weights.iter().sum::<f32>() <= 0.0 {
-                    return Err("kernel weights must be finite, not negative, and not all zero".into());
-                }
-                Ok(Kernel::Convolution { size, weights })
+                Kernel::custom(weights)
             }
         }
+    }
+
+    /// The name [`Kernel::parse`] reads back: a named kernel's name, else the weights.
+    pub fn name(&self) -> String {
+        for name in ["box3", "weighted3", "median3", "box5"] {
+            if Kernel::parse(name).as_ref() == Ok(self) {
+                return name.to_string();
+            }
+        }
+        match self {
+            Kernel::Convolution { weights, .. } => {
+                weights.iter().map(|w| w.to_string()).collect::<Vec<_>>().join(",")
+            }
+            Kernel::Median3 => "median3".to_string(),
+        }
+    }
+
+    /// An odd square kernel from its weights, row by row.
+    pub fn custom(weights: Vec<f32>) -> Result<Kernel, String> {
+        let size = (weights.len() as f64).sqrt() as usize;
+        if size * size != weights.len() || size.is_multiple_of(2) {
+            return Err(format!(
+                "a custom kernel needs an odd square number of weights, not {}",
+                weights.len()
+            ));
+        }
+        if weights.iter().any(|w| !w.is_finite() || *w < 0.0) || weights.iter().sum::<f32>() <= 0.0 {
+            return Err("kernel weights must be finite, not negative, and not all zero".into());
+        }
+        Ok(Kernel::Convolution { size, weights })
+    }
+}
+
+/// A whole filter setting, as a scene file's `[filter]` or the command line gives it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting {
+    pub kernel: Option<Kernel>,
+    pub target: Target,
+    pub stops: EdgeStops,
+}
+
+impl Default for Setting {
+    fn default() -> Self {
+        Setting { kernel: None, target: Target::None, stops: EdgeStops::default() }
     }
 }
 
@@ -74,6 +108,21 @@ pub struct EdgeStops {
 }
 
 impl EdgeStops {
+    /// Checks the tolerances: a normal angle in (0, 180] degrees, a non-negative depth ratio.
+    pub fn check(&self) -> Result<(), String> {
+        if let Some(d) = self.normal_degrees {
+            if !(d.is_finite() && d > 0.0 && d <= 180.0) {
+                return Err("the edge normal angle must lie in (0, 180] degrees".into());
+            }
+        }
+        if let Some(r) = self.depth_relative {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err("the edge depth tolerance must be a non-negative number".into());
+            }
+        }
+        Ok(())
+    }
+
     fn any(&self) -> bool {
         self.object || self.normal_degrees.is_some() || self.depth_relative.is_some()
     }

@@ -12,6 +12,7 @@ use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::filter::{EdgeStops, Kernel, Setting, Target};
 use crate::render::bsdf::MIN_ALPHA;
 
 use super::{
@@ -72,6 +73,25 @@ struct FileScene {
     shape: Vec<Spanned<FileShape>>,
     #[serde(default)]
     light: Vec<Spanned<FileLight>>,
+    filter: Option<Spanned<FileFilter>>,
+}
+
+/// A kernel by name or by its weights.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum FileKernel {
+    Name(String),
+    Weights(Vec<F>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileFilter {
+    kernel: FileKernel,
+    target: Option<String>,
+    edge_aware: Option<bool>,
+    edge_normal: Option<F>,
+    edge_depth: Option<F>,
 }
 
 #[derive(Deserialize)]
@@ -316,7 +336,37 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         lights.push(light(&ctx, l)?);
     }
 
+    let filter = match &file.filter {
+        None => Setting::default(),
+        Some(f) => {
+            let span = f.span();
+            let f = f.get_ref();
+            let kernel = match &f.kernel {
+                FileKernel::Name(name) => Kernel::parse(name),
+                FileKernel::Weights(w) => Kernel::custom(w.iter().map(|w| w.0).collect()),
+            };
+            let kernel = kernel.or_else(|e| ctx.err(span.clone(), e))?;
+            let target = match f.target.as_deref() {
+                None | Some("indirect") => Target::Indirect,
+                Some("image") => Target::Image,
+                Some("none") => Target::None,
+                Some(other) => {
+                    return ctx
+                        .err(span, format!("unknown filter target `{other}` (indirect, image or none)"))
+                }
+            };
+            let stops = EdgeStops {
+                object: f.edge_aware.unwrap_or(false),
+                normal_degrees: f.edge_normal.map(|d| d.0),
+                depth_relative: f.edge_depth.map(|d| d.0),
+            };
+            stops.check().or_else(|e| ctx.err(span, e))?;
+            Setting { kernel: Some(kernel), target, stops }
+        }
+    };
+
     Ok(Scene {
+        filter,
         path: path.to_path_buf(),
         camera,
         film,
@@ -748,6 +798,31 @@ mod tests {
             "{MINIMAL}[[material]]\nname = \"d\"\ntype = \"diffuse\"\nbase = [1, 1, 1]\n"
         ));
         assert!(msg.contains("base") && msg.contains("only glossy"), "{msg}");
+    }
+
+    #[test]
+    fn filter_section_by_name_or_weights_and_its_errors() {
+        let s = parse_str(&format!("{MINIMAL}[filter]\nkernel = \"median3\"\ntarget = \"image\"\n"))
+            .expect("parses");
+        assert_eq!(s.filter.kernel, Some(Kernel::Median3));
+        assert_eq!(s.filter.target, Target::Image);
+        let s = parse_str(&format!(
+            "{MINIMAL}[filter]\nkernel = [0, 1, 0, 1, 4, 1, 0, 1, 0]\nedge_normal = 30\n"
+        ))
+        .expect("parses");
+        assert_eq!((s.filter.target, s.filter.stops.normal_degrees), (Target::Indirect, Some(30.0)));
+        assert_eq!(parse_str(MINIMAL).expect("parses").filter, Setting::default());
+        for (extra, needle) in [
+            ("kernel = \"gauss\"\n", "gauss"),
+            ("kernel = [1, 2, 3, 4]\n", "odd square"),
+            ("kernel = \"box3\"\ntarget = \"all\"\n", "all"),
+            ("kernel = \"box3\"\nedge_normal = 0\n", "normal"),
+            ("kernel = \"box3\"\nradius = 2\n", "radius"),
+        ] {
+            let (line, msg) = error_line(&format!("{MINIMAL}[filter]\n{extra}"));
+            assert!(line.is_some_and(|l| l >= 4), "{extra}: {line:?} {msg}");
+            assert!(msg.contains(needle), "{extra}: {msg}");
+        }
     }
 
     #[test]

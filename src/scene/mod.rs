@@ -165,6 +165,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Object names; a shape's `object` indexes this.
     pub objects: Vec<String>,
+    /// The scene's own filter setting (`[filter]`), which the command line can override.
+    pub filter: crate::filter::Setting,
 }
 
 impl Scene {

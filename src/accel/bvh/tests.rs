@@ -27,6 +27,7 @@ fn scene_of(shapes: Vec<Geometry>) -> Scene {
             .collect(),
         lights: vec![],
         objects: vec![],
+        filter: Default::default(),
     }
 }
 
