@@ -184,6 +184,49 @@ impl Distribution1D {
     }
 }
 
+/// A piecewise-constant density over the unit square, `nu` x `nv` cells (row-major, rows along
+/// v), sampled by its marginal over rows and then the row's conditional (pbrt's 2D
+/// distribution).
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    marginal: Distribution1D,
+    rows: Vec<Distribution1D>,
+    nu: usize,
+    nv: usize,
+}
+
+impl Distribution2D {
+    /// `None` when no weight is positive.
+    pub fn new(weights: &[f32], nu: usize, nv: usize) -> Option<Self> {
+        assert_eq!(weights.len(), nu * nv, "weights must fill the grid");
+        let row_sums: Vec<f32> = weights.chunks(nu).map(|r| r.iter().map(|w| w.max(0.0)).sum()).collect();
+        let marginal = Distribution1D::new(&row_sums)?;
+        let rows = weights
+            .chunks(nu)
+            .map(|r| {
+                Distribution1D::new(r)
+                    .unwrap_or_else(|| Distribution1D::new(&vec![1.0; nu]).unwrap_or_default())
+            })
+            .collect();
+        Some(Distribution2D { marginal, rows, nu, nv })
+    }
+
+    /// A point of the unit square and its density.
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let (row, pm, uv) = self.marginal.sample_reuse(u.y);
+        let (col, pc, uu) = self.rows[row].sample_reuse(u.x);
+        let p = Vec2::new((col as f32 + uu) / self.nu as f32, (row as f32 + uv) / self.nv as f32);
+        (p, pm * pc * (self.nu * self.nv) as f32)
+    }
+
+    /// The density at a point of the unit square.
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let col = ((p.x * self.nu as f32) as usize).min(self.nu - 1);
+        let row = ((p.y * self.nv as f32) as usize).min(self.nv - 1);
+        self.marginal.pdf(row) * self.rows[row].pdf(col) * (self.nu * self.nv) as f32
+    }
+}
+
 /// The solid angle of the unit sphere.
 pub const FOUR_PI: f32 = 4.0 * PI;
 

@@ -32,20 +32,32 @@ struct Tally {
 }
 
 /// t within 1e-5 relative, where "relative" includes the size of the coordinates: a hit 0.3
-/// units from an origin 500 units out carries the rounding of coordinates near 500 (an f32
-/// ulp there is 3e-5), whatever the length of the ray.
-fn same_t(ray: &Ray, a: f32, b: f32) -> bool {
-    let scale = a.abs().max(b.abs()) + ray.origin.abs().max_element() / ray.dir.length();
+/// units from an origin 500 units out, or on a triangle whose corners are 100 units away,
+/// carries the rounding of coordinates that large (an f32 ulp near 500 is 3e-5), whatever the
+/// length of the ray.
+fn same_t(ray: &Ray, a: f32, b: f32, coordinates: f32) -> bool {
+    let scale = a.abs().max(b.abs()) + (ray.origin.abs().max_element() + coordinates) / ray.dir.length();
     (a - b).abs() <= 1e-5 * scale
 }
 
-fn compare(ray: &Ray, a: Option<Hit>, b: Option<Hit>, tally: &mut Tally) {
+/// The largest coordinate of the primitive hit (a triangle's corners; a sphere's centre and
+/// radius).
+fn coordinates(scene: &Scene, hit: &Hit) -> f32 {
+    match &scene.shapes[hit.shape as usize].geometry {
+        Geometry::Triangles(mesh) => {
+            mesh.triangle(hit.prim).iter().map(|p| p.abs().max_element()).fold(0.0, f32::max)
+        }
+        Geometry::Sphere { center, radius } => center.abs().max_element() + radius,
+    }
+}
+
+fn compare(scene: &Scene, ray: &Ray, a: Option<Hit>, b: Option<Hit>, tally: &mut Tally) {
     tally.rays += 1;
     match (a, b) {
         (None, None) => {}
         (Some(x), Some(y)) => {
             tally.hits += 1;
-            if !same_t(ray, x.t, y.t) {
+            if !same_t(ray, x.t, y.t, coordinates(scene, &x).max(coordinates(scene, &y))) {
                 tally.disagreements += 1;
             } else if (x.shape, x.prim) != (y.shape, y.prim) {
                 tally.ties += 1;
@@ -70,7 +82,7 @@ fn tally_scene(scene: &Scene, n: usize) -> [Tally; 3] {
             } else {
                 let (a, b) = (embree.intersect(ray), bvh.intersect(ray));
                 let before = tally.disagreements;
-                compare(ray, a, b, &mut tally);
+                compare(scene, ray, a, b, &mut tally);
                 if tally.disagreements > before && std::env::var_os("AGREEMENT_DEBUG").is_some() {
                     eprintln!("  {ray:?}\n    embree {a:?}\n    bvh    {b:?}");
                 }
@@ -174,7 +186,7 @@ fn rays_at_shared_edges_hit_on_both_backends() {
                 }
                 let (x, y) = (embree.intersect(&ray), bvh.intersect(&ray));
                 misses += x.is_none() as usize + y.is_none() as usize;
-                compare(&ray, x, y, &mut tally);
+                compare(&scene, &ray, x, y, &mut tally);
             }
         }
         eprintln!(

@@ -209,7 +209,7 @@ impl<A: Accel> Integrator<'_, A> {
             *rays += 1;
             let Some(hit) = self.accel.intersect(&ray) else {
                 for &i in &lights.distant {
-                    let (le, light_pdf) = lights.distant(i, ray.dir);
+                    let (le, light_pdf) = lights.distant(i, ray.dir, specular);
                     if le != Vec3::ZERO {
                         let w = if specular { 1.0 } else { power_heuristic(bsdf_pdf, light_pdf) };
                         let component = class.component(lights.diffuse_source[i as usize]);

@@ -7,10 +7,13 @@ use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
+use rayon::prelude::*;
+
 use crate::math::{
     luminance, offset_ray_origin, one_minus_cos_between, uniform_cone, uniform_sphere, uniform_triangle,
-    Distribution1D, Frame, FOUR_PI,
+    Distribution1D, Distribution2D, Frame, FOUR_PI,
 };
+use crate::scene::sky::CloudySky;
 use crate::scene::{Geometry, Light, Mesh, Scene};
 
 /// No light on this shape.
@@ -21,11 +24,47 @@ const SAMPLE_ALL: usize = 8;
 /// One light, ready to sample.
 #[derive(Clone, Debug)]
 pub enum Emitter {
-    Point { position: Vec3, intensity: Vec3 },
-    Sun { frame: Frame, radiance: Vec3, one_minus_cos: f32 },
-    Sky { radiance: Vec3 },
-    Mesh { shape: u32, triangles: Distribution1D, area: f32, emission: Vec3 },
-    Sphere { shape: u32, center: Vec3, radius: f32, emission: Vec3 },
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+    },
+    Spot {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        cos_total: f32,
+        cos_falloff_start: f32,
+    },
+    Sun {
+        frame: Frame,
+        radiance: Vec3,
+        one_minus_cos: f32,
+    },
+    Sky {
+        radiance: Vec3,
+    },
+    /// A sky whose radiance varies with direction, importance-sampled from a table over
+    /// (phi / 2 pi, cos theta) of the upper hemisphere: cells of equal solid angle.
+    /// Light it sheds is looked up bilinearly in a radiance table of the same cells (the
+    /// procedural clouds cost too much to evaluate at every vertex); what the eye sees directly
+    /// or through mirrors is the exact procedural sky.
+    CloudySky {
+        sky: Box<CloudySky>,
+        table: Box<Distribution2D>,
+        radiance: Vec<Vec3>,
+    },
+    Mesh {
+        shape: u32,
+        triangles: Distribution1D,
+        area: f32,
+        emission: Vec3,
+    },
+    Sphere {
+        shape: u32,
+        center: Vec3,
+        radius: f32,
+        emission: Vec3,
+    },
 }
 
 /// Where a shadow ray toward a light sample ends.
@@ -79,17 +118,30 @@ impl Lights {
                 Light::Point { position, intensity } => {
                     (Emitter::Point { position, intensity }, FOUR_PI * luminance(intensity), false)
                 }
+                Light::Spot { position, direction, intensity, cos_total, cos_falloff_start } => {
+                    // The power of the cone, taking the smooth falloff as its mean (pbrt's estimate).
+                    let cone = 2.0 * PI * (1.0 - 0.5 * (cos_falloff_start + cos_total));
+                    let emitter =
+                        Emitter::Spot { position, direction, intensity, cos_total, cos_falloff_start };
+                    (emitter, cone * luminance(intensity), false)
+                }
                 Light::Sun { direction, radiance, one_minus_cos, diffuse_source } => {
                     let irradiance = radiance * (2.0 * PI * one_minus_cos);
                     let emitter = Emitter::Sun { frame: Frame::new(direction), radiance, one_minus_cos };
                     (emitter, disc * luminance(irradiance), diffuse_source)
+                }
+                Light::CloudySky { ref sky, diffuse_source } => {
+                    let (table, radiance, mean) = sky_table(sky);
+                    let emitter =
+                        Emitter::CloudySky { sky: Box::new(sky.clone()), table: Box::new(table), radiance };
+                    (emitter, 2.0 * PI * disc * mean, diffuse_source)
                 }
                 Light::Sky { radiance, diffuse_source } => {
                     (Emitter::Sky { radiance }, FOUR_PI * disc * luminance(radiance), diffuse_source)
                 }
             };
             if !light_is_dark(&emitter) {
-                if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. }) {
+                if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. } | Emitter::CloudySky { .. }) {
                     lights.distant.push(lights.emitters.len() as u32);
                 }
                 lights.emitters.push(emitter);
@@ -196,6 +248,26 @@ impl Lights {
                     light,
                 })
             }
+            Emitter::Spot { position, direction, intensity, cos_total, cos_falloff_start } => {
+                let d = *position - p;
+                let dist2 = d.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                let wi = d / dist2.sqrt();
+                let falloff = Light::spot_falloff(-wi.dot(*direction), *cos_total, *cos_falloff_start);
+                if falloff == 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    radiance: *intensity * (falloff / dist2),
+                    wi,
+                    pdf: select,
+                    delta: true,
+                    end: ShadowEnd::Point(*position),
+                    light,
+                })
+            }
             Emitter::Sun { frame, radiance, one_minus_cos } => Some(LightSample {
                 radiance: *radiance,
                 wi: frame.to_world(uniform_cone(u, *one_minus_cos)),
@@ -212,6 +284,18 @@ impl Lights {
                 end: ShadowEnd::Infinite,
                 light,
             }),
+            Emitter::CloudySky { table, radiance, .. } => {
+                let (uv, pdf) = table.sample(u);
+                let wi = sky_direction(uv);
+                Some(LightSample {
+                    radiance: sky_lookup(radiance, uv),
+                    wi,
+                    pdf: select * pdf / (2.0 * PI),
+                    delta: false,
+                    end: ShadowEnd::Infinite,
+                    light,
+                })
+            }
             Emitter::Mesh { shape, triangles, area, emission } => {
                 let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
                     return None;
@@ -267,11 +351,21 @@ impl Lights {
     }
 
     /// The radiance of distant light `light` along direction `dir` and its NEE density
-    /// (selection included).
-    pub fn distant(&self, light: u32, dir: Vec3) -> (Vec3, f32) {
+    /// (selection included). `seen` asks for what the eye sees directly (or through mirrors),
+    /// which for a cloudy sky is the exact procedural sky rather than its table.
+    pub fn distant(&self, light: u32, dir: Vec3, seen: bool) -> (Vec3, f32) {
         let select = self.select_pdf(light);
         match &self.emitters[light as usize] {
             Emitter::Sky { radiance } => (*radiance, select / FOUR_PI),
+            Emitter::CloudySky { sky, table, radiance } => {
+                if dir.y <= 0.0 {
+                    return (Vec3::ZERO, 0.0);
+                }
+                let phi = dir.z.atan2(dir.x).rem_euclid(2.0 * PI);
+                let uv = Vec2::new(phi / (2.0 * PI), dir.y);
+                let le = if seen { sky.radiance(dir) } else { sky_lookup(radiance, uv) };
+                (le, select * table.pdf(uv) / (2.0 * PI))
+            }
             Emitter::Sun { frame, radiance, one_minus_cos } => {
                 if one_minus_cos_between(dir, frame.n) <= *one_minus_cos {
                     (*radiance, select / (2.0 * PI * one_minus_cos))
@@ -286,10 +380,60 @@ impl Lights {
 
 fn light_is_dark(e: &Emitter) -> bool {
     match e {
-        Emitter::Point { intensity, .. } => intensity.max_element() <= 0.0,
+        Emitter::Point { intensity, .. } | Emitter::Spot { intensity, .. } => intensity.max_element() <= 0.0,
         Emitter::Sun { radiance, .. } | Emitter::Sky { radiance } => radiance.max_element() <= 0.0,
+        Emitter::CloudySky { sky, .. } => sky.zenith.max_element() <= 0.0 && sky.clear.max_element() <= 0.0,
         Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => emission.max_element() <= 0.0,
     }
+}
+
+/// Cells of the cloudy sky's tables: in cos theta (horizon to zenith) and in phi.
+const SKY_ROWS: usize = 256;
+const SKY_COLUMNS: usize = 1024;
+
+/// The direction of a point of the sky table's square: u = phi / 2 pi, v = cos theta.
+fn sky_direction(uv: Vec2) -> Vec3 {
+    let phi = 2.0 * PI * uv.x;
+    let cos = uv.y;
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    Vec3::new(sin * phi.cos(), cos, sin * phi.sin())
+}
+
+/// The radiance of the sky table at a point of its square: bilinear between cell centres,
+/// wrapping around in phi and clamped at the horizon and the zenith.
+fn sky_lookup(radiance: &[Vec3], uv: Vec2) -> Vec3 {
+    let x = uv.x * SKY_COLUMNS as f32 - 0.5;
+    let y = (uv.y * SKY_ROWS as f32 - 0.5).clamp(0.0, (SKY_ROWS - 1) as f32);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let col = |c: f32| (c as i64).rem_euclid(SKY_COLUMNS as i64) as usize;
+    let (c0, c1) = (col(x0), col(x0 + 1.0));
+    let (r0, r1) = (y0 as usize, (y0 as usize + 1).min(SKY_ROWS - 1));
+    let at = |r: usize, c: usize| radiance[r * SKY_COLUMNS + c];
+    (at(r0, c0) * (1.0 - fx) + at(r0, c1) * fx) * (1.0 - fy)
+        + (at(r1, c0) * (1.0 - fx) + at(r1, c1) * fx) * fy
+}
+
+/// The tables of a cloudy sky: the sampling distribution (the luminance at each cell's centre,
+/// plus a floor of a tenth of the mean so that no direction the sky lights is left out), the
+/// radiance at the cell centres, and the mean luminance.
+fn sky_table(sky: &CloudySky) -> (Distribution2D, Vec<Vec3>, f32) {
+    let radiance: Vec<Vec3> = (0..SKY_ROWS * SKY_COLUMNS)
+        .into_par_iter()
+        .map(|i| {
+            let (col, row) = (i % SKY_COLUMNS, i / SKY_COLUMNS);
+            let uv = Vec2::new((col as f32 + 0.5) / SKY_COLUMNS as f32, (row as f32 + 0.5) / SKY_ROWS as f32);
+            sky.radiance(sky_direction(uv))
+        })
+        .collect();
+    let lum: Vec<f32> = radiance.iter().map(|&r| luminance(r)).collect();
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let floor = 0.1 * mean.max(1e-12);
+    let weights: Vec<f32> = lum.iter().map(|l| l + floor).collect();
+    let table = Distribution2D::new(&weights, SKY_COLUMNS, SKY_ROWS).unwrap_or_else(|| {
+        Distribution2D::new(&vec![1.0; SKY_ROWS * SKY_COLUMNS], SKY_COLUMNS, SKY_ROWS).expect("uniform")
+    });
+    (table, radiance, mean)
 }
 
 /// A point uniformly on triangle `t` and its geometric normal (by winding).
@@ -466,5 +610,52 @@ mod tests {
             let z = z_score(sample, |d| pdf(d, 1.05));
             assert!(z > 10.0, "z = {z}");
         }
+    }
+
+    #[test]
+    fn spot_falloff_matches_its_definition_at_centre_edge_and_outside() {
+        let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"spot\"\n\
+                    position = [0, 4, 0]\ndirection = [0, -1, 0]\nintensity = [8, 8, 8]\n\
+                    cone_angle = 30\nfalloff_start = 20\n";
+        let scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
+        let lights = Lights::new(&scene);
+        // The intensity a receiver at angle `deg` from the axis, 2 units from the light, gets.
+        let at = |deg: f32| {
+            let t = deg.to_radians();
+            let p = Vec3::new(0.0, 4.0, 0.0) + 2.0 * Vec3::new(t.sin(), -t.cos(), 0.0);
+            lights.sample_one(&scene, 0, p, Vec2::splat(0.5)).map_or(0.0, |l| l.radiance.x * 4.0)
+        };
+        assert!((at(0.0) - 8.0).abs() < 1e-4, "centre {}", at(0.0));
+        assert!((at(19.9) - 8.0).abs() < 1e-4, "inside the inner cone {}", at(19.9));
+        assert!(at(30.0) < 1e-6, "edge {}", at(30.0));
+        assert_eq!(at(30.5), 0.0, "just outside");
+        assert_eq!(at(60.0), 0.0, "outside");
+        // Between: the smoothstep of the cosine, decreasing.
+        let (c, lo, hi) = (25f32.to_radians().cos(), 30f32.to_radians().cos(), 20f32.to_radians().cos());
+        let t = (c - lo) / (hi - lo);
+        assert!((at(25.0) - 8.0 * t * t * (3.0 - 2.0 * t)).abs() < 1e-3, "{}", at(25.0));
+        assert!(at(22.0) > at(25.0) && at(25.0) > at(28.0) && at(28.0) > 0.0);
+    }
+
+    #[test]
+    fn cloudy_sky_sampling_matches_its_density() {
+        use crate::math::chi_square::z_score;
+        let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"sky\"\n\
+                    zenith = [1, 1, 1]\nclear = [0.1, 0.2, 0.5]\ncloud_cover = 0.5\ncloud_scale = 0.3\n";
+        let scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
+        let lights = Lights::new(&scene);
+        let z = z_score(
+            |s| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi),
+            |d| lights.distant(0, d, false).1,
+        );
+        assert!(z < 4.0, "z = {z}");
+        // The table follows the sky: NEE samples carry more light than uniform directions do.
+        let mut s = Sampler::new(9, 9, 9);
+        let (mut sampled, mut uniform) = (0.0, 0.0);
+        for _ in 0..20_000 {
+            sampled += lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map_or(0.0, |l| l.radiance.x);
+            uniform += lights.distant(0, uniform_sphere(s.next_2d()), false).0.x;
+        }
+        assert!(sampled > 2.0 * uniform, "{sampled} vs {uniform}");
     }
 }

@@ -15,8 +15,9 @@ use toml::Spanned;
 use crate::filter::{EdgeStops, Kernel, Setting, Target};
 use crate::render::bsdf::MIN_ALPHA;
 
+use super::sky::CloudySky;
 use super::{
-    obj, procedural, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene,
+    obj, procedural, teapot, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene,
     SceneError, Shape,
 };
 
@@ -56,6 +57,8 @@ type V3 = [F; 3];
 
 /// The finest terrain: 2 x 4096^2, about 33.5 million triangles.
 const MAX_TERRAIN: u32 = 4096;
+/// The finest teapot tessellation: 64 * 256^2 = 4.2 million triangles.
+const MAX_TEAPOT: u32 = 256;
 
 fn v3(v: V3) -> Vec3 {
     Vec3::new(v[0].0, v[1].0, v[2].0)
@@ -177,6 +180,15 @@ struct FileLight {
     angular_diameter: Option<F>,
     radiance: Option<V3>,
     diffuse_source: Option<bool>,
+    // spot
+    cone_angle: Option<F>,
+    falloff_start: Option<F>,
+    // cloudy sky
+    zenith: Option<V3>,
+    clear: Option<V3>,
+    cloud_cover: Option<F>,
+    cloud_scale: Option<F>,
+    seed: Option<u32>,
 }
 
 /// 1-based line of a byte offset.
@@ -463,6 +475,12 @@ impl Transform {
     fn point(&self, p: Vec3) -> Vec3 {
         self.linear * p + self.translate
     }
+
+    /// Normals under the transform (by the inverse transpose of the linear part).
+    fn normals(&self, normals: &[Vec3]) -> Arc<[Vec3]> {
+        let inv_t = self.linear.inverse().transpose();
+        normals.iter().map(|&v| (inv_t * v).normalize_or_zero()).collect()
+    }
 }
 
 fn add_shape(
@@ -573,10 +591,7 @@ fn add_shape(
                     part.material.map_or(Vec3::ZERO, |m| m.emission)
                 };
                 let positions: Vec<Vec3> = part.positions.iter().map(|&p| transform.point(p)).collect();
-                let normals = part.normals.map(|n| {
-                    let inv_t = transform.linear.inverse().transpose();
-                    n.iter().map(|&v| (inv_t * v).normalize_or_zero()).collect::<Arc<[Vec3]>>()
-                });
+                let normals = part.normals.map(|n| transform.normals(&n));
                 let object_name = s.object.clone().unwrap_or_else(|| format!("{name}/{}", part.name));
                 let object = out.object(&object_name);
                 out.shapes.push(Shape {
@@ -614,10 +629,27 @@ fn add_shape(
             }
             Geometry::Triangles(mesh)
         }
+        "teapot" => {
+            ctx.only(span.clone(), &what, &present, &["resolution"])?;
+            let resolution = match &s.resolution {
+                Some(r) if !(1..=MAX_TEAPOT).contains(r.get_ref()) => {
+                    return ctx.err(
+                        r.span(),
+                        format!("a teapot's `resolution` must lie between 1 and {MAX_TEAPOT}"),
+                    )
+                }
+                Some(r) => *r.get_ref(),
+                None => 8,
+            };
+            let mut mesh = teapot::teapot(resolution);
+            mesh.positions = mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.into()))).collect();
+            mesh.normals = mesh.normals.map(|n| transform.normals(&n));
+            Geometry::Triangles(mesh)
+        }
         other => {
             return ctx.err(
                 span,
-                format!("unknown shape type `{other}` (expected sphere, quad, box, mesh or terrain)"),
+                format!("unknown shape type `{other}` (expected sphere, quad, box, mesh, terrain or teapot)"),
             )
         }
     };
@@ -663,6 +695,13 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
         ("angular_diameter", l.angular_diameter.is_some()),
         ("radiance", l.radiance.is_some()),
         ("diffuse_source", l.diffuse_source.is_some()),
+        ("cone_angle", l.cone_angle.is_some()),
+        ("falloff_start", l.falloff_start.is_some()),
+        ("zenith", l.zenith.is_some()),
+        ("clear", l.clear.is_some()),
+        ("cloud_cover", l.cloud_cover.is_some()),
+        ("cloud_scale", l.cloud_scale.is_some()),
+        ("seed", l.seed.is_some()),
     ];
     let what = format!("a {} light", l.kind);
     let non_negative = |v: Vec3, key: &str| -> Result<Vec3, SceneError> {
@@ -713,6 +752,28 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
                 diffuse_source: l.diffuse_source.unwrap_or(false),
             })
         }
+        "sky" if l.zenith.is_some() => {
+            ctx.only(
+                span.clone(),
+                "a cloudy sky (one with `zenith`)",
+                &present,
+                &["zenith", "clear", "cloud_cover", "cloud_scale", "seed", "diffuse_source"],
+            )?;
+            let zenith = non_negative(v3(ctx.need(span.clone(), &what, "zenith", l.zenith)?), "zenith")?;
+            let clear = non_negative(l.clear.map_or(zenith, v3), "clear")?;
+            let cover = l.cloud_cover.map_or(0.5, |c| c.0);
+            if !(0.0..=1.0).contains(&cover) {
+                return ctx.err(span, "`cloud_cover` must lie in [0, 1]");
+            }
+            let scale = l.cloud_scale.map_or(0.5, |c| c.0);
+            if scale <= 0.0 {
+                return ctx.err(span, "`cloud_scale` must be positive");
+            }
+            Ok(Light::CloudySky {
+                sky: CloudySky { zenith, clear, cover, scale, seed: l.seed.unwrap_or(0) },
+                diffuse_source: l.diffuse_source.unwrap_or(true),
+            })
+        }
         "sky" => {
             ctx.only(span.clone(), &what, &present, &["radiance", "diffuse_source"])?;
             Ok(Light::Sky {
@@ -723,10 +784,40 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
                 diffuse_source: l.diffuse_source.unwrap_or(true),
             })
         }
+        "spot" => {
+            ctx.only(
+                span.clone(),
+                &what,
+                &present,
+                &["position", "direction", "intensity", "cone_angle", "falloff_start"],
+            )?;
+            let direction = v3(ctx.need(span.clone(), &what, "direction", l.direction)?);
+            if direction.length_squared() == 0.0 {
+                return ctx.err(span, "a spot light's `direction` must not be zero");
+            }
+            let cone = l.cone_angle.map_or(30.0, |a| a.0);
+            if !(cone > 0.0 && cone <= 180.0) {
+                return ctx.err(span, "a spot light's `cone_angle` must lie in (0, 180] degrees");
+            }
+            let start = l.falloff_start.map_or(0.75 * cone, |a| a.0);
+            if !(0.0..=cone).contains(&start) {
+                return ctx.err(span, "`falloff_start` must lie between 0 and `cone_angle` degrees");
+            }
+            Ok(Light::Spot {
+                position: v3(ctx.need(span.clone(), &what, "position", l.position)?),
+                direction: direction.normalize(),
+                intensity: non_negative(
+                    v3(ctx.need(span.clone(), &what, "intensity", l.intensity)?),
+                    "intensity",
+                )?,
+                cos_total: cone.to_radians().cos(),
+                cos_falloff_start: start.to_radians().cos(),
+            })
+        }
         other => ctx.err(
             span,
             format!(
-                "unknown light type `{other}` (expected point, sun or sky; an emissive shape has `emission`)"
+                "unknown light type `{other}` (expected point, spot, sun or sky; an emissive shape has `emission`)"
             ),
         ),
     }

@@ -6,6 +6,8 @@ pub mod file;
 pub mod noise;
 pub mod obj;
 pub mod procedural;
+pub mod sky;
+pub mod teapot;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -151,6 +153,26 @@ pub enum Light {
     Sun { direction: Vec3, radiance: Vec3, one_minus_cos: f32, diffuse_source: bool },
     /// Constant radiance from every direction at infinity.
     Sky { radiance: Vec3, diffuse_source: bool },
+    /// The paper's cloudy sky: CIE overcast with fBm clouds.
+    CloudySky { sky: sky::CloudySky, diffuse_source: bool },
+    /// A point that shines `intensity` (W/sr) along `direction` (unit), fading smoothly from
+    /// full at `cos_falloff_start` to nothing at `cos_total` (cosines of the angle from the axis).
+    Spot { position: Vec3, direction: Vec3, intensity: Vec3, cos_total: f32, cos_falloff_start: f32 },
+}
+
+impl Light {
+    /// The fraction of a spot light's intensity sent at angle `cos` (cosine) from its axis:
+    /// 1 inside the inner cone, 0 outside the outer, a smoothstep between (as pbrt-v4 does).
+    pub fn spot_falloff(cos: f32, cos_total: f32, cos_falloff_start: f32) -> f32 {
+        if cos >= cos_falloff_start {
+            return 1.0;
+        }
+        if cos <= cos_total {
+            return 0.0;
+        }
+        let t = (cos - cos_total) / (cos_falloff_start - cos_total);
+        t * t * (3.0 - 2.0 * t)
+    }
 }
 
 /// A loaded scene, ready to be traced.
