@@ -320,6 +320,27 @@ impl Film {
 
 /// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
 /// Radiance HDR.
+/// Reads a texture as linear RGB: EXR and HDR as they are, PNG (8-bit) decoded from sRGB.
+pub fn read_texture(path: &Path) -> Result<Image, String> {
+    if matches!(Format::from_path(path), Ok(Format::Exr | Format::Hdr)) {
+        return read_image(path);
+    }
+    let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb8();
+    let decode = |c: u8| {
+        let c = c as f32 / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    Ok(Image {
+        width: img.width(),
+        height: img.height(),
+        pixels: img.pixels().map(|p| Vec3::from(p.0.map(decode))).collect(),
+    })
+}
+
 pub fn read_image(path: &Path) -> Result<Image, String> {
     match Format::from_path(path).map_err(|e| e.to_string())? {
         Format::Exr => {

@@ -240,11 +240,21 @@ impl<A: Accel> Integrator<'_, A> {
 
             // Both normals on the side the ray came from (surfaces are two-sided).
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
-            let ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
+            let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
+            let maps = scene.maps(shape.material);
+            if let Some((t, height)) = maps.bump {
+                ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
+            }
+            // The albedo of a diffuse material or a glossy one's base, textured or constant.
+            let textured = |constant: Vec3| match maps.color {
+                Some(t) => scene.textures[t as usize].color(s.p, s.uv),
+                None => constant,
+            };
             // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
             let origin = offset_ray_origin(s.p, ng);
             let wi = match scene.materials[shape.material as usize] {
                 Material::Diffuse { albedo } => {
+                    let albedo = textured(albedo);
                     // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
                     class = class.through_diffuse();
                     if class.diffuse == 1 {
@@ -274,7 +284,7 @@ impl<A: Accel> Integrator<'_, A> {
                     // Each lobe is its own vertex type: the GGX lobe S, the base D. Light found
                     // through each lobe goes to the component that lobe makes, with its own MIS
                     // weight, so the split stays exact in expectation.
-                    let g = Glossy { specular, alpha, base };
+                    let g = Glossy { specular, alpha, base: textured(base) };
                     let frame = Frame::new(ns);
                     let wo_l = frame.to_local(wo);
                     if wo_l.z <= 0.0 {
@@ -324,7 +334,7 @@ impl<A: Accel> Integrator<'_, A> {
                                 out.object = Some(shape.object);
                                 out.normal = ns;
                                 out.depth = travelled;
-                                out.albedo = base;
+                                out.albedo = g.base;
                             }
                             bsdf_pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
                             beta *= g.eval_base(wo_l, wi_l) * (wi_l.z / bsdf_pdf);

@@ -1,18 +1,23 @@
 //! The surface at a hit, computed once from the scene (not from the backend), so both backends
 //! shade the same point the same way.
 
-use glam::Vec3;
+use std::f32::consts::{PI, TAU};
+
+use glam::{Vec2, Vec3};
 
 use crate::accel::{Hit, Ray};
 use crate::scene::{Geometry, Scene};
 
-/// Position, geometric normal (by winding, or outward for spheres; never flipped) and shading
-/// normal of a hit.
+/// Position, geometric normal (by winding, or outward for spheres; never flipped), shading
+/// normal and texture coordinates of a hit.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
     pub p: Vec3,
     pub ng: Vec3,
     pub ns: Vec3,
+    /// The mesh's texture coordinates interpolated, else the barycentrics; on a sphere,
+    /// longitude and latitude over [0, 1] (v = 1 at the +y pole).
+    pub uv: Vec2,
 }
 
 pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
@@ -21,7 +26,8 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         Geometry::Sphere { center, radius } => {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
             let n = (ray.at(hit.t) - *center).normalize_or(fallback);
-            Surface { p: *center + n * *radius, ng: n, ns: n }
+            let uv = Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI);
+            Surface { p: *center + n * *radius, ng: n, ns: n, uv }
         }
         Geometry::Triangles(mesh) => {
             let [a, b, c] = mesh.triangle(hit.prim);
@@ -30,17 +36,19 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
             // which the ray-origin offset relies on.
             let p = a * (1.0 - u - v) + b * u + c * v;
             let ng = (b - a).cross(c - a).normalize_or(fallback);
+            let [ia, ib, ic] = mesh.indices[hit.prim as usize].map(|i| i as usize);
             let ns = match &mesh.normals {
                 Some(normals) => {
-                    let [ia, ib, ic] = mesh.indices[hit.prim as usize];
-                    let n = normals[ia as usize] * (1.0 - u - v)
-                        + normals[ib as usize] * u
-                        + normals[ic as usize] * v;
+                    let n = normals[ia] * (1.0 - u - v) + normals[ib] * u + normals[ic] * v;
                     n.normalize_or(ng)
                 }
                 None => ng,
             };
-            Surface { p, ng, ns }
+            let uv = match &mesh.uvs {
+                Some(uvs) => uvs[ia] * (1.0 - u - v) + uvs[ib] * u + uvs[ic] * v,
+                None => Vec2::new(u, v),
+            };
+            Surface { p, ng, ns, uv }
         }
     }
 }

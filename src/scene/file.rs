@@ -7,7 +7,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Mat3, Vec3, Vec3A};
+use glam::{Mat3, Vec2, Vec3, Vec3A};
 use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
@@ -16,9 +16,10 @@ use crate::filter::{EdgeStops, Kernel, Setting, Target};
 use crate::render::bsdf::MIN_ALPHA;
 
 use super::sky::CloudySky;
+use super::texture::{Pattern, Texture};
 use super::{
-    obj, procedural, teapot, Camera, FilmSettings, Geometry, Light, Material, Mesh, RenderSettings, Scene,
-    SceneError, Shape,
+    obj, procedural, teapot, Camera, FilmSettings, Geometry, Light, Maps, Material, Mesh, RenderSettings,
+    Scene, SceneError, Shape,
 };
 
 /// A finite number: TOML's `nan` and `inf` are rejected where they are written.
@@ -77,6 +78,24 @@ struct FileScene {
     #[serde(default)]
     light: Vec<Spanned<FileLight>>,
     filter: Option<Spanned<FileFilter>>,
+    #[serde(default)]
+    texture: Vec<Spanned<FileTexture>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileTexture {
+    name: String,
+    #[serde(rename = "type")]
+    kind: String,
+    color: Option<V3>,
+    color2: Option<V3>,
+    size: Option<F>,
+    frequency: Option<F>,
+    octaves: Option<u32>,
+    seed: Option<u32>,
+    file: Option<String>,
+    repeat: Option<[F; 2]>,
 }
 
 /// A kernel by name or by its weights.
@@ -131,6 +150,9 @@ struct FileMaterial {
     ior: Option<F>,
     roughness: Option<F>,
     base: Option<V3>,
+    texture: Option<String>,
+    bump: Option<String>,
+    bump_height: Option<F>,
 }
 
 #[derive(Deserialize)]
@@ -266,7 +288,19 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         seed: file.render.as_ref().and_then(|r| r.seed).unwrap_or(0),
     };
 
+    let mut textures = Vec::new();
+    let mut texture_ids: HashMap<String, u32> = HashMap::new();
+    for t in &file.texture {
+        let span = t.span();
+        if texture_ids.contains_key(&t.get_ref().name) {
+            return ctx.err(span, format!("texture `{}` is defined twice", t.get_ref().name));
+        }
+        texture_ids.insert(t.get_ref().name.clone(), textures.len() as u32);
+        textures.push(texture(&ctx, &dir, t)?);
+    }
+
     let mut materials = Vec::new();
+    let mut maps = Vec::new();
     let mut material_ids: HashMap<String, u32> = HashMap::new();
     for m in &file.material {
         let span = m.span();
@@ -334,8 +368,35 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 )
             }
         };
+        let texture_id = |name: &String| match texture_ids.get(name) {
+            Some(&t) => Ok(t),
+            None => ctx.err(span.clone(), format!("unknown texture `{name}`")),
+        };
+        let color = match &m.texture {
+            Some(_) if !matches!(material, Material::Diffuse { .. } | Material::Glossy { .. }) => {
+                return ctx
+                    .err(span, "only diffuse and glossy materials take a `texture` (the albedo or the base)")
+            }
+            Some(name) => Some(texture_id(name)?),
+            None => None,
+        };
+        let bump = match &m.bump {
+            Some(name) => {
+                let t = texture_id(name)?;
+                if !textures[t as usize].is_solid() {
+                    return ctx.err(
+                        span,
+                        format!("`bump` needs a solid texture (checker or noise); `{name}` is not"),
+                    );
+                }
+                Some((t, m.bump_height.map_or(0.02, |h| h.0)))
+            }
+            None if m.bump_height.is_some() => return ctx.err(span, "`bump_height` needs a `bump` texture"),
+            None => None,
+        };
         material_ids.insert(m.name.clone(), materials.len() as u32);
         materials.push(material);
+        maps.push(Maps { color, bump });
     }
 
     let mut builder = ShapeBuilder { shapes: Vec::new(), objects: Vec::new(), object_ids: HashMap::new() };
@@ -379,6 +440,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
 
     Ok(Scene {
         filter,
+        textures,
+        maps,
         path: path.to_path_buf(),
         camera,
         film,
@@ -549,7 +612,10 @@ fn add_shape(
                 return ctx.err(span, format!("a quad needs 4 `vertices`, not {}", v.len()));
             }
             let p: Vec<Vec3> = v.iter().map(|&p| transform.point(v3(p))).collect();
-            Geometry::Triangles(mesh(&p, &[[0, 1, 2], [0, 2, 3]]))
+            let mut quad = mesh(&p, &[[0, 1, 2], [0, 2, 3]]);
+            // An image's bottom left, bottom right, top right and top left.
+            quad.uvs = Some([Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y].into());
+            Geometry::Triangles(quad)
         }
         "box" => {
             ctx.only(span.clone(), &what, &present, &["min", "max"])?;
@@ -600,6 +666,7 @@ fn add_shape(
                         positions: positions.iter().map(|&p| Vec3A::from(p)).collect(),
                         indices: part.indices.into(),
                         normals,
+                        uvs: part.uvs.map(Into::into),
                     }),
                     material: part_material,
                     emission: part_emission,
@@ -660,10 +727,81 @@ fn add_shape(
 }
 
 fn mesh(p: &[Vec3], indices: &[[u32; 3]]) -> Mesh {
-    Mesh { positions: p.iter().map(|&q| Vec3A::from(q)).collect(), indices: indices.into(), normals: None }
+    Mesh {
+        positions: p.iter().map(|&q| Vec3A::from(q)).collect(),
+        indices: indices.into(),
+        normals: None,
+        uvs: None,
+    }
 }
 
 /// An axis-aligned box as 12 triangles wound counter-clockwise seen from outside.
+fn texture(ctx: &Ctx, dir: &Path, t: &Spanned<FileTexture>) -> Result<Texture, SceneError> {
+    let span = t.span();
+    let t = t.get_ref();
+    let present = [
+        ("color", t.color.is_some()),
+        ("color2", t.color2.is_some()),
+        ("size", t.size.is_some()),
+        ("frequency", t.frequency.is_some()),
+        ("octaves", t.octaves.is_some()),
+        ("seed", t.seed.is_some()),
+        ("file", t.file.is_some()),
+        ("repeat", t.repeat.is_some()),
+    ];
+    let what = format!("a {} texture", t.kind);
+    let a = v3(t.color.unwrap_or([F(0.0); 3]));
+    let b = v3(t.color2.unwrap_or([F(1.0); 3]));
+    if a.min_element() < 0.0 || b.min_element() < 0.0 {
+        return ctx.err(span, "texture colours must not be negative");
+    }
+    let pattern = match t.kind.as_str() {
+        "constant" => {
+            ctx.only(span.clone(), &what, &present, &["color"])?;
+            return Ok(Texture::Constant(v3(ctx.need(span, &what, "color", t.color)?)));
+        }
+        "checker" => {
+            ctx.only(span.clone(), &what, &present, &["color", "color2", "size"])?;
+            let size = t.size.map_or(1.0, |s| s.0);
+            if size <= 0.0 {
+                return ctx.err(span, "a checker's `size` must be positive");
+            }
+            return Ok(Texture::Checker { a, b, size });
+        }
+        "image" => {
+            ctx.only(span.clone(), &what, &present, &["file", "repeat"])?;
+            let file = ctx.need(span.clone(), &what, "file", t.file.as_ref())?;
+            let image = crate::film::read_texture(&dir.join(file))
+                .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.name)))?;
+            let repeat = t.repeat.map_or(Vec2::ONE, |[u, v]| Vec2::new(u.0, v.0));
+            if repeat.min_element() <= 0.0 {
+                return ctx.err(span, "`repeat` must be positive");
+            }
+            return Ok(Texture::Image { image: Arc::new(image), repeat });
+        }
+        "perlin" => Pattern::Perlin,
+        "fbm" => Pattern::Fbm,
+        "turbulence" => Pattern::Turbulence,
+        "marble" => Pattern::Marble,
+        other => {
+            return ctx.err(
+                span,
+                format!("unknown texture type `{other}` (constant, checker, image, perlin, fbm, turbulence or marble)"),
+            )
+        }
+    };
+    ctx.only(span.clone(), &what, &present, &["color", "color2", "frequency", "octaves", "seed"])?;
+    let frequency = t.frequency.map_or(1.0, |f| f.0);
+    if frequency <= 0.0 {
+        return ctx.err(span, "`frequency` must be positive");
+    }
+    let octaves = t.octaves.unwrap_or(6);
+    if !(1..=16).contains(&octaves) {
+        return ctx.err(span, "`octaves` must lie between 1 and 16");
+    }
+    Ok(Texture::Noise { pattern, a, b, frequency, octaves, seed: t.seed.unwrap_or(0) })
+}
+
 fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let p: Vec<Vec3> = (0..8)
         .map(|i| {
@@ -914,6 +1052,39 @@ mod tests {
             assert!(line.is_some_and(|l| l >= 4), "{extra}: {line:?} {msg}");
             assert!(msg.contains(needle), "{extra}: {msg}");
         }
+    }
+
+    #[test]
+    fn textures_and_their_errors() {
+        let marble = "[[texture]]\nname = \"m\"\ntype = \"marble\"\nfrequency = 2\n";
+        let mat = "[[material]]\nname = \"x\"\ntype = \"diffuse\"\n";
+        let s = parse_str(&format!("{MINIMAL}{marble}{mat}texture = \"m\"\nbump = \"m\"\n")).expect("parses");
+        assert!(matches!(s.textures[0], Texture::Noise { pattern: Pattern::Marble, frequency: 2.0, .. }));
+        assert_eq!(s.maps(0), Maps { color: Some(0), bump: Some((0, 0.02)) });
+        assert_eq!(s.maps(7), Maps::default());
+        let image = "[[texture]]\nname = \"i\"\ntype = \"image\"\nfile = \"nowhere.png\"\n";
+        for (text, needle, line) in [
+            (format!("{MINIMAL}{mat}texture = \"nope\"\n"), "nope", 4),
+            (format!("{MINIMAL}{image}"), "nowhere.png", 4),
+            (format!("{MINIMAL}{marble}octaves = 40\n"), "octaves", 4),
+            (format!("{MINIMAL}{marble}file = \"a.png\"\n"), "file", 4),
+            (
+                format!("{MINIMAL}{marble}[[material]]\nname = \"g\"\ntype = \"mirror\"\ntexture = \"m\"\n"),
+                "only diffuse",
+                8,
+            ),
+            (format!("{MINIMAL}{mat}bump_height = 1\n"), "bump", 4),
+        ] {
+            let (l, msg) = error_line(&text);
+            assert_eq!(l, Some(line), "{msg}");
+            assert!(msg.contains(needle), "{needle}: {msg}");
+        }
+        // An image texture cannot be a bump map (it has no gradient in space).
+        let dir = tempfile::tempdir().expect("tempdir");
+        crate::film::write(&crate::film::Image::new(2, 2), &dir.path().join("i.png"), 0.0).expect("png");
+        let text = format!("{MINIMAL}{}{mat}bump = \"i\"\n", image.replace("nowhere.png", "i.png"));
+        let e = parse(&dir.path().join("s.toml"), &text).expect_err("must fail");
+        assert!(e.message.contains("solid"), "{}", e.message);
     }
 
     #[test]

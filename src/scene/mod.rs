@@ -8,12 +8,13 @@ pub mod obj;
 pub mod procedural;
 pub mod sky;
 pub mod teapot;
+pub mod texture;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 
 pub use file::load;
 
@@ -98,6 +99,8 @@ pub struct Mesh {
     pub indices: Arc<[[u32; 3]]>,
     /// Per-vertex shading normals, when the mesh file has them.
     pub normals: Option<Arc<[Vec3]>>,
+    /// Per-vertex texture coordinates (quads have them; OBJ files may).
+    pub uvs: Option<Arc<[Vec2]>>,
 }
 
 impl Mesh {
@@ -189,6 +192,25 @@ pub struct Scene {
     pub objects: Vec<String>,
     /// The scene's own filter setting (`[filter]`), which the command line can override.
     pub filter: crate::filter::Setting,
+    pub textures: Vec<texture::Texture>,
+    /// For each material (by index; missing means none), the textures it reads.
+    pub maps: Vec<Maps>,
+}
+
+/// The textures a material reads instead of its constants.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Maps {
+    /// The albedo of a diffuse material, or the base of a glossy one.
+    pub color: Option<u32>,
+    /// A solid texture read as a height field of this amplitude.
+    pub bump: Option<(u32, f32)>,
+}
+
+impl Scene {
+    /// The textures material `m` reads.
+    pub fn maps(&self, m: u32) -> Maps {
+        self.maps.get(m as usize).copied().unwrap_or_default()
+    }
 }
 
 impl Scene {

@@ -12,26 +12,31 @@ fn hash(mut x: u32) -> u32 {
     x ^ (x >> 16)
 }
 
-fn lattice(seed: u32, x: i32, y: i32, z: i32) -> u32 {
-    hash(seed ^ hash((x as u32) ^ hash((y as u32) ^ hash(z as u32))))
-}
+/// Perlin's 12 edge gradients, with four of them repeated to make 16 (his 2002 trick), so a
+/// hash picks one with a mask and a table lookup instead of a branch.
+const GRADIENTS: [[f32; 3]; 16] = [
+    [1.0, 1.0, 0.0],
+    [-1.0, 1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [-1.0, -1.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [-1.0, 0.0, 1.0],
+    [1.0, 0.0, -1.0],
+    [-1.0, 0.0, -1.0],
+    [0.0, 1.0, 1.0],
+    [0.0, -1.0, 1.0],
+    [0.0, 1.0, -1.0],
+    [0.0, -1.0, -1.0],
+    [1.0, 1.0, 0.0],
+    [-1.0, 1.0, 0.0],
+    [0.0, -1.0, 1.0],
+    [0.0, -1.0, -1.0],
+];
 
-/// Dot product of one of Perlin's 12 edge gradients with (x, y, z).
+/// Dot product of the gradient that hash `h` picks with (x, y, z).
 fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
-    match h % 12 {
-        0 => x + y,
-        1 => -x + y,
-        2 => x - y,
-        3 => -x - y,
-        4 => x + z,
-        5 => -x + z,
-        6 => x - z,
-        7 => -x - z,
-        8 => y + z,
-        9 => -y + z,
-        10 => y - z,
-        _ => -y - z,
-    }
+    let [gx, gy, gz] = GRADIENTS[(h & 15) as usize];
+    gx * x + gy * y + gz * z
 }
 
 fn fade(t: f32) -> f32 {
@@ -48,8 +53,13 @@ pub fn perlin(seed: u32, p: Vec3) -> f32 {
     let (x0, y0, z0) = (f.x as i32, f.y as i32, f.z as i32);
     let d = p - f;
     let (u, v, w) = (fade(d.x), fade(d.y), fade(d.z));
+    // The corners' hashes, nested so that each z and (y, z) is hashed once: 14 hashes, not 32.
+    let hz = [hash(z0 as u32), hash(z0.wrapping_add(1) as u32)];
+    let hyz = |j: i32, k: usize| hash(y0.wrapping_add(j) as u32 ^ hz[k]);
+    let hy = [[hyz(0, 0), hyz(0, 1)], [hyz(1, 0), hyz(1, 1)]];
     let g = |i: i32, j: i32, k: i32| {
-        grad(lattice(seed, x0 + i, y0 + j, z0 + k), d.x - i as f32, d.y - j as f32, d.z - k as f32)
+        let h = hash(seed ^ hash(x0.wrapping_add(i) as u32 ^ hy[j as usize][k as usize]));
+        grad(h, d.x - i as f32, d.y - j as f32, d.z - k as f32)
     };
     let n = lerp(
         w,

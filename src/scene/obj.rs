@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// What the mesh's `.mtl` says about a part.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,6 +19,8 @@ pub struct ObjPart {
     pub name: String,
     pub positions: Vec<Vec3>,
     pub normals: Option<Vec<Vec3>>,
+    /// Texture coordinates, one per vertex, when the file has them (`vt`).
+    pub uvs: Option<Vec<Vec2>>,
     pub indices: Vec<[u32; 3]>,
     pub material: Option<ObjMaterial>,
 }
@@ -69,6 +71,9 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
         }
         let normals = (mesh.normals.len() == mesh.positions.len())
             .then(|| mesh.normals.chunks_exact(3).map(|n| triple(n).normalize_or_zero()).collect::<Vec<_>>());
+        let uvs = (mesh.texcoords.len() / 2 == positions.len() && !mesh.texcoords.is_empty())
+            .then(|| mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])).collect::<Vec<_>>())
+            .filter(|uvs| uvs.iter().all(|t| t.is_finite()));
         let indices: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
         if indices.iter().flatten().any(|&i| i as usize >= positions.len()) {
             return Err(describe(path, "face vertex index out of bounds"));
@@ -77,6 +82,7 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
             name: model.name.clone(),
             positions,
             normals,
+            uvs,
             indices,
             material: mesh.material_id.and_then(|i| materials.get(i).copied()),
         });

@@ -122,6 +122,7 @@ pub fn teapot(n: u32) -> Mesh {
         positions: positions.into_iter().map(Vec3A::from).collect(),
         indices: indices.into(),
         normals: Some(normals.into()),
+        uvs: None,
     }
 }
 

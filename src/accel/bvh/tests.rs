@@ -28,6 +28,8 @@ fn scene_of(shapes: Vec<Geometry>) -> Scene {
         lights: vec![],
         objects: vec![],
         filter: Default::default(),
+        textures: vec![],
+        maps: vec![],
     }
 }
 
@@ -36,6 +38,7 @@ fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
         positions: positions.into_iter().map(Vec3A::from).collect::<Arc<[Vec3A]>>(),
         indices: indices.into(),
         normals: None,
+        uvs: None,
     })
 }
 
