@@ -96,6 +96,9 @@ struct FilterCommandArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
+    /// Which layer a PNG or HDR output shows (an EXR holds them all).
+    #[arg(long, value_enum, default_value_t = Layer::Final)]
+    layer: Layer,
 }
 
 #[derive(clap::Args)]
@@ -167,9 +170,68 @@ struct RenderArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
+    /// Which layer a PNG or HDR output shows (an EXR holds them all).
+    #[arg(long, value_enum, default_value_t = Layer::Final)]
+    layer: Layer,
     /// Print one JSON object on stdout instead of the summary line.
     #[arg(long)]
     json: bool,
+}
+
+/// A layer of a render, for single-image outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Layer {
+    /// The final image (filtered when a filter is on).
+    Final,
+    /// The unfiltered beauty.
+    Raw,
+    Emitted,
+    Direct,
+    Caustic,
+    Indirect,
+    /// The filtered indirect component (needs a filter on `indirect`).
+    IndirectFiltered,
+    Albedo,
+}
+
+/// Checks before any work that `layer` can be written to `output` with this filter setting.
+fn check_layer(layer: Layer, output: &Path, setting: &Setting) -> Result<(), Failure> {
+    if layer != Layer::Final && matches!(film::Format::from_path(output), Ok(film::Format::Exr)) {
+        return Err(Failure::input(
+            "--layer picks the layer of a PNG or HDR output; an EXR holds every layer",
+        ));
+    }
+    if layer == Layer::IndirectFiltered && (setting.kernel.is_none() || setting.target != Target::Indirect) {
+        return Err(Failure::input("--layer indirect-filtered needs a filter on indirect"));
+    }
+    Ok(())
+}
+
+/// Writes the render: every layer to an EXR, or `layer` alone to a PNG or HDR.
+fn write_output(
+    film: &film::Film,
+    final_image: &film::Image,
+    filtered: Option<&film::Image>,
+    output: &Path,
+    layer: Layer,
+    exposure: f32,
+) -> Result<(), Failure> {
+    if layer == Layer::Final {
+        return film::write_film(film, final_image, filtered, output, exposure).map_err(Failure::failed);
+    }
+    let image = match layer {
+        Layer::Final => final_image,
+        Layer::Raw => &film.raw,
+        Layer::Emitted => &film.components[0],
+        Layer::Direct => &film.components[1],
+        Layer::Caustic => &film.components[2],
+        Layer::Indirect => &film.components[3],
+        Layer::IndirectFiltered => {
+            filtered.ok_or_else(|| Failure::input("--layer indirect-filtered needs a filter on indirect"))?
+        }
+        Layer::Albedo => &film.albedo,
+    };
+    film::write(image, output, exposure).map_err(Failure::failed)
 }
 
 /// A failure with its exit status.
@@ -256,6 +318,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         return Err(Failure::input("--exposure must be a finite number"));
     }
     let setting = args.filter.check(&scene.filter)?;
+    check_layer(args.layer, &output, &setting)?;
 
     let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
@@ -264,8 +327,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let (final_image, filtered) =
         composite(&out.film, setting.kernel.as_ref(), setting.target, &setting.stops);
     let filter_seconds = filter_start.elapsed().as_secs_f64();
-    film::write_film(&out.film, &final_image, filtered.as_ref(), &output, args.exposure)
-        .map_err(Failure::failed)?;
+    write_output(&out.film, &final_image, filtered.as_ref(), &output, args.layer, args.exposure)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -360,6 +422,7 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let setting = args.filter.check(&Setting::default())?;
     film::check_output(&args.output).map_err(Failure::input)?;
+    check_layer(args.layer, &args.output, &setting)?;
     if !args.exposure.is_finite() {
         return Err(Failure::input("--exposure must be a finite number"));
     }
@@ -367,8 +430,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
     let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
-    film::write_film(&film, &final_image, filtered.as_ref(), &args.output, args.exposure)
-        .map_err(Failure::failed)
+    write_output(&film, &final_image, filtered.as_ref(), &args.output, args.layer, args.exposure)
 }
 
 fn compare_command(args: CompareArgs) -> Result<(), Failure> {

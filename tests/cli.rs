@@ -285,3 +285,32 @@ fn the_scene_file_filter_applies_and_the_command_line_overrides_it() {
     let none = layers("none.exr");
     assert_eq!(none["R"], none["raw.R"]);
 }
+
+/// `--layer` writes one layer to a PNG; asking it of an EXR, or the filtered layer without a
+/// filter, is a clear error before any rendering (status 2, nothing written).
+#[test]
+fn layer_picks_what_a_png_shows() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml");
+    let scene = scene.to_string_lossy().into_owned();
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let small = ["--width", "24", "--height", "16", "--spp", "2"];
+    let run = |out: &str, extra: &[&str]| {
+        lightsplit(&[&["render", &scene, "-o", &p(out)][..], &small, extra].concat())
+    };
+    assert!(run("final.png", &[]).status.success());
+    let out = run("indirect.png", &["--layer", "indirect"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let read = |f: &str| std::fs::read(p(f)).expect("png");
+    assert_ne!(read("final.png"), read("indirect.png"));
+    let out = run("f.png", &["--layer", "indirect-filtered", "--filter", "box3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for (file, extra) in
+        [("x.exr", &["--layer", "direct"][..]), ("y.png", &["--layer", "indirect-filtered"][..])]
+    {
+        let out = run(file, extra);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--layer"));
+        assert!(!Path::new(&p(file)).exists());
+    }
+}
