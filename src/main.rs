@@ -35,6 +35,63 @@ enum Command {
     Compare(CompareArgs),
     /// Measure Embree and the BVH side by side on identical ray sets.
     BenchAccel(BenchAccelArgs),
+    /// Run time against error: render each spp once per seed, filter it every way, compare
+    /// with a reference, and write results.csv, summary.md and log-log plots.
+    Converge(ConvergeArgs),
+}
+
+/// Off or on, for lists like `--edge-aware off,on`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum OnOff {
+    Off,
+    On,
+}
+
+#[derive(clap::Args)]
+struct ConvergeArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// A reference image (.exr or .hdr) of the same size; without it one is rendered at
+    /// --reference-spp and cached in the output directory.
+    #[arg(long, conflicts_with = "reference_spp")]
+    reference: Option<PathBuf>,
+    /// Samples per pixel of the rendered reference.
+    #[arg(long, default_value_t = 1024)]
+    reference_spp: u32,
+    /// The sample counts to measure.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64,128,256")]
+    spp: Vec<u32>,
+    /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
+    #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
+    filters: Vec<String>,
+    /// What the filters apply to.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "indirect")]
+    targets: Vec<Target>,
+    /// Without, with, or both ways of edge-aware filtering.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "off")]
+    edge_aware: Vec<OnOff>,
+    /// Renders per spp, each with its own seed: the summary gives their mean and spread.
+    #[arg(long, default_value_t = 1)]
+    seeds: u32,
+    /// Ray tracing backend.
+    #[arg(long, value_enum, default_value_t = Backend::Embree)]
+    accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Image width (default: the scene file's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (default: the scene file's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// The spp whose difference images (the paper's Figure 6) are written (default: the
+    /// measured spp nearest 50).
+    #[arg(long)]
+    diff_spp: Option<u32>,
+    /// The output directory.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 /// How to filter: shared by `render` and `filter`.
@@ -256,6 +313,7 @@ fn main() -> ExitCode {
         Command::Filter(args) => filter_command(args),
         Command::Compare(args) => compare_command(args),
         Command::BenchAccel(args) => bench_accel_command(args),
+        Command::Converge(args) => converge_command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -431,6 +489,59 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
     let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
     write_output(&film, &final_image, filtered.as_ref(), &args.output, args.layer, args.exposure)
+}
+
+fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
+    use lightsplit::converge::{self, Event, Plan};
+    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    if args.spp.is_empty() || args.spp.contains(&0) {
+        return Err(Failure::input("--spp must list sample counts of at least 1"));
+    }
+    if args.seeds == 0 || args.reference_spp == 0 || args.threads == Some(0) {
+        return Err(Failure::input("--seeds, --reference-spp and --threads must be at least 1"));
+    }
+    if args.diff_spp.is_some_and(|d| !args.spp.contains(&d)) {
+        return Err(Failure::input("--diff-spp must be one of the --spp values"));
+    }
+    // Custom kernels are written with ';' between weights here, since ',' separates filters.
+    let filters: Vec<String> = args.filters.iter().map(|f| f.replace(';', ",")).collect();
+    let edge: Vec<bool> = args.edge_aware.iter().map(|e| *e == OnOff::On).collect();
+    let choices = converge::choices(&filters, &args.targets, &edge).map_err(Failure::input)?;
+    let mut options = RenderOptions::from_scene(&scene);
+    options.accel = args.accel;
+    options.threads = args.threads;
+    options.width = args.width.unwrap_or(options.width);
+    options.height = args.height.unwrap_or(options.height);
+    let mut spps = args.spp.clone();
+    spps.sort_unstable();
+    spps.dedup();
+    let diff_spp = args.diff_spp.or_else(|| spps.iter().copied().min_by_key(|&s| (s as i64 - 50).abs()));
+    let plan = Plan {
+        scene_path: args.scene.clone(),
+        options,
+        spps,
+        seeds: args.seeds,
+        choices,
+        reference: args.reference.clone(),
+        reference_spp: args.reference_spp,
+        diff_spp,
+        out: args.out.clone(),
+    };
+    let bar = progress_bar(plan.total_samples(), false);
+    let report = |e: Event| match e {
+        Event::Samples(n) => bar.inc(n),
+        Event::Message(m) => bar.suspend(|| eprintln!("{m}")),
+    };
+    let map = |e: converge::ConvergeError| match e {
+        converge::ConvergeError::Input(m) => Failure::input(m),
+        converge::ConvergeError::Failed(m) => Failure::failed(m),
+    };
+    let rows = converge::run(&plan, &scene, &report).map_err(map)?;
+    bar.finish_and_clear();
+    let md = converge::report(&plan, &rows).map_err(map)?;
+    print!("{md}");
+    eprintln!("wrote {}", plan.out.display());
+    Ok(())
 }
 
 fn compare_command(args: CompareArgs) -> Result<(), Failure> {

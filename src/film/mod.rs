@@ -238,6 +238,18 @@ pub fn write_film(
     }
 }
 
+/// Writes a text file (a summary, a table) the same way as images: whole or not at all.
+pub fn write_text(path: &Path, text: &str) -> Result<(), WriteError> {
+    atomically(path, |tmp| fs::write(tmp, text).map_err(|e| e.to_string()))
+}
+
+/// Writes 8-bit RGB pixels (a plot) as a PNG.
+pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: Vec<u8>) -> Result<(), WriteError> {
+    let img = image::RgbImage::from_raw(width, height, rgb)
+        .ok_or_else(|| WriteError::Io(path.to_path_buf(), "the pixel buffer does not fit the size".into()))?;
+    atomically(path, |tmp| img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| e.to_string()))
+}
+
 /// Runs `write` on a temporary file beside `path`, then renames it over `path`.
 fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), WriteError> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

@@ -1,0 +1,401 @@
+//! `converge`: run time against error, the paper's Figures 5 and 6 for any scene. Each sample
+//! count is rendered once per seed, and that render is filtered with every setting (render
+//! once, filter many times), render and filter timed apart; every row is appended to
+//! `results.csv` as soon as it is known, so a run stopped half way keeps its rows and the same
+//! command goes on from there.
+
+pub mod plot;
+pub mod summary;
+
+use std::collections::HashSet;
+use std::fmt::Write as _;
+use std::fs;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::accel::Backend;
+use crate::film::{self, Image};
+use crate::filter::{composite, EdgeStops, Kernel, Target};
+use crate::metrics;
+use crate::render::{self, RenderOptions};
+use crate::scene::Scene;
+
+/// One filter setting of a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Choice {
+    /// `none` or the kernel's name.
+    pub filter: String,
+    pub kernel: Option<Kernel>,
+    pub target: Target,
+    pub edge_aware: bool,
+}
+
+impl Choice {
+    /// The unfiltered render.
+    pub fn none() -> Self {
+        Choice { filter: "none".into(), kernel: None, target: Target::None, edge_aware: false }
+    }
+
+    /// A short label: `weighted3 indirect edge-aware`.
+    pub fn label(&self) -> String {
+        match self.kernel {
+            None => "unfiltered".into(),
+            Some(_) => {
+                format!(
+                    "{} {}{}",
+                    self.filter,
+                    target_name(self.target),
+                    if self.edge_aware { " edge-aware" } else { "" }
+                )
+            }
+        }
+    }
+
+    fn key(&self) -> (String, String, bool) {
+        (self.filter.clone(), target_name(self.target).to_string(), self.edge_aware)
+    }
+}
+
+pub fn target_name(t: Target) -> &'static str {
+    match t {
+        Target::Indirect => "indirect",
+        Target::Image => "image",
+        Target::None => "none",
+    }
+}
+
+/// Every combination of the filters, targets and edge modes asked for; `none` once, unfiltered.
+pub fn choices(filters: &[String], targets: &[Target], edge: &[bool]) -> Result<Vec<Choice>, String> {
+    let mut out = Vec::new();
+    for f in filters {
+        if f == "none" {
+            out.push(Choice::none());
+            continue;
+        }
+        let kernel = Kernel::parse(f)?;
+        for &target in targets {
+            if target == Target::None {
+                return Err(
+                    "--targets takes indirect and image (the unfiltered run is the filter `none`)".into()
+                );
+            }
+            for &edge_aware in edge {
+                out.push(Choice { filter: kernel.name(), kernel: Some(kernel.clone()), target, edge_aware });
+            }
+        }
+    }
+    if !out.contains(&Choice::none()) {
+        // The equal-quality column reads the unfiltered curve: it is always measured.
+        out.insert(0, Choice::none());
+    }
+    Ok(out)
+}
+
+/// A `converge` run.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    pub scene_path: PathBuf,
+    /// Width, height, depth and the base seed come from here; `spp` and `seed` vary.
+    pub options: RenderOptions,
+    pub spps: Vec<u32>,
+    pub seeds: u32,
+    pub choices: Vec<Choice>,
+    /// A reference image, or `None` to render (and cache) one at `reference_spp`.
+    pub reference: Option<PathBuf>,
+    pub reference_spp: u32,
+    /// The sample count whose difference images (Figure 6) are written.
+    pub diff_spp: Option<u32>,
+    pub out: PathBuf,
+}
+
+/// One row of `results.csv`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    pub scene: String,
+    pub accel: String,
+    pub spp: u32,
+    pub seed: u32,
+    pub filter: String,
+    pub target: String,
+    pub edge_aware: bool,
+    pub render_seconds: f64,
+    pub filter_seconds: f64,
+    pub sse: f64,
+    pub rmse: f64,
+    pub relmse: f64,
+}
+
+pub const HEADER: &str =
+    "scene,accel,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse";
+
+impl Row {
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e}",
+            self.scene.replace(',', ";"),
+            self.accel,
+            self.spp,
+            self.seed,
+            self.filter.replace(',', " "),
+            self.target,
+            self.edge_aware,
+            self.render_seconds,
+            self.filter_seconds,
+            self.sse,
+            self.rmse,
+            self.relmse
+        )
+    }
+
+    /// A row from a line of `results.csv`; `None` for a line a stopped run left half written.
+    pub fn parse(line: &str) -> Option<Row> {
+        let f: Vec<&str> = line.trim_end().split(',').collect();
+        if f.len() != 12 {
+            return None;
+        }
+        Some(Row {
+            scene: f[0].to_string(),
+            accel: f[1].to_string(),
+            spp: f[2].parse().ok()?,
+            seed: f[3].parse().ok()?,
+            filter: f[4].to_string(),
+            target: f[5].to_string(),
+            edge_aware: f[6].parse().ok()?,
+            render_seconds: f[7].parse().ok()?,
+            filter_seconds: f[8].parse().ok()?,
+            sse: f[9].parse().ok()?,
+            rmse: f[10].parse().ok()?,
+            relmse: f[11].parse().ok()?,
+        })
+    }
+
+    /// The setting this row measured.
+    pub fn key(&self) -> (String, String, bool) {
+        (self.filter.clone(), self.target.clone(), self.edge_aware)
+    }
+}
+
+/// What a run reports as it goes.
+pub enum Event<'a> {
+    /// Samples (pixels x spp) done, for a progress bar over the whole run.
+    Samples(u64),
+    /// A line for the user.
+    Message(&'a str),
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConvergeError {
+    #[error("{0}")]
+    Input(String),
+    #[error("{0}")]
+    Failed(String),
+}
+
+fn accel_name(a: Backend) -> &'static str {
+    match a {
+        Backend::Embree => "embree",
+        Backend::Bvh => "bvh",
+    }
+}
+
+impl Plan {
+    /// The samples the run takes, the reference's included when it must be rendered (what
+    /// an earlier run left done is counted as it is skipped).
+    pub fn total_samples(&self) -> u64 {
+        let pixels = self.options.width as u64 * self.options.height as u64;
+        let reference = match (&self.reference, fs::read(&self.scene_path)) {
+            (None, Ok(text)) if !self.reference_cache(&text).exists() => self.reference_spp as u64,
+            _ => 0,
+        };
+        pixels * (self.spps.iter().map(|&s| s as u64).sum::<u64>() * self.seeds as u64 + reference)
+    }
+
+    fn scene_name(&self) -> String {
+        self.scene_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+    }
+
+    /// The seed of test render `k` (the reference uses another).
+    fn seed(&self, k: u32) -> u64 {
+        self.options.seed.wrapping_add(1 + k as u64)
+    }
+
+    /// The cache file of the rendered reference: named by a hash of the scene file and every
+    /// setting that changes the image.
+    pub fn reference_cache(&self, scene_text: &[u8]) -> PathBuf {
+        let mut h = Fnv::default();
+        h.write(scene_text);
+        let o = &self.options;
+        for v in [o.width as u64, o.height as u64, o.max_depth as u64, o.seed, self.reference_spp as u64] {
+            h.write(&v.to_le_bytes());
+        }
+        self.out.join(format!("reference-{}spp-{:016x}.exr", self.reference_spp, h.0))
+    }
+}
+
+/// FNV-1a, 64 bits: a stable hash for cache names (std's hasher may change between releases).
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
+/// Reads the rows an earlier run of the same scene and backend left in `results.csv`.
+pub fn read_rows(path: &Path) -> Vec<Row> {
+    fs::read_to_string(path)
+        .map(|text| text.lines().skip(1).filter_map(Row::parse).collect())
+        .unwrap_or_default()
+}
+
+/// The reference image: the given file, or a render at `reference_spp` cached in the output
+/// directory.
+fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Image, ConvergeError> {
+    if let Some(path) = &plan.reference {
+        let img = film::read_image(path).map_err(ConvergeError::Input)?;
+        if (img.width, img.height) != (plan.options.width, plan.options.height) {
+            return Err(ConvergeError::Input(format!(
+                "the reference {} is {}x{}, the renders {}x{}",
+                path.display(),
+                img.width,
+                img.height,
+                plan.options.width,
+                plan.options.height
+            )));
+        }
+        return Ok(img);
+    }
+    let text = fs::read(&plan.scene_path)
+        .map_err(|e| ConvergeError::Input(format!("{}: {e}", plan.scene_path.display())))?;
+    let cache = plan.reference_cache(&text);
+    if let Ok(img) = film::read_image(&cache) {
+        report(Event::Message(&format!("reference: {} (cached)", cache.display())));
+        return Ok(img);
+    }
+    report(Event::Message(&format!("reference: rendering {} spp", plan.reference_spp)));
+    let mut options = plan.options.clone();
+    options.spp = plan.reference_spp;
+    options.seed = plan.options.seed.wrapping_add(0x5eed_0000_0000);
+    let spp = options.spp as u64;
+    let out = render::render(scene, &options, &|n| report(Event::Samples(n * spp)))
+        .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+    let image = out.film.raw.clone();
+    film::write_film(&out.film, &image, None, &cache, 0.0)
+        .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+    Ok(image)
+}
+
+/// Runs the plan: renders what `results.csv` lacks, appends its rows, and returns every row of
+/// this scene and backend (earlier and new).
+pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Vec<Row>, ConvergeError> {
+    fs::create_dir_all(&plan.out)
+        .map_err(|e| ConvergeError::Input(format!("cannot create {}: {e}", plan.out.display())))?;
+    let reference = reference(plan, scene, report)?;
+    let csv_path = plan.out.join("results.csv");
+    let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
+    let mut rows: Vec<Row> =
+        read_rows(&csv_path).into_iter().filter(|r| r.scene == scene_name && r.accel == accel).collect();
+    let done: HashSet<(u32, u32, (String, String, bool))> =
+        rows.iter().map(|r| (r.spp, r.seed, r.key())).collect();
+    let fresh = !csv_path.exists();
+    let mut csv = fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&csv_path)
+        .map_err(|e| ConvergeError::Failed(format!("{}: {e}", csv_path.display())))?;
+    let write_line = |csv: &mut fs::File, line: &str| {
+        // One write of a whole line: a stop can only lose the line being written.
+        csv.write_all(format!("{line}\n").as_bytes())
+            .and_then(|()| csv.flush())
+            .map_err(|e| ConvergeError::Failed(format!("{}: {e}", csv_path.display())))
+    };
+    if fresh {
+        write_line(&mut csv, HEADER)?;
+    } else if fs::read(&csv_path).is_ok_and(|b| b.last().is_some_and(|&c| c != b'\n')) {
+        // A stopped run left half a line: end it, so it stays one malformed (skipped) line.
+        write_line(&mut csv, "")?;
+    }
+    let pixels = plan.options.width as u64 * plan.options.height as u64;
+    for &spp in &plan.spps {
+        for k in 0..plan.seeds {
+            let todo: Vec<&Choice> =
+                plan.choices.iter().filter(|c| !done.contains(&(spp, k, c.key()))).collect();
+            if todo.is_empty() {
+                report(Event::Samples(pixels * spp as u64));
+                continue;
+            }
+            let mut options = plan.options.clone();
+            options.spp = spp;
+            options.seed = plan.seed(k);
+            let out = render::render(scene, &options, &|n| report(Event::Samples(n * spp as u64)))
+                .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+            for choice in todo {
+                let start = Instant::now();
+                let (image, _) = composite(&out.film, choice.kernel.as_ref(), choice.target, &stops(choice));
+                let filter_seconds =
+                    if choice.kernel.is_some() { start.elapsed().as_secs_f64() } else { 0.0 };
+                let e = metrics::compare(&image, &reference).map_err(ConvergeError::Failed)?;
+                if k == 0 && plan.diff_spp == Some(spp) {
+                    let name = choice.label().replace(' ', "-");
+                    let path = plan.out.join(format!("diff-{spp}spp-{name}.png"));
+                    film::write(&metrics::difference_image(&image, &reference), &path, 0.0)
+                        .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+                }
+                let row = Row {
+                    scene: scene_name.clone(),
+                    accel: accel.clone(),
+                    spp,
+                    seed: k,
+                    filter: choice.filter.clone(),
+                    target: target_name(choice.target).to_string(),
+                    edge_aware: choice.edge_aware,
+                    render_seconds: out.stats.seconds,
+                    filter_seconds,
+                    sse: e.sse,
+                    rmse: e.rmse,
+                    relmse: e.relmse,
+                };
+                write_line(&mut csv, &row.csv())?;
+                rows.push(row);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+fn stops(c: &Choice) -> EdgeStops {
+    EdgeStops { object: c.edge_aware, ..Default::default() }
+}
+
+/// Writes `summary.md` and the two plots for `rows`.
+pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
+    let table = summary::Table::new(rows, &plan.choices, &plan.spps);
+    let mut md = String::new();
+    let _ = writeln!(md, "# converge: {}\n", plan.scene_name());
+    let _ = writeln!(
+        md,
+        "{}x{}, {} seed(s) a point, accelerator {}, reference {}.\n",
+        plan.options.width,
+        plan.options.height,
+        plan.seeds,
+        accel_name(plan.options.accel),
+        match &plan.reference {
+            Some(p) => p.display().to_string(),
+            None => format!("rendered at {} spp", plan.reference_spp),
+        }
+    );
+    md.push_str(&table.markdown());
+    film::write_text(&plan.out.join("summary.md"), &md).map_err(|e| ConvergeError::Failed(e.to_string()))?;
+    plot::error_plot(&table, false, &plan.out.join("error-vs-spp.png")).map_err(ConvergeError::Failed)?;
+    plot::error_plot(&table, true, &plan.out.join("error-vs-time.png")).map_err(ConvergeError::Failed)?;
+    Ok(md)
+}

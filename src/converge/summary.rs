@@ -1,0 +1,222 @@
+//! The summary of a `converge` run: means and spreads over seeds, and the equal-quality
+//! column — how many samples (and seconds) the unfiltered render needs to reach a filtered
+//! setting's error, read off the unfiltered log-log curve.
+
+use std::fmt::Write as _;
+
+use super::{target_name, Choice, Row};
+
+/// Mean and sample standard deviation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stat {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+impl Stat {
+    pub fn of(values: &[f64]) -> Stat {
+        let n = values.len();
+        if n == 0 {
+            return Stat::default();
+        }
+        let mean = values.iter().sum::<f64>() / n as f64;
+        let var =
+            if n > 1 { values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64 } else { 0.0 };
+        Stat { mean, std: var.sqrt(), n }
+    }
+}
+
+/// One setting at one sample count.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    pub spp: u32,
+    pub rmse: Stat,
+    pub relmse: Stat,
+    pub render_seconds: Stat,
+    pub filter_seconds: Stat,
+    /// The unfiltered spp with the same RMSE, and its render seconds (filtered settings only).
+    pub equal_spp: Option<f64>,
+    pub equal_seconds: Option<f64>,
+}
+
+/// A setting's curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Series {
+    pub choice: Choice,
+    pub points: Vec<Point>,
+}
+
+/// Every setting's curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    pub series: Vec<Series>,
+}
+
+/// Piecewise-linear interpolation of y(x) in log-log space through `pts` (sorted by x),
+/// extrapolated beyond the ends along the least-squares line of all points.
+pub fn loglog(pts: &[(f64, f64)], x: f64) -> Option<f64> {
+    let pts: Vec<(f64, f64)> =
+        pts.iter().filter(|(a, b)| *a > 0.0 && *b > 0.0).map(|(a, b)| (a.ln(), b.ln())).collect();
+    if pts.len() < 2 || x <= 0.0 {
+        return None;
+    }
+    let lx = x.ln();
+    for w in pts.windows(2) {
+        let ((x0, y0), (x1, y1)) = (w[0], w[1]);
+        if (x0..=x1).contains(&lx) && x1 > x0 {
+            return Some((y0 + (y1 - y0) * (lx - x0) / (x1 - x0)).exp());
+        }
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    if sxx == 0.0 {
+        return None;
+    }
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    Some((my + slope * (lx - mx)).exp())
+}
+
+/// The x at which the decreasing log-log curve `pts` (sorted by x) reaches `y`: interpolated
+/// between the points that bracket it, else extrapolated along the least-squares line.
+pub fn inverse_loglog(pts: &[(f64, f64)], y: f64) -> Option<f64> {
+    let swapped: Vec<(f64, f64)> = pts.iter().map(|&(a, b)| (b, a)).collect();
+    let mut sorted = swapped.clone();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    loglog(&sorted, y)
+}
+
+impl Table {
+    pub fn new(rows: &[Row], choices: &[Choice], spps: &[u32]) -> Table {
+        let mut series: Vec<Series> = choices
+            .iter()
+            .map(|c| {
+                let key = (c.filter.clone(), target_name(c.target).to_string(), c.edge_aware);
+                let points = spps
+                    .iter()
+                    .filter_map(|&spp| {
+                        let rs: Vec<&Row> = rows.iter().filter(|r| r.spp == spp && r.key() == key).collect();
+                        if rs.is_empty() {
+                            return None;
+                        }
+                        let stat =
+                            |f: fn(&Row) -> f64| Stat::of(&rs.iter().map(|r| f(r)).collect::<Vec<_>>());
+                        Some(Point {
+                            spp,
+                            rmse: stat(|r| r.rmse),
+                            relmse: stat(|r| r.relmse),
+                            render_seconds: stat(|r| r.render_seconds),
+                            filter_seconds: stat(|r| r.filter_seconds),
+                            equal_spp: None,
+                            equal_seconds: None,
+                        })
+                    })
+                    .collect();
+                Series { choice: c.clone(), points }
+            })
+            .collect();
+        // The unfiltered curves: RMSE and render seconds against spp.
+        let base = series.iter().find(|s| s.choice.kernel.is_none()).cloned();
+        if let Some(base) = base {
+            let err: Vec<(f64, f64)> = base.points.iter().map(|p| (p.spp as f64, p.rmse.mean)).collect();
+            let time: Vec<(f64, f64)> =
+                base.points.iter().map(|p| (p.spp as f64, p.render_seconds.mean)).collect();
+            for s in series.iter_mut().filter(|s| s.choice.kernel.is_some()) {
+                for p in &mut s.points {
+                    p.equal_spp = inverse_loglog(&err, p.rmse.mean);
+                    p.equal_seconds = p.equal_spp.and_then(|n| loglog(&time, n));
+                }
+            }
+        }
+        Table { series }
+    }
+
+    /// The table as Markdown.
+    pub fn markdown(&self) -> String {
+        let mut md = String::from(
+            "| setting | spp | RMSE (mean ± sd) | relMSE | render s | filter s | unfiltered spp for this RMSE | worth | its render s |\n\
+             | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        );
+        for s in &self.series {
+            for p in &s.points {
+                let (eq, worth, secs) = match (p.equal_spp, p.equal_seconds) {
+                    (Some(n), t) => (
+                        format!("{n:.0}"),
+                        format!("{:.1}x", n / p.spp as f64),
+                        t.map_or("-".into(), |t| format!("{t:.2}")),
+                    ),
+                    _ => ("-".into(), "-".into(), "-".into()),
+                };
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {:.4e} ± {:.1e} | {:.3e} | {:.3} | {:.4} | {eq} | {worth} | {secs} |",
+                    s.choice.label(),
+                    p.spp,
+                    p.rmse.mean,
+                    p.rmse.std,
+                    p.relmse.mean,
+                    p.render_seconds.mean,
+                    p.filter_seconds.mean,
+                );
+            }
+        }
+        md
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loglog_interpolates_and_extrapolates_a_power_law() {
+        // RMSE = 0.4 / sqrt(spp): exact on and between the points, and beyond them.
+        let pts: Vec<(f64, f64)> =
+            [1.0, 4.0, 16.0, 64.0].iter().map(|&s: &f64| (s, 0.4 / s.sqrt())).collect();
+        for spp in [2.0, 10.0, 64.0, 256.0, 0.5] {
+            let want = 0.4 / f64::sqrt(spp);
+            let got = loglog(&pts, spp).expect("value");
+            assert!((got / want - 1.0).abs() < 1e-9, "{spp}: {got} vs {want}");
+            let back = inverse_loglog(&pts, want).expect("inverse");
+            assert!((back / spp - 1.0).abs() < 1e-9, "{spp}: {back}");
+        }
+        assert_eq!(loglog(&pts[..1], 2.0), None);
+    }
+
+    #[test]
+    fn equal_quality_reads_the_unfiltered_curve() {
+        let row = |filter: &str, spp: u32, rmse: f64| Row {
+            scene: "s".into(),
+            accel: "embree".into(),
+            spp,
+            seed: 0,
+            filter: filter.into(),
+            target: if filter == "none" { "none" } else { "indirect" }.into(),
+            edge_aware: false,
+            render_seconds: spp as f64 * 0.01,
+            filter_seconds: 0.001,
+            sse: 0.0,
+            rmse,
+            relmse: 0.0,
+        };
+        let spps = [4u32, 16, 64];
+        let mut rows: Vec<Row> = spps.iter().map(|&s| row("none", s, 0.4 / (s as f64).sqrt())).collect();
+        // A filter that halves the error everywhere is worth four times the samples.
+        rows.extend(spps.iter().map(|&s| row("weighted3", s, 0.2 / (s as f64).sqrt())));
+        let choices = super::super::choices(
+            &["none".into(), "weighted3".into()],
+            &[crate::filter::Target::Indirect],
+            &[false],
+        )
+        .expect("choices");
+        let t = Table::new(&rows, &choices, &spps);
+        let filtered = &t.series[1];
+        for p in &filtered.points {
+            let n = p.equal_spp.expect("equal spp");
+            assert!((n / p.spp as f64 - 4.0).abs() < 1e-9, "{n}");
+            assert!((p.equal_seconds.expect("seconds") - n * 0.01).abs() < 1e-9);
+        }
+        assert!(t.markdown().contains("4.0x"));
+    }
+}
