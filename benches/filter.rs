@@ -1,5 +1,5 @@
-//! Criterion benchmarks of one filter pass (the paper's filters, plain and edge-aware) at
-//! 256x256 and at 3840x2160, on a noisy film with several objects.
+//! Criterion benchmarks of one filter pass (the paper's filters, plain and edge-aware) and of one
+//! `compare`, at 256x256 and at 3840x2160, on a noisy film with several objects.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
@@ -39,6 +39,18 @@ fn bench(c: &mut Criterion) {
         }
         group.finish();
     }
+    // One `compare` (the paper's metric, RMSE, relMSE and the trimmed pair) of two images.
+    let mut group = c.benchmark_group("compare");
+    group.sample_size(10);
+    for (w, h) in [(256, 256), (3840, 2160)] {
+        let a = noisy_film(w, h);
+        let mut b = noisy_film(w, h);
+        b.components[3].pixels.iter_mut().for_each(|p| *p *= 1.01);
+        group.bench_function(BenchmarkId::new("compare", format!("{w}x{h}")), |bench| {
+            bench.iter(|| lightsplit::metrics::compare(a.indirect(), b.indirect()).expect("same size"))
+        });
+    }
+    group.finish();
 }
 
 criterion_group!(benches, bench);
