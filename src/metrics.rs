@@ -66,19 +66,69 @@ pub fn compare(test: &Image, reference: &Image) -> Result<Errors, String> {
     })
 }
 
+/// The RMSE over the pixels where `mask` is true (0 when there are none).
+pub fn rmse_masked(test: &Image, reference: &Image, mask: &[bool]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for ((x, y), &m) in test.pixels.iter().zip(&reference.pixels).zip(mask) {
+        if m {
+            let d = x.as_dvec3() - y.as_dvec3();
+            sum += d.length_squared();
+            n += 1;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (sum / (3.0 * n as f64)).sqrt()
+    }
+}
+
+/// Pixels on an object border: one of their eight neighbours shows another object.
+pub fn object_borders(object: &[f32], width: u32, height: u32) -> Vec<bool> {
+    let (w, h) = (width as i64, height as i64);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let c = object[i as usize];
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let (nx, ny) = (x + dx, y + dy);
+                    nx >= 0 && ny >= 0 && nx < w && ny < h && object[(ny * w + nx) as usize] != c
+                })
+            })
+        })
+        .collect()
+}
+
 /// A brightened difference image in the manner of the paper's Figure 6: white where the images
 /// agree, darker where they differ, scaled so that the 99th percentile of the difference is black.
 pub fn difference_image(test: &Image, reference: &Image) -> Image {
-    let diffs: Vec<f32> =
-        test.pixels.iter().zip(&reference.pixels).map(|(a, b)| (*a - *b).abs().max_element()).collect();
-    let mut sorted = diffs.clone();
-    sorted.sort_by(f32::total_cmp);
-    let p99 = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(0.0).max(f32::MIN_POSITIVE);
+    difference_image_scaled(test, reference, difference_scale(test, reference))
+}
+
+/// The 99th percentile of the per-pixel difference: the scale of [`difference_image`]. Several
+/// images drawn at one scale (the unfiltered one's) can be compared by eye.
+pub fn difference_scale(test: &Image, reference: &Image) -> f32 {
+    let mut diffs = differences(test, reference);
+    let k = (diffs.len() * 99 / 100).min(diffs.len().saturating_sub(1));
+    if diffs.is_empty() {
+        return f32::MIN_POSITIVE;
+    }
+    diffs.select_nth_unstable_by(k, f32::total_cmp);
+    diffs[k].max(f32::MIN_POSITIVE)
+}
+
+/// A difference image with black at a difference of `scale`.
+pub fn difference_image_scaled(test: &Image, reference: &Image, scale: f32) -> Image {
     let mut out = Image::new(test.width, test.height);
-    for (o, d) in out.pixels.iter_mut().zip(diffs) {
-        *o = Vec3::splat(1.0 - (d / p99).min(1.0));
+    for (o, d) in out.pixels.iter_mut().zip(differences(test, reference)) {
+        *o = Vec3::splat(1.0 - (d / scale).min(1.0));
     }
     out
+}
+
+fn differences(test: &Image, reference: &Image) -> Vec<f32> {
+    test.pixels.iter().zip(&reference.pixels).map(|(a, b)| (*a - *b).abs().max_element()).collect()
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 //! `results.csv` as soon as it is known, so a run stopped half way keeps its rows and the same
 //! command goes on from there.
 
+pub mod claims;
 pub mod plot;
 pub mod summary;
 
@@ -124,15 +125,17 @@ pub struct Row {
     pub sse: f64,
     pub rmse: f64,
     pub relmse: f64,
+    /// The RMSE over the pixels on object borders (of the render's object IDs).
+    pub rmse_border: f64,
 }
 
 pub const HEADER: &str =
-    "scene,accel,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse";
+    "scene,accel,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border";
 
 impl Row {
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e}",
+            "{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e},{:.9e}",
             self.scene.replace(',', ";"),
             self.accel,
             self.spp,
@@ -144,14 +147,15 @@ impl Row {
             self.filter_seconds,
             self.sse,
             self.rmse,
-            self.relmse
+            self.relmse,
+            self.rmse_border
         )
     }
 
     /// A row from a line of `results.csv`; `None` for a line a stopped run left half written.
     pub fn parse(line: &str) -> Option<Row> {
         let f: Vec<&str> = line.trim_end().split(',').collect();
-        if f.len() != 12 {
+        if f.len() != 13 {
             return None;
         }
         Some(Row {
@@ -167,6 +171,7 @@ impl Row {
             sse: f[9].parse().ok()?,
             rmse: f[10].parse().ok()?,
             relmse: f[11].parse().ok()?,
+            rmse_border: f[12].parse().ok()?,
         })
     }
 
@@ -338,6 +343,9 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
             options.seed = plan.seed(k);
             let out = render::render(scene, &options, &|n| report(Event::Samples(n * spp as u64)))
                 .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+            let borders = metrics::object_borders(&out.film.object, out.film.width, out.film.height);
+            // Every difference image of this render at the unfiltered one's scale, so they compare.
+            let diff_scale = metrics::difference_scale(&out.film.raw, &reference);
             for choice in todo {
                 let start = Instant::now();
                 let (image, _) = composite(&out.film, choice.kernel.as_ref(), choice.target, &stops(choice));
@@ -347,8 +355,12 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                 if k == 0 && plan.diff_spp == Some(spp) {
                     let name = choice.label().replace(' ', "-");
                     let path = plan.out.join(format!("diff-{spp}spp-{name}.png"));
-                    film::write(&metrics::difference_image(&image, &reference), &path, 0.0)
-                        .map_err(|e| ConvergeError::Failed(e.to_string()))?;
+                    film::write(
+                        &metrics::difference_image_scaled(&image, &reference, diff_scale),
+                        &path,
+                        0.0,
+                    )
+                    .map_err(|e| ConvergeError::Failed(e.to_string()))?;
                 }
                 let row = Row {
                     scene: scene_name.clone(),
@@ -363,6 +375,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                     sse: e.sse,
                     rmse: e.rmse,
                     relmse: e.relmse,
+                    rmse_border: metrics::rmse_masked(&image, &reference, &borders),
                 };
                 write_line(&mut csv, &row.csv())?;
                 rows.push(row);
@@ -394,6 +407,8 @@ pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
         }
     );
     md.push_str(&table.markdown());
+    md.push_str("\n## The paper's claims, checked\n\n");
+    md.push_str(&claims::check(&table));
     film::write_text(&plan.out.join("summary.md"), &md).map_err(|e| ConvergeError::Failed(e.to_string()))?;
     plot::error_plot(&table, false, &plan.out.join("error-vs-spp.png")).map_err(ConvergeError::Failed)?;
     plot::error_plot(&table, true, &plan.out.join("error-vs-time.png")).map_err(ConvergeError::Failed)?;

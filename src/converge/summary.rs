@@ -33,6 +33,7 @@ pub struct Point {
     pub spp: u32,
     pub rmse: Stat,
     pub relmse: Stat,
+    pub rmse_border: Stat,
     pub render_seconds: Stat,
     pub filter_seconds: Stat,
     /// The unfiltered spp with the same RMSE, and its render seconds (filtered settings only).
@@ -106,6 +107,7 @@ impl Table {
                             spp,
                             rmse: stat(|r| r.rmse),
                             relmse: stat(|r| r.relmse),
+                            rmse_border: stat(|r| r.rmse_border),
                             render_seconds: stat(|r| r.render_seconds),
                             filter_seconds: stat(|r| r.filter_seconds),
                             equal_spp: None,
@@ -199,6 +201,7 @@ mod tests {
             sse: 0.0,
             rmse,
             relmse: 0.0,
+            rmse_border: 0.0,
         };
         let spps = [4u32, 16, 64];
         let mut rows: Vec<Row> = spps.iter().map(|&s| row("none", s, 0.4 / (s as f64).sqrt())).collect();

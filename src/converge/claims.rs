@@ -1,0 +1,174 @@
+//! The paper's claims (section 4, Figures 5 and 6), each checked against a `converge` table and
+//! stated with the numbers that decide it: whether it holds here, and where it does not.
+
+use std::fmt::Write as _;
+
+use super::summary::{Point, Series, Table};
+use crate::filter::Target;
+
+fn find<'a>(table: &'a Table, filter: &str, target: Target, edge: bool) -> Option<&'a Series> {
+    table.series.iter().find(|s| {
+        s.choice.filter == filter
+            && s.choice.kernel.is_some() == (filter != "none")
+            && s.choice.target == target
+            && s.choice.edge_aware == edge
+    })
+}
+
+fn unfiltered(table: &Table) -> Option<&Series> {
+    table.series.iter().find(|s| s.choice.kernel.is_none())
+}
+
+/// RMSE of `s` over the unfiltered RMSE at each spp both have.
+fn ratios(s: &Series, base: &Series) -> Vec<(u32, f64)> {
+    s.points
+        .iter()
+        .filter_map(|p| {
+            let b = base.points.iter().find(|b| b.spp == p.spp)?;
+            (b.rmse.mean > 0.0).then(|| (p.spp, p.rmse.mean / b.rmse.mean))
+        })
+        .collect()
+}
+
+fn list(r: &[(u32, f64)]) -> String {
+    r.iter().map(|(spp, x)| format!("{spp}: {x:.2}")).collect::<Vec<_>>().join(", ")
+}
+
+/// Markdown: one paragraph a claim, with a verdict (holds / partly / does not hold / not measured).
+pub fn check(table: &Table) -> String {
+    let mut md = String::new();
+    let Some(base) = unfiltered(table) else {
+        return "No unfiltered rows: nothing to judge the claims by.\n".into();
+    };
+
+    // Figure 5(a): filtering the whole image helps only at low spp, hurts beyond about 50.
+    let _ = writeln!(
+        md,
+        "**Filtering the whole image helps only at low spp and hurts beyond about 50 spp (Figure 5(a)).**"
+    );
+    let mut any = false;
+    for k in ["box3", "weighted3", "median3", "box5"] {
+        let Some(s) = find(table, k, Target::Image, false) else { continue };
+        any = true;
+        let r = ratios(s, base);
+        let first_hurt = r.iter().find(|(_, x)| *x >= 1.0).map(|(spp, _)| *spp);
+        let helps_first = r.first().is_some_and(|(_, x)| *x < 1.0);
+        let monotone =
+            first_hurt.is_none_or(|h| r.iter().filter(|(spp, _)| *spp >= h).all(|(_, x)| *x >= 1.0));
+        let verdict = match first_hurt {
+            Some(h) if helps_first && monotone && (16..=128).contains(&h) => {
+                format!("holds: it starts to hurt at {h} spp")
+            }
+            Some(h) if helps_first => format!("partly: it helps at first and hurts from {h} spp"),
+            Some(_) => "does not hold: it hurts from the lowest spp".into(),
+            None => format!(
+                "does not hold here: it still helps at {} spp, the most measured",
+                r.last().map_or(0, |p| p.0)
+            ),
+        };
+        let _ = writeln!(md, "- `{k}` on the image, RMSE over unfiltered by spp ({}): {verdict}.", list(&r));
+    }
+    if !any {
+        let _ = writeln!(md, "- not measured (run with `--targets image`).");
+    }
+
+    // Figure 5(b): filtering only L_rdd lowers the error at every spp, by half or more at 200.
+    let _ = writeln!(
+        md,
+        "\n**Filtering only L_rdd lowers the error at every spp tested, by half or more even at 200 spp (Figure 5(b)).**"
+    );
+    match find(table, "weighted3", Target::Indirect, false) {
+        Some(s) => {
+            let r = ratios(s, base);
+            let all_lower = r.iter().all(|(_, x)| *x < 1.0);
+            let near200 = r.iter().min_by_key(|(spp, _)| (*spp as i64 - 200).abs()).copied();
+            let verdict = match (all_lower, near200) {
+                (true, Some((spp, x))) if x <= 0.5 => format!("holds: lower at every spp, {x:.2}x at {spp} spp"),
+                (true, Some((spp, x))) => format!(
+                    "partly: lower at every spp, but {x:.2}x at {spp} spp, not half (an improvement of {:.0}%, where the paper reports more than 100%)",
+                    (1.0 / x - 1.0) * 100.0
+                ),
+                (false, _) => "does not hold: at some spp the filtered error is higher".into(),
+                (true, None) => "not measured".into(),
+            };
+            let _ = writeln!(
+                md,
+                "- `weighted3` on indirect, RMSE over unfiltered by spp ({}): {verdict}.",
+                list(&r)
+            );
+        }
+        None => {
+            let _ = writeln!(md, "- not measured (run with `--filters ...,weighted3 --targets indirect`).");
+        }
+    }
+
+    // Which filter does best at the highest spp.
+    let _ =
+        writeln!(md, "\n**`weighted3` does best at higher spp, `median3` close behind, `box3` blurs most.**");
+    let at_top: Vec<(&str, &Point)> = ["box3", "weighted3", "median3", "box5"]
+        .iter()
+        .filter_map(|k| {
+            find(table, k, Target::Indirect, false).and_then(|s| s.points.last()).map(|p| (*k, p))
+        })
+        .collect();
+    if at_top.len() >= 2 {
+        let mut ranked = at_top.clone();
+        ranked.sort_by(|a, b| a.1.rmse.mean.total_cmp(&b.1.rmse.mean));
+        let order: Vec<String> = ranked.iter().map(|(k, p)| format!("`{k}` {:.3e}", p.rmse.mean)).collect();
+        let spp = ranked[0].1.spp;
+        let best = ranked[0].0;
+        let verdict = if best == "weighted3" {
+            "holds for the best filter".to_string()
+        } else {
+            format!("does not hold here: `{best}` does best")
+        };
+        let _ = writeln!(md, "- on indirect at {spp} spp, best first: {}; {verdict}.", order.join(", "));
+    } else {
+        let _ = writeln!(md, "- not measured (needs at least two of box3, weighted3, median3 on indirect).");
+    }
+
+    // Figure 6(b): edge-aware filtering removes most of the error left along object borders.
+    let _ = writeln!(
+        md,
+        "\n**Edge-aware filtering removes most of the error left along object borders (Figure 6(b)).**"
+    );
+    match (
+        find(table, "weighted3", Target::Indirect, false),
+        find(table, "weighted3", Target::Indirect, true),
+    ) {
+        (Some(plain), Some(edge)) => {
+            for (p, e) in plain.points.iter().zip(&edge.points) {
+                let b = base.points.iter().find(|b| b.spp == p.spp);
+                let left = if p.rmse_border.mean > 0.0 {
+                    (e.rmse_border.mean / p.rmse_border.mean).powi(2)
+                } else {
+                    1.0
+                };
+                let _ = writeln!(
+                    md,
+                    "- {} spp: RMSE on border pixels unfiltered {}, `weighted3` {:.3e}, edge-aware {:.3e}: {:.0}% of the plain filter's squared border error removed.",
+                    p.spp,
+                    b.map_or("-".to_string(), |b| format!("{:.3e}", b.rmse_border.mean)),
+                    p.rmse_border.mean,
+                    e.rmse_border.mean,
+                    (1.0 - left) * 100.0
+                );
+            }
+            let last = plain.points.last().zip(edge.points.last());
+            let verdict = match last {
+                Some((p, e))
+                    if p.rmse_border.mean > 0.0
+                        && (e.rmse_border.mean / p.rmse_border.mean).powi(2) <= 0.5 =>
+                {
+                    "holds at the highest spp"
+                }
+                _ => "does not hold at the highest spp: less than half the border error is removed",
+            };
+            let _ = writeln!(md, "- {verdict}.");
+        }
+        _ => {
+            let _ = writeln!(md, "- not measured (run with `--edge-aware off,on`).");
+        }
+    }
+    md
+}
