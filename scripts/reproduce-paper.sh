@@ -48,7 +48,7 @@ tmp=$(mktemp)
         for f in error-vs-spp error-vs-time; do
             cp "$dir/$f.png" "docs/results/$scene-$f.png"
         done
-        for d in unfiltered weighted3-indirect weighted3-indirect-edge-aware weighted3-image; do
+        for d in unfiltered weighted3-indirect weighted3-indirect-edge-aware; do
             cp "$dir/diff-64spp-$d.png" "docs/results/$scene-diff-64spp-$d.png"
         done
         echo
@@ -58,9 +58,9 @@ tmp=$(mktemp)
         echo "![RMSE against time](results/$scene-error-vs-time.png)"
         echo
         echo "Difference images at 64 spp (Figure 6; darker is a larger difference, all at the unfiltered"
-        echo "image's scale): unfiltered, weighted3 on indirect, the same edge-aware, weighted3 on the image."
+        echo "image's scale): unfiltered, weighted3 on indirect, the same edge-aware."
         echo
-        for d in unfiltered weighted3-indirect weighted3-indirect-edge-aware weighted3-image; do
+        for d in unfiltered weighted3-indirect weighted3-indirect-edge-aware; do
             printf '![%s](results/%s-diff-64spp-%s.png) ' "$d" "$scene" "$d"
         done
         echo

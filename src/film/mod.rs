@@ -176,9 +176,30 @@ fn write_png(image: &Image, path: &Path, exposure: f32) -> Result<(), String> {
         .iter()
         .flat_map(|c| [srgb8(c.x, exposure), srgb8(c.y, exposure), srgb8(c.z, exposure)])
         .collect();
-    let buffer = image::RgbImage::from_raw(image.width, image.height, bytes)
-        .ok_or_else(|| "image buffer has the wrong size".to_string())?;
-    buffer.save_with_format(path, image::ImageFormat::Png).map_err(|e| e.to_string())
+    // A grey image (a difference image, say) is written with one channel: a third of the size.
+    let grey = bytes.chunks_exact(3).all(|p| p[0] == p[1] && p[1] == p[2]);
+    let (data, color) = if grey {
+        (bytes.chunks_exact(3).map(|p| p[0]).collect(), image::ExtendedColorType::L8)
+    } else {
+        (bytes, image::ExtendedColorType::Rgb8)
+    };
+    encode_png(path, image.width, image.height, &data, color)
+}
+
+/// PNG with the encoder's best compression (these files are committed and published).
+fn encode_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    data: &[u8],
+    color: image::ExtendedColorType,
+) -> Result<(), String> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::ImageEncoder;
+    let file = BufWriter::new(fs::File::create(path).map_err(|e| e.to_string())?);
+    PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive)
+        .write_image(data, width, height, color)
+        .map_err(|e| e.to_string())
 }
 
 fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
@@ -245,9 +266,10 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), WriteError> {
 
 /// Writes 8-bit RGB pixels (a plot) as a PNG.
 pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: Vec<u8>) -> Result<(), WriteError> {
-    let img = image::RgbImage::from_raw(width, height, rgb)
-        .ok_or_else(|| WriteError::Io(path.to_path_buf(), "the pixel buffer does not fit the size".into()))?;
-    atomically(path, |tmp| img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| e.to_string()))
+    if rgb.len() != 3 * width as usize * height as usize {
+        return Err(WriteError::Io(path.to_path_buf(), "the pixel buffer does not fit the size".into()));
+    }
+    atomically(path, |tmp| encode_png(tmp, width, height, &rgb, image::ExtendedColorType::Rgb8))
 }
 
 /// Runs `write` on a temporary file beside `path`, then renames it over `path`.
