@@ -113,6 +113,10 @@ struct FilterArgs {
     /// Also stop at depth steps: only neighbours whose depth differs by at most REL (relative).
     #[arg(long, value_name = "REL")]
     edge_depth: Option<f32>,
+    /// Beyond the paper: leave pixels whose samples saw more than one object (antialiased
+    /// borders) unfiltered and out of their neighbours' windows.
+    #[arg(long)]
+    edge_pure: bool,
 }
 
 impl FilterArgs {
@@ -135,6 +139,7 @@ impl FilterArgs {
             object: self.edge_aware || base.stops.object,
             normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
             depth_relative: self.edge_depth.or(base.stops.depth_relative),
+            pure: self.edge_pure || base.stops.pure,
         };
         stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
         Ok(Setting { kernel, target, stops })

@@ -67,6 +67,9 @@ pub struct Film {
     pub depth: Vec<f32>,
     /// Object ID of one chosen sample per pixel, -1 for none; never averaged.
     pub object: Vec<f32>,
+    /// The fraction of the pixel's samples that saw that object: below 1 on an antialiased
+    /// border, where the pixel mixes two surfaces.
+    pub coverage: Vec<f32>,
 }
 
 impl Film {
@@ -81,6 +84,7 @@ impl Film {
             normal: Image::new(width, height),
             depth: vec![0.0; n],
             object: vec![-1.0; n],
+            coverage: vec![1.0; n],
         }
     }
 
@@ -239,6 +243,7 @@ pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option
     rgb("normal", &film.normal, ["X", "Y", "Z"]);
     out.push(("depth.Z".into(), film.depth.clone()));
     out.push(("objectid.ID".into(), film.object.clone()));
+    out.push(("objectid.coverage".into(), film.coverage.clone()));
     out
 }
 
@@ -344,6 +349,10 @@ impl Film {
         }
         film.depth = find("depth.Z")?.clone();
         film.object = find("objectid.ID")?.clone();
+        // Files written before the coverage layer existed: every pixel counts as pure.
+        if let Ok(coverage) = find("objectid.coverage") {
+            film.coverage = coverage.clone();
+        }
         let n = width as usize * height as usize;
         if film.depth.len() != n || film.raw.pixels.len() != n {
             return Err("channel sizes do not match the image".into());

@@ -105,6 +105,9 @@ pub struct EdgeStops {
     pub normal_degrees: Option<f32>,
     /// Only neighbours whose depth differs from the centre's by at most this fraction.
     pub depth_relative: Option<f32>,
+    /// Beyond the paper: pixels whose samples saw more than one object (antialiased borders,
+    /// coverage below 1) are left unfiltered and out of their neighbours' windows.
+    pub pure: bool,
 }
 
 impl EdgeStops {
@@ -124,7 +127,7 @@ impl EdgeStops {
     }
 
     fn any(&self) -> bool {
-        self.object || self.normal_degrees.is_some() || self.depth_relative.is_some()
+        self.object || self.normal_degrees.is_some() || self.depth_relative.is_some() || self.pure
     }
 }
 
@@ -184,6 +187,12 @@ impl<'a> Filter<'a> {
     #[inline(always)]
     fn same_surface(&self, c: usize, n: usize) -> bool {
         let (film, stops) = (self.film, &self.stops);
+        if c == n {
+            return true; // the centre always counts
+        }
+        if stops.pure && (film.coverage[c] < 1.0 || film.coverage[n] < 1.0) {
+            return false;
+        }
         if stops.object && film.object[c] != film.object[n] {
             return false;
         }
@@ -216,6 +225,12 @@ impl<'a> Filter<'a> {
             let (nc, nn) = (&film.normal.pixels[c0..c0 + n], &film.normal.pixels[n0..n0 + n]);
             for ((wt, a), b) in weight.iter_mut().zip(nc).zip(nn) {
                 *wt = if a.dot(*b) < cos_min { 0.0 } else { *wt };
+            }
+        }
+        if self.stops.pure && c0 != n0 {
+            let (cc, cn) = (&film.coverage[c0..c0 + n], &film.coverage[n0..n0 + n]);
+            for ((wt, a), b) in weight.iter_mut().zip(cc).zip(cn) {
+                *wt = if *a < 1.0 || *b < 1.0 { 0.0 } else { *wt };
             }
         }
         if let Some(rel) = self.stops.depth_relative {
@@ -319,7 +334,7 @@ impl<'a> Filter<'a> {
                 let yy = (y + k).saturating_sub(r).min(h - 1);
                 for dx in 0..=2 * r {
                     let (c0, n0) = (y * w + r, yy * w + dx);
-                    if self.cos_min.is_none() && self.stops.depth_relative.is_none() {
+                    if self.cos_min.is_none() && self.stops.depth_relative.is_none() && !self.stops.pure {
                         // Objects only (the paper's edge-aware mode): one pass.
                         let (oc, on) = (&self.film.object[c0..c0 + n], &self.film.object[n0..n0 + n]);
                         for ((c, a), b) in count.iter_mut().zip(oc).zip(on) {
@@ -539,12 +554,19 @@ mod tests {
                 film.object[i] = (next() * 3.0).floor();
                 film.normal.pixels[i] = Vec3::new(next() - 0.5, next() - 0.5, 1.0).normalize();
                 film.depth[i] = 1.0 + next();
+                film.coverage[i] = if next() < 0.8 { 1.0 } else { 0.5 };
             }
             let stop_sets = [
                 EdgeStops::default(),
                 EdgeStops { object: true, ..Default::default() },
                 EdgeStops { normal_degrees: Some(20.0), ..Default::default() },
-                EdgeStops { object: true, normal_degrees: Some(30.0), depth_relative: Some(0.2) },
+                EdgeStops {
+                    object: true,
+                    normal_degrees: Some(30.0),
+                    depth_relative: Some(0.2),
+                    pure: false,
+                },
+                EdgeStops { object: true, pure: true, ..Default::default() },
             ];
             for k in kernels() {
                 for stops in &stop_sets {
@@ -560,6 +582,37 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// An antialiased border pixel (coverage below 1) between two objects: the paper's edge-aware
+    /// filter averages it with its own object's pixels; with `pure` it keeps its value, and its
+    /// neighbours leave it out.
+    #[test]
+    fn pure_stops_leave_mixed_pixels_alone() {
+        let (w, h) = (7u32, 3u32);
+        let mut img = Image::new(w, h);
+        let mut film = Film::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let (value, object) = match x {
+                    0..=2 => (1.0, 0.0),
+                    3 => (3.0, 0.0), // half object 0 (1.0), half object 1 (5.0)
+                    _ => (5.0, 1.0),
+                };
+                img.pixels[i] = Vec3::splat(value);
+                film.object[i] = object;
+                film.coverage[i] = if x == 3 { 0.5 } else { 1.0 };
+            }
+        }
+        let k = Kernel::parse("box3").expect("k");
+        let paper = filter(&img, &k, &film, &EdgeStops { object: true, ..Default::default() });
+        // The mixed pixel (3.0, labelled object 0) is averaged with object 0's pixels (1.0).
+        assert!((paper.get(3, 1).x - 2.0).abs() < 1e-6, "{}", paper.get(3, 1));
+        assert!((paper.get(2, 1).x - 5.0 / 3.0).abs() < 1e-6, "the mixed pixel pulls its neighbour up");
+        let pure = filter(&img, &k, &film, &EdgeStops { object: true, pure: true, ..Default::default() });
+        assert_eq!(pure.get(3, 1).x, 3.0);
+        assert_eq!(pure.get(2, 1).x, 1.0);
     }
 
     #[test]

@@ -121,6 +121,8 @@ struct Pixel {
     normal: Vec3,
     depth: f32,
     object: Option<u32>,
+    /// Samples that saw the same object as sample 0.
+    same: u32,
 }
 
 /// One tile's pixels and counts.
@@ -168,6 +170,7 @@ pub fn render_with<A: Accel>(
                         if i == 0 {
                             sum.object = s.object;
                         }
+                        sum.same += (s.object == sum.object) as u32;
                         if !s.beauty.is_finite() || s.components.iter().any(|c| !c.is_finite()) {
                             tile.nonfinite += 1;
                             continue; // dropped: counts as a zero sample
@@ -208,6 +211,7 @@ pub fn render_with<A: Accel>(
             let at = (y * width + x) as usize;
             film.depth[at] = p.depth;
             film.object[at] = p.object.map_or(-1.0, |o| o as f32);
+            film.coverage[at] = p.same as f32 / spp as f32;
         }
         stats.rays += tile.rays;
         stats.nonfinite_samples += tile.nonfinite;

@@ -114,6 +114,7 @@ struct FileFilter {
     edge_aware: Option<bool>,
     edge_normal: Option<F>,
     edge_depth: Option<F>,
+    edge_pure: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -432,6 +433,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 object: f.edge_aware.unwrap_or(false),
                 normal_degrees: f.edge_normal.map(|d| d.0),
                 depth_relative: f.edge_depth.map(|d| d.0),
+                pure: f.edge_pure.unwrap_or(false),
             };
             stops.check().or_else(|e| ctx.err(span, e))?;
             Setting { kernel: Some(kernel), target, stops }
