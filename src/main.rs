@@ -40,13 +40,6 @@ enum Command {
     Converge(ConvergeArgs),
 }
 
-/// Off or on, for lists like `--edge-aware off,on`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum OnOff {
-    Off,
-    On,
-}
-
 #[derive(clap::Args)]
 struct ConvergeArgs {
     /// The scene file (TOML).
@@ -67,9 +60,10 @@ struct ConvergeArgs {
     /// What the filters apply to.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "indirect")]
     targets: Vec<Target>,
-    /// Without, with, or both ways of edge-aware filtering.
+    /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
+    /// pixels alone, as --edge-pure does); a list measures each.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "off")]
-    edge_aware: Vec<OnOff>,
+    edge_aware: Vec<lightsplit::converge::Edge>,
     /// Renders per spp, each with its own seed: the summary gives their mean and spread.
     #[arg(long, default_value_t = 1)]
     seeds: u32,
@@ -510,8 +504,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     }
     // Custom kernels are written with ';' between weights here, since ',' separates filters.
     let filters: Vec<String> = args.filters.iter().map(|f| f.replace(';', ",")).collect();
-    let edge: Vec<bool> = args.edge_aware.iter().map(|e| *e == OnOff::On).collect();
-    let choices = converge::choices(&filters, &args.targets, &edge).map_err(Failure::input)?;
+    let choices = converge::choices(&filters, &args.targets, &args.edge_aware).map_err(Failure::input)?;
     let mut options = RenderOptions::from_scene(&scene);
     options.accel = args.accel;
     options.threads = args.threads;

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use lightsplit::converge::{read_rows, Row, HEADER};
+use lightsplit::converge::{read_rows, Edge, Row, HEADER};
 
 fn lightsplit(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(args).output().expect("the binary runs")
@@ -16,7 +16,7 @@ fn scene() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml").to_string_lossy().into_owned()
 }
 
-fn keys(rows: &[Row]) -> HashSet<(u32, u32, (String, String, bool))> {
+fn keys(rows: &[Row]) -> HashSet<(u32, u32, (String, String, Edge))> {
     rows.iter().map(|r| (r.spp, r.seed, r.key())).collect()
 }
 
@@ -40,6 +40,8 @@ fn writes_results_summary_plots_and_difference_images() {
         "none,box3,weighted3",
         "--targets",
         "indirect,image",
+        "--edge-aware",
+        "off,pure",
         "--seeds",
         "2",
         "--out",
@@ -50,8 +52,9 @@ fn writes_results_summary_plots_and_difference_images() {
     let text = std::fs::read_to_string(out.join("results.csv")).expect("csv");
     assert_eq!(text.lines().next(), Some(HEADER));
     let rows = read_rows(&out.join("results.csv"));
-    // 3 spp x 2 seeds x (none + 2 filters x 2 targets).
-    assert_eq!(rows.len(), 3 * 2 * 5);
+    // 3 spp x 2 seeds x (none + 2 filters x 2 targets x 2 edge modes).
+    assert_eq!(rows.len(), 3 * 2 * 9);
+    assert!(rows.iter().any(|r| r.edge_aware == Edge::Pure));
     assert_eq!(keys(&rows).len(), rows.len());
     // One render per (spp, seed): every setting of it shares the render time.
     for r in &rows {
@@ -65,7 +68,7 @@ fn writes_results_summary_plots_and_difference_images() {
         |spp: u32| rows.iter().filter(|r| r.spp == spp && r.filter == "none").map(|r| r.rmse).sum::<f64>();
     assert!(rmse(1) > rmse(4) && rmse(4) > rmse(16), "{} {} {}", rmse(1), rmse(4), rmse(16));
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary");
-    assert!(summary.contains("weighted3 indirect") && summary.contains("worth"), "{summary}");
+    assert!(summary.contains("weighted3 indirect edge-aware pure") && summary.contains("worth"), "{summary}");
     for f in
         ["error-vs-spp.png", "error-vs-time.png", "diff-16spp-unfiltered.png", "diff-16spp-box3-indirect.png"]
     {

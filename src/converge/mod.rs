@@ -22,6 +22,43 @@ use crate::metrics;
 use crate::render::{self, RenderOptions};
 use crate::scene::Scene;
 
+/// Edge-aware filtering in a run: off, the paper's object stop, or that and the coverage stop
+/// (mixed border pixels left alone).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+pub enum Edge {
+    Off,
+    On,
+    Pure,
+}
+
+impl Edge {
+    /// The `edge_aware` column: `false`, `true` or `pure`.
+    pub fn csv(self) -> &'static str {
+        match self {
+            Edge::Off => "false",
+            Edge::On => "true",
+            Edge::Pure => "pure",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Edge> {
+        match s {
+            "false" | "off" => Some(Edge::Off),
+            "true" | "on" => Some(Edge::On),
+            "pure" => Some(Edge::Pure),
+            _ => None,
+        }
+    }
+
+    fn label(self) -> &'static str {
+        match self {
+            Edge::Off => "",
+            Edge::On => " edge-aware",
+            Edge::Pure => " edge-aware pure",
+        }
+    }
+}
+
 /// One filter setting of a run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Choice {
@@ -29,13 +66,13 @@ pub struct Choice {
     pub filter: String,
     pub kernel: Option<Kernel>,
     pub target: Target,
-    pub edge_aware: bool,
+    pub edge_aware: Edge,
 }
 
 impl Choice {
     /// The unfiltered render.
     pub fn none() -> Self {
-        Choice { filter: "none".into(), kernel: None, target: Target::None, edge_aware: false }
+        Choice { filter: "none".into(), kernel: None, target: Target::None, edge_aware: Edge::Off }
     }
 
     /// A short label: `weighted3 indirect edge-aware`.
@@ -43,17 +80,12 @@ impl Choice {
         match self.kernel {
             None => "unfiltered".into(),
             Some(_) => {
-                format!(
-                    "{} {}{}",
-                    self.filter,
-                    target_name(self.target),
-                    if self.edge_aware { " edge-aware" } else { "" }
-                )
+                format!("{} {}{}", self.filter, target_name(self.target), self.edge_aware.label())
             }
         }
     }
 
-    fn key(&self) -> (String, String, bool) {
+    fn key(&self) -> (String, String, Edge) {
         (self.filter.clone(), target_name(self.target).to_string(), self.edge_aware)
     }
 }
@@ -67,7 +99,7 @@ pub fn target_name(t: Target) -> &'static str {
 }
 
 /// Every combination of the filters, targets and edge modes asked for; `none` once, unfiltered.
-pub fn choices(filters: &[String], targets: &[Target], edge: &[bool]) -> Result<Vec<Choice>, String> {
+pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<Vec<Choice>, String> {
     let mut out = Vec::new();
     for f in filters {
         if f == "none" {
@@ -119,7 +151,7 @@ pub struct Row {
     pub seed: u32,
     pub filter: String,
     pub target: String,
-    pub edge_aware: bool,
+    pub edge_aware: Edge,
     pub render_seconds: f64,
     pub filter_seconds: f64,
     pub sse: f64,
@@ -142,7 +174,7 @@ impl Row {
             self.seed,
             self.filter.replace(',', " "),
             self.target,
-            self.edge_aware,
+            self.edge_aware.csv(),
             self.render_seconds,
             self.filter_seconds,
             self.sse,
@@ -165,7 +197,7 @@ impl Row {
             seed: f[3].parse().ok()?,
             filter: f[4].to_string(),
             target: f[5].to_string(),
-            edge_aware: f[6].parse().ok()?,
+            edge_aware: Edge::parse(f[6])?,
             render_seconds: f[7].parse().ok()?,
             filter_seconds: f[8].parse().ok()?,
             sse: f[9].parse().ok()?,
@@ -176,7 +208,7 @@ impl Row {
     }
 
     /// The setting this row measured.
-    pub fn key(&self) -> (String, String, bool) {
+    pub fn key(&self) -> (String, String, Edge) {
         (self.filter.clone(), self.target.clone(), self.edge_aware)
     }
 }
@@ -309,7 +341,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
     let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
     let mut rows: Vec<Row> =
         read_rows(&csv_path).into_iter().filter(|r| r.scene == scene_name && r.accel == accel).collect();
-    let done: HashSet<(u32, u32, (String, String, bool))> =
+    let done: HashSet<(u32, u32, (String, String, Edge))> =
         rows.iter().map(|r| (r.spp, r.seed, r.key())).collect();
     let fresh = !csv_path.exists();
     let mut csv = fs::OpenOptions::new()
@@ -386,7 +418,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
 }
 
 fn stops(c: &Choice) -> EdgeStops {
-    EdgeStops { object: c.edge_aware, ..Default::default() }
+    EdgeStops { object: c.edge_aware != Edge::Off, pure: c.edge_aware == Edge::Pure, ..Default::default() }
 }
 
 /// Writes `summary.md` and the two plots for `rows`.

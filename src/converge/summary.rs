@@ -195,7 +195,7 @@ mod tests {
             seed: 0,
             filter: filter.into(),
             target: if filter == "none" { "none" } else { "indirect" }.into(),
-            edge_aware: false,
+            edge_aware: super::super::Edge::Off,
             render_seconds: spp as f64 * 0.01,
             filter_seconds: 0.001,
             sse: 0.0,
@@ -210,7 +210,7 @@ mod tests {
         let choices = super::super::choices(
             &["none".into(), "weighted3".into()],
             &[crate::filter::Target::Indirect],
-            &[false],
+            &[super::super::Edge::Off],
         )
         .expect("choices");
         let t = Table::new(&rows, &choices, &spps);
