@@ -229,6 +229,9 @@ struct RenderArgs {
     /// Which layer a PNG or HDR output shows (an EXR holds them all).
     #[arg(long, value_enum, default_value_t = Layer::Final)]
     layer: Layer,
+    /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
+    #[arg(long)]
+    debug_nonfinite: bool,
     /// Print one JSON object on stdout instead of the summary line.
     #[arg(long)]
     json: bool,
@@ -343,6 +346,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let mut options = RenderOptions::from_scene(&scene);
     options.accel = args.accel;
     options.threads = args.threads;
+    options.debug_nonfinite = args.debug_nonfinite;
     if let Some(v) = args.spp {
         options.spp = v;
     }

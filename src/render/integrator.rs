@@ -81,6 +81,32 @@ impl PathClass {
     }
 }
 
+/// What a path sample tells of itself, for `--debug-nonfinite`. `()` records nothing and
+/// compiles away; a `Vec<String>` keeps one line a vertex.
+pub trait Record {
+    /// The path reached `shape` at `p` after `depth` bounces with throughput `beta`, having
+    /// gathered `beauty` so far.
+    fn vertex(&mut self, depth: u32, shape: &str, p: Vec3, beta: Vec3, beauty: Vec3);
+    /// The path left the scene along `dir`.
+    fn escaped(&mut self, depth: u32, dir: Vec3, beta: Vec3);
+}
+
+impl Record for () {
+    #[inline(always)]
+    fn vertex(&mut self, _: u32, _: &str, _: Vec3, _: Vec3, _: Vec3) {}
+    #[inline(always)]
+    fn escaped(&mut self, _: u32, _: Vec3, _: Vec3) {}
+}
+
+impl Record for Vec<String> {
+    fn vertex(&mut self, depth: u32, shape: &str, p: Vec3, beta: Vec3, beauty: Vec3) {
+        self.push(format!("  {depth}: hit `{shape}` at {p}, throughput {beta}, radiance so far {beauty}"));
+    }
+    fn escaped(&mut self, depth: u32, dir: Vec3, beta: Vec3) {
+        self.push(format!("  {depth}: left the scene along {dir}, throughput {beta}"));
+    }
+}
+
 /// The mirror direction of `wo` about `n`.
 fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
     2.0 * wo.dot(n) * n - wo
@@ -188,7 +214,18 @@ impl<A: Accel> Integrator<'_, A> {
 
     /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
     /// traced rays.
-    pub fn sample(&self, mut ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
+    pub fn sample(&self, ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
+        self.sample_recorded(ray, sampler, rays, &mut ())
+    }
+
+    /// [`Integrator::sample`], reporting each vertex to `record` (nothing, for `()`).
+    pub fn sample_recorded<R: Record>(
+        &self,
+        mut ray: Ray,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+        record: &mut R,
+    ) -> PathSample {
         let scene = self.scene;
         let lights = self.lights;
         let mut out = PathSample::default();
@@ -208,6 +245,7 @@ impl<A: Accel> Integrator<'_, A> {
         for depth in 0.. {
             *rays += 1;
             let Some(hit) = self.accel.intersect(&ray) else {
+                record.escaped(depth, ray.dir, beta);
                 for &i in &lights.distant {
                     let (le, light_pdf) = lights.distant(i, ray.dir, specular);
                     if le != Vec3::ZERO {
@@ -220,6 +258,7 @@ impl<A: Accel> Integrator<'_, A> {
             };
             let s = surface(scene, &ray, &hit);
             let shape = &scene.shapes[hit.shape as usize];
+            record.vertex(depth, &shape.name, s.p, beta, out.beauty);
             let wo = -ray.dir;
             travelled += hit.t * ray.dir.length();
 

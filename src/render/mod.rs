@@ -8,6 +8,7 @@ pub mod lights;
 pub mod sampler;
 pub mod surface;
 
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -20,6 +21,9 @@ use camera::PinholeCamera;
 use integrator::Integrator;
 use lights::Lights;
 use sampler::Sampler;
+
+/// How many non-finite samples `debug_nonfinite` prints.
+const MAX_REPORTS: u32 = 20;
 
 /// Tile edge in pixels: small enough to balance two to many cores, large enough to be cheap.
 pub const TILE: u32 = 16;
@@ -35,6 +39,8 @@ pub struct RenderOptions {
     /// Worker threads; `None` for one per core.
     pub threads: Option<usize>,
     pub accel: Backend,
+    /// Print each dropped non-finite sample (the first few): pixel, sample index, path.
+    pub debug_nonfinite: bool,
 }
 
 impl RenderOptions {
@@ -48,6 +54,7 @@ impl RenderOptions {
             seed: scene.render.seed,
             threads: None,
             accel: Backend::Embree,
+            debug_nonfinite: false,
         }
     }
 }
@@ -149,6 +156,7 @@ pub fn render_with<A: Accel>(
     let lights = Lights::new(scene);
     let integrator = Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
     let spp = options.spp.max(1);
+    let reported = AtomicU32::new(0);
 
     let tiles: Vec<(u32, u32)> = (0..height.div_ceil(TILE))
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -173,6 +181,19 @@ pub fn render_with<A: Accel>(
                         sum.same += (s.object == sum.object) as u32;
                         if !s.beauty.is_finite() || s.components.iter().any(|c| !c.is_finite()) {
                             tile.nonfinite += 1;
+                            if options.debug_nonfinite && reported.fetch_add(1, Ordering::Relaxed) < MAX_REPORTS {
+                                // The sampler is a pure function of (seed, pixel, sample): the
+                                // same path again, recorded.
+                                let mut sampler = Sampler::new(options.seed, pixel, i as u64);
+                                let ray = camera.ray(x, y, sampler.next_2d());
+                                let mut path = Vec::new();
+                                let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
+                                eprintln!(
+                                    "non-finite sample dropped at pixel ({x}, {y}), sample {i}: radiance {}\n{}",
+                                    again.beauty,
+                                    path.join("\n")
+                                );
+                            }
                             continue; // dropped: counts as a zero sample
                         }
                         sum.beauty += s.beauty;
