@@ -140,13 +140,10 @@ impl FilterArgs {
     }
 }
 
+/// How a render becomes its output: filtered, exposed, one layer or all. Shared by `render`
+/// and `filter`.
 #[derive(clap::Args)]
-struct FilterCommandArgs {
-    /// A multi-layer EXR written by `lightsplit render`.
-    input: PathBuf,
-    /// The output: .exr (every layer), .png or .hdr (the final image).
-    #[arg(short, long)]
-    output: PathBuf,
+struct OutputArgs {
     #[command(flatten)]
     filter: FilterArgs,
     /// Exposure in stops for PNG output.
@@ -155,6 +152,40 @@ struct FilterCommandArgs {
     /// Which layer a PNG or HDR output shows (an EXR holds them all).
     #[arg(long, value_enum, default_value_t = Layer::Final)]
     layer: Layer,
+}
+
+impl OutputArgs {
+    /// Checks before any work: the exposure, the filter (these flags over `base`), and that the
+    /// layer can be written to `output` with that filter.
+    fn check(&self, base: &Setting, output: &Path) -> Result<Setting, Failure> {
+        if !self.exposure.is_finite() {
+            return Err(Failure::input("--exposure must be a finite number"));
+        }
+        let setting = self.filter.check(base)?;
+        check_layer(self.layer, output, &setting)?;
+        Ok(setting)
+    }
+
+    /// Filters `film` as `setting` says and writes it to `output`; returns the filter's seconds.
+    fn finish(&self, film: &film::Film, setting: &Setting, output: &Path) -> Result<f64, Failure> {
+        let start = std::time::Instant::now();
+        let (final_image, filtered) =
+            composite(film, setting.kernel.as_ref(), setting.target, &setting.stops);
+        let seconds = start.elapsed().as_secs_f64();
+        write_output(film, &final_image, filtered.as_ref(), output, self.layer, self.exposure)?;
+        Ok(seconds)
+    }
+}
+
+#[derive(clap::Args)]
+struct FilterCommandArgs {
+    /// A multi-layer EXR written by `lightsplit render`.
+    input: PathBuf,
+    /// The output: .exr (every layer), .png or .hdr (the final image).
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    out: OutputArgs,
 }
 
 #[derive(clap::Args)]
@@ -222,13 +253,7 @@ struct RenderArgs {
     #[arg(long)]
     max_depth: Option<u32>,
     #[command(flatten)]
-    filter: FilterArgs,
-    /// Exposure in stops for PNG output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    exposure: f32,
-    /// Which layer a PNG or HDR output shows (an EXR holds them all).
-    #[arg(long, value_enum, default_value_t = Layer::Final)]
-    layer: Layer,
+    out: OutputArgs,
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     debug_nonfinite: bool,
@@ -375,20 +400,12 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if args.threads == Some(0) {
         return Err(Failure::input("--threads must be at least 1"));
     }
-    if !args.exposure.is_finite() {
-        return Err(Failure::input("--exposure must be a finite number"));
-    }
-    let setting = args.filter.check(&scene.filter)?;
-    check_layer(args.layer, &output, &setting)?;
+    let setting = args.out.check(&scene.filter, &output)?;
 
     let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let filter_start = std::time::Instant::now();
-    let (final_image, filtered) =
-        composite(&out.film, setting.kernel.as_ref(), setting.target, &setting.stops);
-    let filter_seconds = filter_start.elapsed().as_secs_f64();
-    write_output(&out.film, &final_image, filtered.as_ref(), &output, args.layer, args.exposure)?;
+    let filter_seconds = args.out.finish(&out.film, &setting, &output)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -409,7 +426,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "rays_per_second": rays_per_second,
             "nonfinite_samples": s.nonfinite_samples,
             "filter": setting.kernel.as_ref().map(Kernel::name),
-            "filter_target": format!("{:?}", setting.target).to_lowercase(),
+            "filter_target": setting.target.name(),
             "edge_aware": setting.stops.object,
             "filter_seconds": filter_seconds,
             "outputs": [output],
@@ -481,17 +498,12 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 }
 
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
-    let setting = args.filter.check(&Setting::default())?;
     film::check_output(&args.output).map_err(Failure::input)?;
-    check_layer(args.layer, &args.output, &setting)?;
-    if !args.exposure.is_finite() {
-        return Err(Failure::input("--exposure must be a finite number"));
-    }
+    let setting = args.out.check(&Setting::default(), &args.output)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
-    let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
-    write_output(&film, &final_image, filtered.as_ref(), &args.output, args.layer, args.exposure)
+    args.out.finish(&film, &setting, &args.output).map(|_| ())
 }
 
 fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {

@@ -6,15 +6,9 @@ use std::path::Path;
 
 use glam::Vec2;
 use lightsplit::render::camera::PinholeCamera;
-use lightsplit::render::{render, RenderOptions};
 use lightsplit::scene::file::parse;
 
-fn render_text(text: &str, spp: u32) -> lightsplit::render::RenderOutput {
-    let scene = parse(Path::new("test.toml"), text).expect("scene parses");
-    let mut options = RenderOptions::from_scene(&scene);
-    options.spp = spp;
-    render(&scene, &options, &|_| {}).expect("renders")
-}
+use common::render_text;
 
 /// An albedo-1 sphere under a uniform sky reflects exactly the sky: every pixel's expectation is
 /// the sky radiance, so the image mean must be too.

@@ -1,12 +1,12 @@
 //! The command line as a user meets it: bad input is one clear error with exit status 2 and no
 //! panic; the README's render command makes a PNG that is not black; --json has its keys.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn lightsplit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(args).output().expect("the binary runs")
-}
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::lightsplit;
 
 const CAMERA: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
 

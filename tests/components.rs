@@ -8,13 +8,9 @@ use std::path::Path;
 use glam::Vec3;
 use lightsplit::film::Film;
 use lightsplit::render::{render, RenderOptions};
-use lightsplit::scene::file::parse;
 
 fn film(text: &str, spp: u32) -> Film {
-    let scene = parse(Path::new("test.toml"), text).expect("scene parses");
-    let mut options = RenderOptions::from_scene(&scene);
-    options.spp = spp;
-    render(&scene, &options, &|_| {}).expect("renders").film
+    common::render_text(text, spp).film
 }
 
 /// The mean of the red channel and its standard error from the spread of the pixels (each pixel

@@ -1,16 +1,15 @@
 //! `lightsplit converge`: the files it writes, and a run killed half way that the same command
 //! finishes without losing or repeating a row.
 
+mod common;
+
 use std::collections::HashSet;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::lightsplit;
 use lightsplit::converge::{read_rows, Edge, Row, HEADER};
-
-fn lightsplit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(args).output().expect("the binary runs")
-}
 
 fn scene() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml").to_string_lossy().into_owned()

@@ -3,11 +3,9 @@
 //! adversarial scene provokes it: a point light of 3e38 W/sr half a unit above a plane, whose
 //! irradiance overflows f32.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
-use lightsplit::render::{render, RenderOptions};
-use lightsplit::scene::file::parse;
+use common::{lightsplit, render_text};
 
 const SCENE: &str = r#"
 [camera]
@@ -29,8 +27,7 @@ intensity = [3e38, 3e38, 3e38]
 
 #[test]
 fn overflowing_samples_are_dropped_counted_and_explained() {
-    let scene = parse(Path::new("nan.toml"), SCENE).expect("parses");
-    let out = render(&scene, &RenderOptions::from_scene(&scene), &|_| {}).expect("renders");
+    let out = render_text(SCENE, 4);
     let n = out.stats.nonfinite_samples;
     assert!(n > 0 && n < out.stats.samples, "{n} of {} samples non-finite", out.stats.samples);
     let film = &out.film;
@@ -46,7 +43,7 @@ fn overflowing_samples_are_dropped_counted_and_explained() {
         let exr = dir.path().join("nan.exr");
         args.push(exr.to_str().expect("utf-8"));
         args.extend_from_slice(extra);
-        Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(&args).output().expect("runs")
+        lightsplit(&args)
     };
     let o = run(&["--json", "--debug-nonfinite"]);
     assert!(o.status.success());

@@ -80,21 +80,14 @@ impl Choice {
         match self.kernel {
             None => "unfiltered".into(),
             Some(_) => {
-                format!("{} {}{}", self.filter, target_name(self.target), self.edge_aware.label())
+                format!("{} {}{}", self.filter, self.target.name(), self.edge_aware.label())
             }
         }
     }
 
-    fn key(&self) -> (String, String, Edge) {
-        (self.filter.clone(), target_name(self.target).to_string(), self.edge_aware)
-    }
-}
-
-pub fn target_name(t: Target) -> &'static str {
-    match t {
-        Target::Indirect => "indirect",
-        Target::Image => "image",
-        Target::None => "none",
+    /// The setting as `results.csv` records it (as [`Row::key`] reads it back).
+    pub fn key(&self) -> (String, String, Edge) {
+        (self.filter.clone(), self.target.name().to_string(), self.edge_aware)
     }
 }
 
@@ -400,7 +393,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                     spp,
                     seed: k,
                     filter: choice.filter.clone(),
-                    target: target_name(choice.target).to_string(),
+                    target: choice.target.name().to_string(),
                     edge_aware: choice.edge_aware,
                     render_seconds: out.stats.seconds,
                     filter_seconds,

@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use super::{target_name, Choice, Row};
+use super::{Choice, Row};
 
 /// Mean and sample standard deviation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -93,7 +93,7 @@ impl Table {
         let mut series: Vec<Series> = choices
             .iter()
             .map(|c| {
-                let key = (c.filter.clone(), target_name(c.target).to_string(), c.edge_aware);
+                let key = c.key();
                 let points = spps
                     .iter()
                     .filter_map(|&spp| {

@@ -96,6 +96,22 @@ pub enum Target {
     None,
 }
 
+impl Target {
+    /// The name the command line, scene files and `results.csv` use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Indirect => "indirect",
+            Target::Image => "image",
+            Target::None => "none",
+        }
+    }
+
+    /// The target of a name, as [`Target::name`] writes it.
+    pub fn from_name(name: &str) -> Option<Target> {
+        [Target::Indirect, Target::Image, Target::None].into_iter().find(|t| t.name() == name)
+    }
+}
+
 /// When neighbours are left out: across objects, and optionally across creases and depth steps.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EdgeStops {

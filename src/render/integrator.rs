@@ -47,6 +47,17 @@ pub struct PathSample {
     pub albedo: Vec3,
 }
 
+impl PathSample {
+    /// Sets the guide buffers to the vertex the pixel shows.
+    #[inline(always)]
+    fn guide(&mut self, object: u32, normal: Vec3, depth: f32, albedo: Vec3) {
+        self.object = Some(object);
+        self.normal = normal;
+        self.depth = depth;
+        self.albedo = albedo;
+    }
+}
+
 /// Where the eye path is in Heckbert's notation: how many D vertices it has passed, and whether
 /// an S vertex followed the first D. That is all the component split needs.
 #[derive(Clone, Copy, Debug, Default)]
@@ -161,10 +172,7 @@ impl<A: Accel> Integrator<'_, A> {
         side: Vec3,
     ) -> bool {
         if class.diffuse == 0 {
-            out.object = Some(object);
-            out.normal = normal;
-            out.depth = travelled;
-            out.albedo = color;
+            out.guide(object, normal, travelled, color);
         }
         *class = class.through_specular();
         wi.is_finite() && side.is_finite()
@@ -297,10 +305,7 @@ impl<A: Accel> Integrator<'_, A> {
                     // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
                     class = class.through_diffuse();
                     if class.diffuse == 1 {
-                        out.object = Some(shape.object);
-                        out.normal = ns;
-                        out.depth = travelled;
-                        out.albedo = albedo;
+                        out.guide(shape.object, ns, travelled, albedo);
                     }
                     let f = albedo * FRAC_1_PI;
                     self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
@@ -370,10 +375,7 @@ impl<A: Accel> Integrator<'_, A> {
                         Lobe::Base => {
                             class = base_class;
                             if class.diffuse == 1 {
-                                out.object = Some(shape.object);
-                                out.normal = ns;
-                                out.depth = travelled;
-                                out.albedo = g.base;
+                                out.guide(shape.object, ns, travelled, g.base);
                             }
                             bsdf_pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
                             beta *= g.eval_base(wo_l, wi_l) * (wi_l.z / bsdf_pdf);

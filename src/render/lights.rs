@@ -234,38 +234,11 @@ impl Lights {
         let light = i as u32;
         match &self.emitters[i] {
             Emitter::Point { position, intensity } => {
-                let d = *position - p;
-                let dist2 = d.length_squared();
-                if dist2 == 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    radiance: *intensity / dist2,
-                    wi: d / dist2.sqrt(),
-                    pdf: select,
-                    delta: true,
-                    end: ShadowEnd::Point(*position),
-                    light,
-                })
+                point_sample(p, *position, select, light, |_| *intensity)
             }
             Emitter::Spot { position, direction, intensity, cos_total, cos_falloff_start } => {
-                let d = *position - p;
-                let dist2 = d.length_squared();
-                if dist2 == 0.0 {
-                    return None;
-                }
-                let wi = d / dist2.sqrt();
-                let falloff = Light::spot_falloff(-wi.dot(*direction), *cos_total, *cos_falloff_start);
-                if falloff == 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    radiance: *intensity * (falloff / dist2),
-                    wi,
-                    pdf: select,
-                    delta: true,
-                    end: ShadowEnd::Point(*position),
-                    light,
+                point_sample(p, *position, select, light, |wi| {
+                    *intensity * Light::spot_falloff(-wi.dot(*direction), *cos_total, *cos_falloff_start)
                 })
             }
             Emitter::Sun { frame, radiance, one_minus_cos } => Some(LightSample {
@@ -434,6 +407,35 @@ fn sky_table(sky: &CloudySky) -> (Distribution2D, Vec<Vec3>, f32) {
         Distribution2D::new(&vec![1.0; SKY_ROWS * SKY_COLUMNS], SKY_COLUMNS, SKY_ROWS).expect("uniform")
     });
     (table, radiance, mean)
+}
+
+/// The sample of a light at the point `position` whose intensity toward the receiver at `p`
+/// (`wi` points from `p` to the light) is `intensity(wi)`; `None` when it sends nothing.
+fn point_sample(
+    p: Vec3,
+    position: Vec3,
+    select: f32,
+    light: u32,
+    intensity: impl Fn(Vec3) -> Vec3,
+) -> Option<LightSample> {
+    let d = position - p;
+    let dist2 = d.length_squared();
+    if dist2 == 0.0 {
+        return None;
+    }
+    let wi = d / dist2.sqrt();
+    let i = intensity(wi);
+    if i == Vec3::ZERO {
+        return None;
+    }
+    Some(LightSample {
+        radiance: i / dist2,
+        wi,
+        pdf: select,
+        delta: true,
+        end: ShadowEnd::Point(position),
+        light,
+    })
 }
 
 /// A point uniformly on triangle `t` and its geometric normal (by winding).

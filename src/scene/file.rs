@@ -420,11 +420,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 FileKernel::Weights(w) => Kernel::custom(w.iter().map(|w| w.0).collect()),
             };
             let kernel = kernel.or_else(|e| ctx.err(span.clone(), e))?;
-            let target = match f.target.as_deref() {
-                None | Some("indirect") => Target::Indirect,
-                Some("image") => Target::Image,
-                Some("none") => Target::None,
-                Some(other) => {
+            let target = match f.target.as_deref().map(|t| (t, Target::from_name(t))) {
+                None => Target::Indirect,
+                Some((_, Some(t))) => t,
+                Some((other, None)) => {
                     return ctx
                         .err(span, format!("unknown filter target `{other}` (indirect, image or none)"))
                 }

@@ -15,29 +15,12 @@ const DATA: &str = include_str!("data/teapot.txt");
 /// The control points of the 32 patches, 4x4 each (row-major: `[u][v]`).
 pub fn patches() -> Vec<[[Vec3; 4]; 4]> {
     let mut lines = DATA.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#'));
-    let mut count = |name: &str| -> usize {
-        let line = lines.next().unwrap_or_default();
-        line.strip_prefix(name).and_then(|n| n.trim().parse().ok()).unwrap_or(0)
-    };
-    let n_patches = count("patches");
-    let mut indices = Vec::with_capacity(n_patches);
-    for _ in 0..n_patches {
-        let row: Vec<usize> = lines
-            .next()
-            .unwrap_or_default()
-            .split_whitespace()
-            .filter_map(|v| v.parse::<usize>().ok())
-            .collect();
-        indices.push(row);
-    }
-    let n_vertices = {
-        let line = lines.next().unwrap_or_default();
-        line.strip_prefix("vertices").and_then(|n| n.trim().parse().ok()).unwrap_or(0)
-    };
-    let vertices: Vec<Vec3> = (0..n_vertices)
+    let n = count(lines.next(), "patches");
+    let indices: Vec<Vec<usize>> = (0..n).map(|_| numbers(lines.next())).collect();
+    let n = count(lines.next(), "vertices");
+    let vertices: Vec<Vec3> = (0..n)
         .map(|_| {
-            let v: Vec<f32> =
-                lines.next().unwrap_or_default().split_whitespace().filter_map(|v| v.parse().ok()).collect();
+            let v: Vec<f32> = numbers(lines.next());
             Vec3::new(v[0], v[1], v[2])
         })
         .collect();
@@ -45,6 +28,16 @@ pub fn patches() -> Vec<[[Vec3; 4]; 4]> {
         .iter()
         .map(|row| std::array::from_fn(|u| std::array::from_fn(|v| vertices[row[4 * u + v] - 1])))
         .collect()
+}
+
+/// The count of a section header line `NAME COUNT`.
+fn count(line: Option<&str>, name: &str) -> usize {
+    line.and_then(|l| l.strip_prefix(name)).and_then(|n| n.trim().parse().ok()).unwrap_or(0)
+}
+
+/// The whitespace-separated numbers of a line.
+fn numbers<T: std::str::FromStr>(line: Option<&str>) -> Vec<T> {
+    line.unwrap_or_default().split_whitespace().filter_map(|v| v.parse().ok()).collect()
 }
 
 /// The cubic Bernstein weights at t.

@@ -1,4 +1,24 @@
-//! Helpers shared by the integration tests.
+//! Helpers shared by the integration tests (each test binary uses some of them).
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use lightsplit::render::{render, RenderOptions, RenderOutput};
+use lightsplit::scene::file::parse;
+
+/// Runs the `lightsplit` binary with `args`.
+pub fn lightsplit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lightsplit")).args(args).output().expect("the binary runs")
+}
+
+/// Renders a scene given as text at `spp`, with the file's other settings.
+pub fn render_text(text: &str, spp: u32) -> RenderOutput {
+    let scene = parse(Path::new("test.toml"), text).expect("scene parses");
+    let mut options = RenderOptions::from_scene(&scene);
+    options.spp = spp;
+    render(&scene, &options, &|_| {}).expect("renders")
+}
 
 /// The six faces of the cube [-1, 1]^3 as scene-file quads, wound so that their front (emitting)
 /// side faces inwards; `keys` (TOML lines such as `material = "white"`) go into each.
