@@ -20,7 +20,9 @@ fn font() {
     });
 }
 
-const WIDTH: u32 = 900;
+const WIDTH: u32 = 1180;
+/// The legend's column, right of the chart, so that it never covers a line.
+const LEGEND: u32 = 300;
 const HEIGHT: u32 = 600;
 
 /// RMSE against spp (or against seconds of render and filter time, with `by_time`), log-log,
@@ -50,9 +52,10 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
         let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         root.fill(&WHITE).map_err(e)?;
+        let (plot, legend) = root.split_horizontally(WIDTH - LEGEND);
         let title =
             if by_time { "RMSE against render + filter time" } else { "RMSE against samples per pixel" };
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(&plot)
             .caption(title, ("sans-serif", 22))
             .margin(14)
             .x_label_area_size(44)
@@ -63,28 +66,20 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
             .configure_mesh()
             .x_desc(if by_time { "seconds" } else { "samples per pixel" })
             .y_desc("RMSE")
-            .y_label_formatter(&|v| format!("{v:.1e}"))
+            .y_labels(6)
+            .y_label_formatter(&|v| format!("{v:.2e}"))
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(e)?;
         for (i, s) in table.series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
             let pts: Vec<(f64, f64)> = s.points.iter().map(|p| (x_of(p), p.rmse.mean)).collect();
-            chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                .map_err(e)?
-                .label(s.choice.label())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2)));
+            chart.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2))).map_err(e)?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(e)?;
+            let y = 50 + 20 * i as i32;
+            legend.draw(&PathElement::new(vec![(4, y), (30, y)], color.stroke_width(2))).map_err(e)?;
+            legend.draw(&Text::new(s.choice.label(), (38, y - 8), ("sans-serif", 14))).map_err(e)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 14))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
         root.present().map_err(e)?;
     }
     crate::film::write_rgb8(path, WIDTH, HEIGHT, buf).map_err(|e| e.to_string())
