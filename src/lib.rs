@@ -12,3 +12,4 @@ pub mod math;
 pub mod metrics;
 pub mod render;
 pub mod scene;
+pub mod stress;

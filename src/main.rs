@@ -38,6 +38,25 @@ enum Command {
     /// Run time against error: render each spp once per seed, filter it every way, compare
     /// with a reference, and write results.csv, summary.md and log-log plots.
     Converge(ConvergeArgs),
+    /// Numerical stability: adversarial scenes (far from the origin, at extreme scales, grazing,
+    /// degenerate, dark, tiny, overflowing, seamed), each with its measured figure and a verdict.
+    Stress(StressArgs),
+}
+
+#[derive(clap::Args)]
+struct StressArgs {
+    /// Ray tracing backend.
+    #[arg(long, value_enum, default_value_t = Backend::Embree)]
+    accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Run only the rows whose name contains this text.
+    #[arg(long)]
+    only: Option<String>,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -341,6 +360,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => compare_command(args),
         Command::BenchAccel(args) => bench_accel_command(args),
         Command::Converge(args) => converge_command(args),
+        Command::Stress(args) => stress_command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -361,6 +381,57 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
         bar.set_style(style);
     }
     bar
+}
+
+fn stress_command(args: StressArgs) -> Result<(), Failure> {
+    use lightsplit::stress;
+    if args.threads == Some(0) {
+        return Err(Failure::input("--threads must be at least 1"));
+    }
+    let names: Vec<&str> =
+        stress::ROWS.iter().copied().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
+    if names.is_empty() {
+        return Err(Failure::input(format!(
+            "--only: no row matches; the rows are: {}",
+            stress::ROWS.join(", ")
+        )));
+    }
+    let bar = progress_bar(names.len() as u64, args.json);
+    let mut rows = Vec::new();
+    for name in names {
+        bar.set_message(name);
+        rows.push(stress::run_row(name, args.accel, args.threads).map_err(Failure::failed)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let passed = rows.iter().filter(|r| r.pass).count();
+    // A limit row may fail: it measures past what f32 holds, and says so.
+    let failed = rows.iter().filter(|r| !r.pass && !r.limit).count();
+    if args.json {
+        let json =
+            serde_json::json!({ "accel": args.accel, "passed": passed, "failed": failed, "rows": rows });
+        println!("{json}");
+    } else {
+        let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0);
+        let verdict = |r: &stress::Row| match (r.pass, r.limit) {
+            (true, _) => "yes",
+            (false, true) => "f32",
+            (false, false) => "NO",
+        };
+        println!("{:width$}  {:4}  figure", "row", "pass");
+        for r in &rows {
+            println!("{:width$}  {:4}  {}", r.name, verdict(r), r.figure);
+        }
+        for r in rows.iter().filter(|r| !r.pass) {
+            let what = if r.limit { "past f32's reach" } else { "FAILED" };
+            println!("\n{} {what}: {}", r.name, r.note);
+        }
+        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), args.accel);
+    }
+    if failed > 0 {
+        return Err(Failure::failed(format!("{failed} stress rows failed")));
+    }
+    Ok(())
 }
 
 fn render_command(args: RenderArgs) -> Result<(), Failure> {

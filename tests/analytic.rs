@@ -130,3 +130,27 @@ fn emissive_closed_box_reaches_le_over_one_minus_albedo() {
     let mean = out.film.raw.mean();
     assert!((mean.x / 2.0 - 1.0).abs() < 0.01, "mean {mean}, expected 2");
 }
+
+/// Russian roulette leaves the mean unchanged: walls of albedo 0.9 make paths of tens of
+/// bounces, almost all ended by roulette (after the second bounce a path survives with
+/// probability 0.9 and is reweighted by 1/0.9), and the mean must still be Le / (1 - 0.9) = 10.
+/// The tolerance is four standard errors of the mean, measured from the pixels themselves
+/// (independent estimates: every pixel has its own sample streams).
+#[test]
+fn russian_roulette_leaves_the_mean_unchanged() {
+    let mut text = String::from(
+        "[camera]\nposition = [0.1, -0.2, -0.5]\nlook_at = [0, 0, 1]\nfov = 90\n\
+         [film]\nwidth = 32\nheight = 32\n[render]\nmax_depth = 10000\n\
+         [[material]]\nname = \"bright\"\ntype = \"diffuse\"\ncolor = [0.9, 0.9, 0.9]\n",
+    );
+    text.push_str(&common::inward_cube("material = \"bright\"\nemission = [1, 1, 1]"));
+    let out = render_text(&text, 64);
+    let values: Vec<f64> = out.film.raw.pixels.iter().map(|p| p.x as f64).collect();
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let se = (variance / n).sqrt();
+    eprintln!("mean {mean:.4}, standard error {se:.4}");
+    assert!(se > 0.0 && se < 0.1, "standard error {se}");
+    assert!((mean - 10.0).abs() < 4.0 * se, "mean {mean}, expected 10 within 4 x {se}");
+}

@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::accel::{Accel, Ray};
-use crate::math::{cosine_hemisphere, offset_ray_origin, Frame};
+use crate::math::{cosine_hemisphere, Frame};
 use crate::render::camera::PinholeCamera;
 use crate::render::lights::{Lights, ShadowEnd};
 use crate::render::sampler::Sampler;
@@ -68,7 +68,7 @@ impl RaySets {
             };
             let surf = surface(scene, &ray, &hit);
             let ng = if surf.ng.dot(ray.dir) <= 0.0 { surf.ng } else { -surf.ng };
-            let origin = offset_ray_origin(surf.p, ng);
+            let origin = surf.origin(ng);
             // Shadow: toward a light sample, or a random point of the scene without lights.
             let end = match lights.sample(scene, surf.p, s.next_1d(), s.next_2d()) {
                 Some(ls) => match ls.end {

@@ -361,8 +361,6 @@ impl Film {
     }
 }
 
-/// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
-/// Radiance HDR.
 /// Reads a texture as linear RGB: EXR and HDR as they are, PNG (8-bit) decoded from sRGB.
 pub fn read_texture(path: &Path) -> Result<Image, String> {
     if matches!(Format::from_path(path), Ok(Format::Exr | Format::Hdr)) {
@@ -384,6 +382,8 @@ pub fn read_texture(path: &Path) -> Result<Image, String> {
     })
 }
 
+/// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
+/// Radiance HDR.
 pub fn read_image(path: &Path) -> Result<Image, String> {
     match Format::from_path(path).map_err(|e| e.to_string())? {
         Format::Exr => {

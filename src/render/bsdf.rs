@@ -238,14 +238,29 @@ mod tests {
 
     #[test]
     fn reciprocal_and_energy_bounded() {
-        let g = Glossy { specular: Vec3::splat(0.04), alpha: 0.3, base: Vec3::ONE };
         let mut s = crate::render::sampler::Sampler::new(4, 5, 6);
-        for _ in 0..1000 {
-            let a = cosine_hemisphere(s.next_2d());
-            let b = cosine_hemisphere(s.next_2d());
-            let (ab, ba) = (g.eval(a, b), g.eval(b, a));
-            assert!((ab - ba).abs().max_element() <= 1e-5 * ab.max_element().max(1.0), "{a} {b}");
+        // Reciprocity, f(a, b) = f(b, a), for smooth to rough lobes, with and without a base,
+        // dielectric and metallic F0; grazing directions included.
+        for (alpha, f0, base) in [
+            (0.001, 0.04, Vec3::ONE),
+            (0.05, 0.04, Vec3::splat(0.5)),
+            (0.3, 0.04, Vec3::ONE),
+            (0.3, 0.95, Vec3::ZERO),
+            (1.0, 0.5, Vec3::new(0.8, 0.2, 0.1)),
+        ] {
+            let g = Glossy { specular: Vec3::splat(f0), alpha, base };
+            for i in 0..2000 {
+                let a = if i % 10 == 0 { wo(89.9) } else { cosine_hemisphere(s.next_2d()) };
+                let b = cosine_hemisphere(s.next_2d());
+                let (ab, ba) = (g.eval(a, b), g.eval(b, a));
+                assert!(ab.is_finite() && ab.min_element() >= 0.0, "alpha {alpha}: f({a}, {b}) = {ab}");
+                assert!(
+                    (ab - ba).abs().max_element() <= 1e-4 * ab.max_element().max(1.0),
+                    "alpha {alpha}: {a} {b}: {ab} vs {ba}"
+                );
+            }
         }
+        let g = Glossy { specular: Vec3::splat(0.04), alpha: 0.3, base: Vec3::ONE };
         // Directional albedo (the integral of f cos over the hemisphere) stays at or under 1, by
         // importance sampling the mixture with many samples.
         for theta in [0.0f32, 45.0, 75.0, 89.0] {

@@ -12,7 +12,7 @@ use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::surface;
 use crate::accel::{Accel, Ray};
-use crate::math::{cosine_hemisphere, offset_ray_origin, Frame};
+use crate::math::{cosine_hemisphere, Frame};
 use crate::scene::{Material, Scene};
 
 /// What the integrator reads for every path: the scene, its accelerator and its lights.
@@ -298,7 +298,7 @@ impl<A: Accel> Integrator<'_, A> {
                 None => constant,
             };
             // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
-            let origin = offset_ray_origin(s.p, ng);
+            let origin = s.origin(ng);
             let wi = match scene.materials[shape.material as usize] {
                 Material::Diffuse { albedo } => {
                     let albedo = textured(albedo);
@@ -416,7 +416,7 @@ impl<A: Accel> Integrator<'_, A> {
                     }
                     beta *= scale;
                     let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
-                    ray = Ray::new(offset_ray_origin(s.p, side), wi);
+                    ray = Ray::new(s.origin(side), wi);
                     specular = true;
                     if beta == Vec3::ZERO {
                         break;
@@ -463,6 +463,40 @@ mod tests {
             let cos_t = (1.0 - sin_t * sin_t).sqrt();
             assert!((fresnel_dielectric(cos_i, 1.5) - fresnel_dielectric(cos_t, 1.0 / 1.5)).abs() < 1e-5);
         }
+    }
+
+    /// Mirror and glass are delta BSDFs: reciprocity means each specular map is reversible (the
+    /// light can run the path backwards) with the same weight. Reflection is an involution; a
+    /// refracted direction refracted back from the other side is the incident one; and Fresnel
+    /// reflectance is the same from both sides of a boundary (Stokes), so the transmitted
+    /// weights (1 - F) / eta^2 and (1 - F) eta^2 of the two directions differ exactly by the
+    /// radiance scaling 1 / eta^2 that makes the pair adjoint.
+    #[test]
+    fn mirror_and_glass_are_reciprocal() {
+        let n = Vec3::Z;
+        let mut s = crate::render::sampler::Sampler::new(9, 9, 9);
+        let mut refracted = 0;
+        for _ in 0..2000 {
+            let wo = cosine_hemisphere(s.next_2d());
+            let wr = reflect(wo, n);
+            assert!((reflect(wr, n) - wo).length() < 1e-5 && (wr.z - wo.z).abs() < 1e-6, "{wo}");
+            for eta in [1.5f32, 1.0 / 1.5, 2.42, 1.0 / 1.33] {
+                let cos_i = wo.z;
+                let f = fresnel_dielectric(cos_i, eta);
+                if f >= 1.0 {
+                    continue; // total internal reflection: only the mirror map, tested above
+                }
+                refracted += 1;
+                let wt = refract(wo, n, eta, cos_i);
+                // Backwards: wt, now the direction away from the surface on the other side.
+                let cos_t = wt.dot(-n);
+                let back = refract(wt, -n, 1.0 / eta, cos_t);
+                assert!((back - wo).length() < 1e-4, "eta {eta}: {wo} -> {wt} -> {back}");
+                let f_back = fresnel_dielectric(cos_t, 1.0 / eta);
+                assert!((f - f_back).abs() < 1e-4, "eta {eta}, cos {cos_i}: F {f} vs {f_back}");
+            }
+        }
+        assert!(refracted > 6000, "{refracted} refractions tested");
     }
 
     #[test]

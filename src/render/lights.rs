@@ -10,8 +10,8 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::math::{
-    luminance, offset_ray_origin, one_minus_cos_between, uniform_cone, uniform_sphere, uniform_triangle,
-    Distribution1D, Distribution2D, Frame, FOUR_PI,
+    luminance, offset_ray_origin, one_minus_cos_between, triangle_magnitude, uniform_cone, uniform_sphere,
+    uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
 };
 use crate::scene::sky::CloudySky;
 use crate::scene::{Geometry, Light, Mesh, Scene};
@@ -275,8 +275,8 @@ impl Lights {
                 };
                 // u.x picks the triangle, then, rescaled, the point within it.
                 let (t, _, ux) = triangles.sample_reuse(u.x);
-                let (q, n) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
-                area_sample(p, q, n, *emission, select / area, light)
+                let (q, n, magnitude) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
+                area_sample(p, q, n, magnitude, *emission, select / area, light)
             }
             Emitter::Sphere { center, radius, emission, .. } => {
                 let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
@@ -290,7 +290,7 @@ impl Lights {
                     wi: d.normalize(),
                     pdf: select * pdf,
                     delta: false,
-                    end: ShadowEnd::Point(offset_ray_origin(q, n)),
+                    end: ShadowEnd::Point(offset_ray_origin(q, n, center.abs().max_element() + radius)),
                     light,
                 })
             }
@@ -438,18 +438,27 @@ fn point_sample(
     })
 }
 
-/// A point uniformly on triangle `t` and its geometric normal (by winding).
-fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3) {
+/// A point uniformly on triangle `t`, its geometric normal (by winding) and the magnitude of its
+/// coordinates (for [`offset_ray_origin`]).
+fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3, f32) {
     let [a, b, c] = mesh.triangle(t);
     let bary = uniform_triangle(u);
     let q = a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y;
     let n = (b - a).cross(c - a).normalize_or_zero();
-    (q, n)
+    (q, n, triangle_magnitude(a, b, c))
 }
 
-/// Turns an area sample `q` (normal `n`, one-sided emission `emission`, area density
-/// `pdf_area`) into a solid-angle sample at `p`.
-fn area_sample(p: Vec3, q: Vec3, n: Vec3, emission: Vec3, pdf_area: f32, light: u32) -> Option<LightSample> {
+/// Turns an area sample `q` (normal `n`, coordinates of `magnitude`, one-sided emission
+/// `emission`, area density `pdf_area`) into a solid-angle sample at `p`.
+fn area_sample(
+    p: Vec3,
+    q: Vec3,
+    n: Vec3,
+    magnitude: f32,
+    emission: Vec3,
+    pdf_area: f32,
+    light: u32,
+) -> Option<LightSample> {
     let d = q - p;
     let dist2 = d.length_squared();
     if dist2 == 0.0 {
@@ -465,7 +474,7 @@ fn area_sample(p: Vec3, q: Vec3, n: Vec3, emission: Vec3, pdf_area: f32, light: 
         wi,
         pdf: pdf_area * dist2 / cos_l,
         delta: false,
-        end: ShadowEnd::Point(offset_ray_origin(q, n)),
+        end: ShadowEnd::Point(offset_ray_origin(q, n, magnitude)),
         light,
     })
 }

@@ -6,6 +6,7 @@ use std::f32::consts::{PI, TAU};
 use glam::{Vec2, Vec3};
 
 use crate::accel::{Hit, Ray};
+use crate::math::{offset_ray_origin, triangle_magnitude};
 use crate::scene::{Geometry, Scene};
 
 /// Position, geometric normal (by winding, or outward for spheres; never flipped), shading
@@ -18,6 +19,15 @@ pub struct Surface {
     /// The mesh's texture coordinates interpolated, else the barycentrics; on a sphere,
     /// longitude and latitude over [0, 1] (v = 1 at the +y pole).
     pub uv: Vec2,
+    /// The largest absolute coordinate `p` was computed from, for [`offset_ray_origin`].
+    pub magnitude: f32,
+}
+
+impl Surface {
+    /// The origin of a ray leaving this point to the side of `n` (`ng` or `-ng`).
+    pub fn origin(&self, n: Vec3) -> Vec3 {
+        offset_ray_origin(self.p, n, self.magnitude)
+    }
 }
 
 pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
@@ -27,7 +37,8 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
             let n = (ray.at(hit.t) - *center).normalize_or(fallback);
             let uv = Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI);
-            Surface { p: *center + n * *radius, ng: n, ns: n, uv }
+            let magnitude = center.abs().max_element() + radius;
+            Surface { p: *center + n * *radius, ng: n, ns: n, uv, magnitude }
         }
         Geometry::Triangles(mesh) => {
             let [a, b, c] = mesh.triangle(hit.prim);
@@ -48,7 +59,7 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
                 Some(uvs) => uvs[ia] * (1.0 - u - v) + uvs[ib] * u + uvs[ic] * v,
                 None => Vec2::new(u, v),
             };
-            Surface { p, ng, ns, uv }
+            Surface { p, ng, ns, uv, magnitude: triangle_magnitude(a, b, c) }
         }
     }
 }

@@ -355,4 +355,6 @@ impl Accel for Bvh {
 }
 
 #[cfg(test)]
+mod proptests;
+#[cfg(test)]
 mod tests;

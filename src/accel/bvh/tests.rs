@@ -7,7 +7,7 @@ use super::*;
 use crate::render::sampler::Sampler;
 use crate::scene::{Camera, FilmSettings, Material, Mesh, RenderSettings, Scene, Shape};
 
-fn scene_of(shapes: Vec<Geometry>) -> Scene {
+pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
     Scene {
         path: "test".into(),
         camera: Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 40.0 },
@@ -33,7 +33,7 @@ fn scene_of(shapes: Vec<Geometry>) -> Scene {
     }
 }
 
-fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
+pub(super) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
     Geometry::Triangles(Mesh {
         positions: positions.into_iter().map(Vec3A::from).collect::<Arc<[Vec3A]>>(),
         indices: indices.into(),
@@ -207,7 +207,7 @@ fn rays_leaving_a_surface_do_not_hit_it() {
     let mut s = Sampler::new(11, 0, 0);
     for _ in 0..2000 {
         let (y, z) = (s.next_1d() * 200.0 + 20.0, s.next_1d() * 200.0 + 20.0);
-        let origin = crate::math::offset_ray_origin(Vec3::new(0.0, y, z), Vec3::X);
+        let origin = crate::math::offset_ray_origin(Vec3::new(0.0, y, z), Vec3::X, 559.2);
         let dir =
             Vec3::new(50.0 + 300.0 * s.next_1d(), 400.0 * s.next_1d() - 200.0, 400.0 * s.next_1d() - 200.0);
         let ray = Ray { origin, dir, t_max: 1.0 };

@@ -86,6 +86,21 @@ pub struct Bvh4 {
 /// Traversal stack depth. Collapsing never deepens the binary tree, which the build bounds.
 const STACK: usize = 3 * super::STACK;
 
+impl Node4 {
+    /// A node whose first child has the box `[min, max]` and whose others are empty.
+    #[cfg(test)]
+    pub(super) fn with_first_box(min: glam::Vec3, max: glam::Vec3) -> Node4 {
+        // Empty boxes: min above max.
+        let mut bounds = [[f32::INFINITY; 4]; 6];
+        for a in 0..3 {
+            bounds[3 + a] = [f32::NEG_INFINITY; 4];
+            bounds[a][0] = min[a];
+            bounds[3 + a][0] = max[a];
+        }
+        Node4 { bounds, children: [Child::EMPTY; 4] }
+    }
+}
+
 impl Bvh4 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
     /// opening the inner child of largest area until it has four.
@@ -201,7 +216,7 @@ impl Bvh4 {
 }
 
 /// Per-ray values for the four-box slab test.
-struct RayBox4 {
+pub(super) struct RayBox4 {
     origin: [f32x4; 3],
     inv_dir: [f32x4; 3],
     /// For each axis, whether the ray runs towards negative values (then near and far swap).
@@ -212,7 +227,7 @@ struct RayBox4 {
 const FAR_SCALE: f32 = super::FAR_SCALE;
 
 impl RayBox4 {
-    fn new(ray: &Ray) -> Self {
+    pub(super) fn new(ray: &Ray) -> Self {
         // A zero direction component becomes a tiny one, so 1/d is huge but finite and no
         // 0 * inf NaN can arise in the slab test.
         let safe = |d: f32| if d.abs() < 1e-30 { 1e-30f32.copysign(d) } else { d };
@@ -227,7 +242,7 @@ impl RayBox4 {
     /// Entry distances of the four children, and a bit mask of those the ray meets within
     /// [0, t_max].
     #[inline(always)]
-    fn hit(&self, n: &Node4, t_max: f32) -> (f32x4, u32) {
+    pub(super) fn hit(&self, n: &Node4, t_max: f32) -> (f32x4, u32) {
         let mut t_near = f32x4::splat(0.0);
         let mut t_far = f32x4::splat(t_max);
         for axis in 0..3 {
