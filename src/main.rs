@@ -41,6 +41,20 @@ enum Command {
     /// Numerical stability: adversarial scenes (far from the origin, at extreme scales, grazing,
     /// degenerate, dark, tiny, overflowing, seamed), each with its measured figure and a verdict.
     Stress(StressArgs),
+    /// What a scene uses (material lobes, lights, textures) and so what a render of it, with
+    /// the outputs asked for, needs.
+    Info(InfoArgs),
+}
+
+#[derive(clap::Args)]
+struct InfoArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// The output the render would write (its format decides which layers are kept).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    out: OutputArgs,
 }
 
 #[derive(clap::Args)]
@@ -361,6 +375,7 @@ fn main() -> ExitCode {
         Command::BenchAccel(args) => bench_accel_command(args),
         Command::Converge(args) => converge_command(args),
         Command::Stress(args) => stress_command(args),
+        Command::Info(args) => info_command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -381,6 +396,39 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
         bar.set_style(style);
     }
     bar
+}
+
+fn info_command(args: InfoArgs) -> Result<(), Failure> {
+    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
+    let format = film::check_output(&output).map_err(Failure::input)?;
+    let setting = args.out.check(&scene.filter, &output)?;
+    let analysis = scene::analysis::Analysis::of(&scene);
+    println!("{}", args.scene.display());
+    print!("{analysis}");
+    // The buffers the outputs read: an EXR keeps every layer; a PNG or HDR its one layer, and
+    // what the filter reads to make it.
+    let exr = format == film::Format::Exr;
+    let split = exr
+        || (setting.kernel.is_some() && setting.target == Target::Indirect)
+        || !matches!(args.out.layer, Layer::Final | Layer::Raw);
+    let guides = exr || setting.stops != EdgeStops::default() || args.out.layer == Layer::Albedo;
+    println!(
+        "and the outputs ({}, filter {}) need:",
+        output.display(),
+        setting.kernel.as_ref().map_or("none".to_string(), |k| k.name())
+    );
+    println!(
+        "  {:34} {:3}  (an EXR, a filter on indirect, or a component layer)",
+        "the component split",
+        if split { "yes" } else { "no" }
+    );
+    println!(
+        "  {:34} {:3}  (an EXR, edge-aware filtering, or the albedo layer)",
+        "guide buffers (ID, normal, depth)",
+        if guides { "yes" } else { "no" }
+    );
+    Ok(())
 }
 
 fn stress_command(args: StressArgs) -> Result<(), Failure> {

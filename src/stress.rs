@@ -634,9 +634,12 @@ fn uv_sphere(n: usize) -> Vec<[Vec3; 3]> {
     tris
 }
 
-/// A fresh directory for the suite's files.
+/// A fresh directory for one row's files: unique in this process too, since rows may run on
+/// several threads at once (the tests run both backends side by side).
 fn tempfile_dir() -> Result<std::path::PathBuf, StressError> {
-    let dir = std::env::temp_dir().join(format!("lightsplit-stress-{}", std::process::id()));
+    static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("lightsplit-stress-{}-{n}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| StressError::Io(format!("{}: {e}", dir.display())))?;
     Ok(dir)
 }

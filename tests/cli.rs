@@ -314,3 +314,27 @@ fn layer_picks_what_a_png_shows() {
         assert!(!Path::new(&p(file)).exists());
     }
 }
+
+/// `lightsplit info` explains every scene in `scenes/`: its lobes, lights and textures, and
+/// what a render of it needs; a missing scene is status 2.
+#[test]
+fn info_explains_every_scene() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(dir).expect("scenes/") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let o = lightsplit(&["info", path.to_str().expect("utf-8")]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{}: {}", path.display(), String::from_utf8_lossy(&o.stderr));
+        for line in ["material lobes: ", "lights: ", "MIS between light and BSDF", "the component split"] {
+            assert!(text.contains(line), "{}: no `{line}` in\n{text}", path.display());
+        }
+        seen += 1;
+    }
+    assert!(seen >= 7, "{seen} scenes");
+    let o = lightsplit(&["info", "no-such-scene.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+}

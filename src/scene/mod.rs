@@ -2,6 +2,7 @@
 //! (camera, materials, shapes with their triangles or spheres, lights). Loading lives in
 //! [`file`] (TOML) and [`obj`] (Wavefront OBJ meshes).
 
+pub mod analysis;
 pub mod file;
 pub mod noise;
 pub mod obj;
