@@ -418,15 +418,18 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
         output.display(),
         setting.kernel.as_ref().map_or("none".to_string(), |k| k.name())
     );
+    use scene::analysis::need_line;
     println!(
-        "  {:34} {:3}  (an EXR, a filter on indirect, or a component layer)",
-        "the component split",
-        if split { "yes" } else { "no" }
+        "{}",
+        need_line("the component split", split, "an EXR, a filter on indirect, or a component layer")
     );
     println!(
-        "  {:34} {:3}  (an EXR, edge-aware filtering, or the albedo layer)",
-        "guide buffers (ID, normal, depth)",
-        if guides { "yes" } else { "no" }
+        "{}",
+        need_line(
+            "guide buffers (ID, normal, depth)",
+            guides,
+            "an EXR, edge-aware filtering, or the albedo layer"
+        )
     );
     Ok(())
 }

@@ -126,6 +126,11 @@ pub fn triangle_magnitude(a: Vec3, b: Vec3, c: Vec3) -> f32 {
     a.abs().max(b.abs()).max(c.abs()).max_element()
 }
 
+/// The largest absolute coordinate of a sphere's points, bounded (see [`offset_ray_origin`]).
+pub fn sphere_magnitude(center: Vec3, radius: f32) -> f32 {
+    center.abs().max_element() + radius
+}
+
 /// Rec. 709 luminance of a linear RGB value.
 pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))

@@ -8,6 +8,7 @@
 //! leaves one can never meet it again: any hit of the shape it started on is a self-hit, the
 //! cause of shadow acne, and is counted exactly.
 
+use std::collections::BTreeSet;
 use std::path::Path;
 
 use glam::{Vec2, Vec3, Vec3A};
@@ -203,16 +204,12 @@ impl Ctx {
 
     /// Self-hits on `scene` with this backend (see [`self_hits`]).
     fn probe(&self, scene: &Scene, toward: Vec3) -> Result<(u64, u64), StressError> {
-        let build = |e| StressError::Accel(accel::AccelError::from(e));
+        use accel::AccelError;
         Ok(match self.backend {
             Backend::Embree => {
-                self_hits(scene, &accel::build_embree(scene, self.threads).map_err(build)?, toward)
+                self_hits(scene, &accel::build_embree(scene, self.threads).map_err(AccelError::from)?, toward)
             }
-            Backend::Bvh => self_hits(
-                scene,
-                &accel::bvh::Bvh::new(scene).map_err(|e| StressError::Accel(e.into()))?,
-                toward,
-            ),
+            Backend::Bvh => self_hits(scene, &accel::bvh::Bvh::new(scene).map_err(AccelError::from)?, toward),
         })
     }
 
@@ -331,17 +328,11 @@ impl Ctx {
         panel.extend(degenerate);
         add_mesh(&mut with, "panel", &panel, Vec3::splat(5.0));
         add_mesh(&mut with, "dust", &degenerate, Vec3::ZERO);
-        let (one, two) = (self.render(&without)?, self.render(&with)?);
-        let nonfinite = two.stats.nonfinite_samples;
-        let diff = max_difference(&one.film, &two.film);
-        let figure = format!(
-            "image max abs. difference {diff:.1e} from the scene without them, non-finite samples {nonfinite}"
-        );
-        Ok(row(
-            figure,
-            diff == 0.0 && nonfinite == 0,
+        self.identical(
+            &without,
+            &with,
             "zero-area triangles are never hit and never sampled as lights: the image is identical",
-        ))
+        )
     }
 
     /// A sphere of radius 0, plain and emissive, changes nothing.
@@ -351,28 +342,32 @@ impl Ctx {
             "{text}[[shape]]\ntype = \"sphere\"\nname = \"dot\"\ncenter = [0.2, 0.5, -1]\nradius = 0\n\
              [[shape]]\ntype = \"sphere\"\nname = \"star\"\ncenter = [0, 2, 0]\nradius = 0\nemission = [100, 100, 100]\n"
         );
-        let (one, two) = (self.render(&parse(&text)?)?, self.render(&parse(&with)?)?);
-        let diff = max_difference(&one.film, &two.film);
-        let nonfinite = two.stats.nonfinite_samples;
-        Ok(row(
-            format!("image max abs. difference {diff:.1e}, non-finite samples {nonfinite}"),
-            diff == 0.0 && nonfinite == 0,
+        self.identical(
+            &parse(&text)?,
+            &parse(&with)?,
             "a point-sized sphere is invisible and, emissive, sheds no light: the image is identical",
-        ))
+        )
     }
 
     /// Lights of zero power next to a real one change nothing.
     fn zero_power(&self) -> Result<Row, StressError> {
         let text = moved_scene(0.0, 1.0);
         let with = format!("{text}{ZERO_LIGHTS}");
-        let (one, two) = (self.render(&parse(&text)?)?, self.render(&parse(&with)?)?);
+        self.identical(
+            &parse(&text)?,
+            &parse(&with)?,
+            "a point, spot, sun and sky of zero power beside the scene's lights: the image is identical",
+        )
+    }
+
+    /// Passes when `with` renders exactly the image `without` does, with no sample lost.
+    fn identical(&self, without: &Scene, with: &Scene, note: &str) -> Result<Row, StressError> {
+        let (one, two) = (self.render(without)?, self.render(with)?);
         let diff = max_difference(&one.film, &two.film);
         let nonfinite = two.stats.nonfinite_samples;
-        Ok(row(
-            format!("image max abs. difference {diff:.1e}, non-finite samples {nonfinite}"),
-            diff == 0.0 && nonfinite == 0,
-            "a point, spot, sun and sky of zero power beside the scene's lights: the image is identical",
-        ))
+        let figure =
+            format!("image max abs. difference {diff:.1e} from the scene without them, non-finite samples {nonfinite}");
+        Ok(row(figure, diff == 0.0 && nonfinite == 0, note))
     }
 
     /// A scene lit only by zero-power lights is black, with no NaN.
@@ -471,13 +466,8 @@ impl Ctx {
             exr_err = exr_err.max((back_exr.pixels[i].x as f64 / p.x as f64 - 1.0).abs());
             hdr_err = hdr_err.max((back_hdr.pixels[i].x as f64 / p.x as f64 - 1.0).abs());
         }
-        let decades = {
-            let mut d: Vec<i32> = film.object.iter().filter(|&&o| o >= 0.0).map(|&o| o as i32).collect();
-            d.dedup();
-            d.sort_unstable();
-            d.dedup();
-            d.len()
-        };
+        let decades =
+            film.object.iter().filter(|&&o| o >= 0.0).map(|&o| o as i32).collect::<BTreeSet<_>>().len();
         let figure = format!(
             "{decades} decades in {seen} pixels: render off by {render_err:.1e}, EXR {exr_err:.1e}, HDR {hdr_err:.1e}"
         );

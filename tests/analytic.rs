@@ -144,12 +144,7 @@ fn russian_roulette_leaves_the_mean_unchanged() {
          [[material]]\nname = \"bright\"\ntype = \"diffuse\"\ncolor = [0.9, 0.9, 0.9]\n",
     );
     text.push_str(&common::inward_cube("material = \"bright\"\nemission = [1, 1, 1]"));
-    let out = render_text(&text, 64);
-    let values: Vec<f64> = out.film.raw.pixels.iter().map(|p| p.x as f64).collect();
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    let se = (variance / n).sqrt();
+    let (mean, se) = common::mean_and_standard_error(&render_text(&text, 64).film.raw);
     eprintln!("mean {mean:.4}, standard error {se:.4}");
     assert!(se > 0.0 && se < 0.1, "standard error {se}");
     assert!((mean - 10.0).abs() < 4.0 * se, "mean {mean}, expected 10 within 4 x {se}");

@@ -5,21 +5,13 @@ mod common;
 
 use std::path::Path;
 
+use common::mean_and_standard_error;
 use glam::Vec3;
 use lightsplit::film::Film;
 use lightsplit::render::{render, RenderOptions};
 
 fn film(text: &str, spp: u32) -> Film {
     common::render_text(text, spp).film
-}
-
-/// The mean of the red channel and its standard error from the spread of the pixels (each pixel
-/// an independent estimate of the same value).
-fn mean_and_standard_error(image: &lightsplit::film::Image) -> (f64, f64) {
-    let n = image.pixels.len() as f64;
-    let mean = image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n;
-    let var = image.pixels.iter().map(|p| (p.x as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
 }
 
 fn cornell(width: u32) -> Film {

@@ -10,8 +10,8 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::math::{
-    luminance, offset_ray_origin, one_minus_cos_between, triangle_magnitude, uniform_cone, uniform_sphere,
-    uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
+    luminance, offset_ray_origin, one_minus_cos_between, sphere_magnitude, triangle_magnitude, uniform_cone,
+    uniform_sphere, uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
 };
 use crate::scene::sky::CloudySky;
 use crate::scene::{Geometry, Light, Mesh, Scene};
@@ -290,7 +290,7 @@ impl Lights {
                     wi: d.normalize(),
                     pdf: select * pdf,
                     delta: false,
-                    end: ShadowEnd::Point(offset_ray_origin(q, n, center.abs().max_element() + radius)),
+                    end: ShadowEnd::Point(offset_ray_origin(q, n, sphere_magnitude(*center, *radius))),
                     light,
                 })
             }

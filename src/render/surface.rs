@@ -6,7 +6,7 @@ use std::f32::consts::{PI, TAU};
 use glam::{Vec2, Vec3};
 
 use crate::accel::{Hit, Ray};
-use crate::math::{offset_ray_origin, triangle_magnitude};
+use crate::math::{offset_ray_origin, sphere_magnitude, triangle_magnitude};
 use crate::scene::{Geometry, Scene};
 
 /// Position, geometric normal (by winding, or outward for spheres; never flipped), shading
@@ -37,8 +37,13 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
             let n = (ray.at(hit.t) - *center).normalize_or(fallback);
             let uv = Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI);
-            let magnitude = center.abs().max_element() + radius;
-            Surface { p: *center + n * *radius, ng: n, ns: n, uv, magnitude }
+            Surface {
+                p: *center + n * *radius,
+                ng: n,
+                ns: n,
+                uv,
+                magnitude: sphere_magnitude(*center, *radius),
+            }
         }
         Geometry::Triangles(mesh) => {
             let [a, b, c] = mesh.triangle(hit.prim);

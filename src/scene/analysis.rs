@@ -177,7 +177,7 @@ impl fmt::Display for Analysis {
         writeln!(f, "textures: {} colour, {} bump", self.color_textures, self.bump_maps)?;
         writeln!(f, "so a render of it needs:")?;
         let need = |f: &mut fmt::Formatter<'_>, what: &str, needed: bool, why: &str| {
-            writeln!(f, "  {:34} {:3}  ({why})", what, if needed { "yes" } else { "no" })
+            writeln!(f, "{}", need_line(what, needed, why))
         };
         need(
             f,
@@ -206,6 +206,11 @@ impl fmt::Display for Analysis {
         need(f, "Fresnel refraction", l.glass, "glass")?;
         Ok(())
     }
+}
+
+/// One line of what a render needs: the feature, yes or no, and why.
+pub fn need_line(what: &str, needed: bool, why: &str) -> String {
+    format!("  {what:34} {:3}  ({why})", if needed { "yes" } else { "no" })
 }
 
 #[cfg(test)]

@@ -20,6 +20,15 @@ pub fn render_text(text: &str, spp: u32) -> RenderOutput {
     render(&scene, &options, &|_| {}).expect("renders")
 }
 
+/// The mean of the red channel and its standard error from the spread of the pixels (each pixel
+/// an independent estimate of the same value).
+pub fn mean_and_standard_error(image: &lightsplit::film::Image) -> (f64, f64) {
+    let n = image.pixels.len() as f64;
+    let mean = image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n;
+    let var = image.pixels.iter().map(|p| (p.x as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
 /// The six faces of the cube [-1, 1]^3 as scene-file quads, wound so that their front (emitting)
 /// side faces inwards; `keys` (TOML lines such as `material = "white"`) go into each.
 pub fn inward_cube(keys: &str) -> String {
