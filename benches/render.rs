@@ -20,7 +20,8 @@ fn bench(c: &mut Criterion) {
         let scene = scene::load(&path).expect("scene loads");
         let accel = build_embree(&scene, None).expect("embree builds");
         let lights = Lights::new(&scene);
-        let integrator =
+        // The general integrator (every feature); `bench-features` measures the specialised ones.
+        let integrator: Integrator<'_, _> =
             Integrator { scene: &scene, accel: &accel, lights: &lights, max_depth: scene.render.max_depth };
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);

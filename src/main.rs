@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lightsplit::accel::Backend;
 use lightsplit::film;
 use lightsplit::filter::{composite, EdgeStops, Kernel, Setting, Target};
-use lightsplit::render::{self, RenderOptions};
+use lightsplit::render::{self, Features, Outputs, RenderOptions};
 use lightsplit::scene;
 
 /// Bad input: a scene file, an argument or an output path that cannot work.
@@ -44,6 +44,34 @@ enum Command {
     /// What a scene uses (material lobes, lights, textures) and so what a render of it, with
     /// the outputs asked for, needs.
     Info(InfoArgs),
+    /// Samples per second, buffer memory and images of scenes rendered with only what they
+    /// need and with every feature forced on, side by side.
+    BenchFeatures(BenchFeaturesArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchFeaturesArgs {
+    /// The scene files (TOML).
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    #[arg(long, default_value_t = 128)]
+    width: u32,
+    #[arg(long, default_value_t = 128)]
+    height: u32,
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Rounds, each rendering every mode once; medians are reported.
+    #[arg(long, default_value_t = 5)]
+    rounds: usize,
+    /// Ray tracing backend.
+    #[arg(long, value_enum, default_value_t = Backend::Embree)]
+    accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -100,6 +128,10 @@ struct ConvergeArgs {
     /// Renders per spp, each with its own seed: the summary gives their mean and spread.
     #[arg(long, default_value_t = 1)]
     seeds: u32,
+    /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
+    /// then is the most a pixel takes), compared with uniform sampling at equal time.
+    #[arg(long, value_name = "THRESHOLD")]
+    adaptive: Option<f32>,
     /// Ray tracing backend.
     #[arg(long, value_enum, default_value_t = Backend::Embree)]
     accel: Backend,
@@ -251,6 +283,10 @@ struct BenchAccelArgs {
     /// Rounds per row, each measuring both backends back to back; medians are reported.
     #[arg(long, default_value_t = 5)]
     rounds: usize,
+    /// Instead of the backends, measure Embree's scene settings against each other: robust or
+    /// not, build quality low, medium, high (build time, rays per second, answers changed).
+    #[arg(long)]
+    embree_settings: bool,
     /// Print one JSON object on stdout instead of the table.
     #[arg(long)]
     json: bool,
@@ -290,6 +326,16 @@ struct RenderArgs {
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     debug_nonfinite: bool,
+    /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
+    /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
+    /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.
+    #[arg(long, value_name = "THRESHOLD")]
+    adaptive: Option<f32>,
+    /// Compute every feature (MIS, the split, the guides, textures) whatever the scene and the
+    /// output need, on Embree's robust high-quality build: the general renderer, for
+    /// comparison. The beauty is the same.
+    #[arg(long)]
+    all_features: bool,
     /// Print one JSON object on stdout instead of the summary line.
     #[arg(long)]
     json: bool,
@@ -376,6 +422,7 @@ fn main() -> ExitCode {
         Command::Converge(args) => converge_command(args),
         Command::Stress(args) => stress_command(args),
         Command::Info(args) => info_command(args),
+        Command::BenchFeatures(args) => bench_features_command(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -406,13 +453,7 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let analysis = scene::analysis::Analysis::of(&scene);
     println!("{}", args.scene.display());
     print!("{analysis}");
-    // The buffers the outputs read: an EXR keeps every layer; a PNG or HDR its one layer, and
-    // what the filter reads to make it.
-    let exr = format == film::Format::Exr;
-    let split = exr
-        || (setting.kernel.is_some() && setting.target == Target::Indirect)
-        || !matches!(args.out.layer, Layer::Final | Layer::Raw);
-    let guides = exr || setting.stops != EdgeStops::default() || args.out.layer == Layer::Albedo;
+    let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
     println!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
@@ -431,7 +472,15 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
             "an EXR, edge-aware filtering, or the albedo layer"
         )
     );
+    let features = Features::needed(&analysis, Outputs { split, guides });
+    println!("so the render computes: {} (of mis+split+guides+textures)", features.names());
     Ok(())
+}
+
+/// The buffers an output reads besides the beauty.
+fn outputs_read(format: film::Format, setting: &Setting, layer: Layer) -> Outputs {
+    let component = !matches!(layer, Layer::Final | Layer::Raw | Layer::Albedo);
+    Outputs::read(format == film::Format::Exr, setting, component, layer == Layer::Albedo)
 }
 
 fn stress_command(args: StressArgs) -> Result<(), Failure> {
@@ -488,7 +537,7 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
 fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
-    film::check_output(&output).map_err(Failure::input)?;
+    let format = film::check_output(&output).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
     options.accel = args.accel;
@@ -523,8 +572,17 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         return Err(Failure::input("--threads must be at least 1"));
     }
     let setting = args.out.check(&scene.filter, &output)?;
+    check_adaptive(args.adaptive)?;
+    options.adaptive = args.adaptive;
+    if args.all_features {
+        options.features = Features::ALL;
+        options.embree = Default::default();
+    } else {
+        let analysis = scene::analysis::Analysis::of(&scene);
+        options.features = Features::needed(&analysis, outputs_read(format, &setting, args.out.layer));
+    }
 
-    let bar = progress_bar(options.width as u64 * options.height as u64, args.json);
+    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
     let filter_seconds = args.out.finish(&out.film, &setting, &output)?;
@@ -547,6 +605,12 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "samples_per_second": samples_per_second,
             "rays_per_second": rays_per_second,
             "nonfinite_samples": s.nonfinite_samples,
+            "adaptive": options.adaptive,
+            "stopped_early_pixels": s.stopped_early,
+            "mean_spp": s.samples as f64 / (options.width as f64 * options.height as f64),
+            "features": options.features,
+            "embree": options.embree,
+            "buffer_bytes": s.buffer_bytes,
             "filter": setting.kernel.as_ref().map(Kernel::name),
             "filter_target": setting.target.name(),
             "edge_aware": setting.stops.object,
@@ -555,12 +619,20 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         });
         println!("{json}");
     } else {
+        let spp = match options.adaptive {
+            Some(t) => format!(
+                "up to {} spp (adaptive {t}: {:.1} spp a pixel, {} pixels stopped early)",
+                options.spp,
+                s.samples as f64 / (options.width as f64 * options.height as f64),
+                s.stopped_early
+            ),
+            None => format!("{} spp", options.spp),
+        };
         eprintln!(
-            "{}: {}x{} at {} spp in {:.2} s ({:.3} s build): {:.3} M samples/s, {:.2} M rays/s{}; wrote {}",
+            "{}: {}x{} at {spp} in {:.2} s ({:.3} s build): {:.3} M samples/s, {:.2} M rays/s{}; wrote {}",
             args.scene.display(),
             options.width,
             options.height,
-            options.spp,
             s.seconds,
             s.build_seconds,
             samples_per_second / 1e6,
@@ -574,6 +646,16 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// An adaptive threshold must be a positive, finite relative error.
+fn check_adaptive(threshold: Option<f32>) -> Result<(), Failure> {
+    match threshold {
+        Some(t) if !(t.is_finite() && t > 0.0) => {
+            Err(Failure::input(format!("--adaptive must be a positive relative error such as 0.02, not {t}")))
+        }
+        _ => Ok(()),
+    }
 }
 
 fn rayon_threads(threads: Option<usize>) -> usize {
@@ -604,6 +686,20 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
         seed: 1,
     };
     let bar = progress_bar(0, args.json);
+    if args.embree_settings {
+        let rows = lightsplit::bench::bench_embree_settings(&scene, &options, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+        .map_err(Failure::failed)?;
+        bar.finish_and_clear();
+        if args.json {
+            println!("{}", serde_json::json!({ "scene": args.scene, "rows": rows }));
+        } else {
+            print!("{}", lightsplit::bench::settings_table(&rows));
+        }
+        return Ok(());
+    }
     let report = lightsplit::bench::bench_accel(&scene, &options, &|done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
@@ -637,6 +733,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     if args.seeds == 0 || args.reference_spp == 0 || args.threads == Some(0) {
         return Err(Failure::input("--seeds, --reference-spp and --threads must be at least 1"));
     }
+    check_adaptive(args.adaptive)?;
     if args.diff_spp.is_some_and(|d| !args.spp.contains(&d)) {
         return Err(Failure::input("--diff-spp must be one of the --spp values"));
     }
@@ -661,6 +758,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
         reference: args.reference.clone(),
         reference_spp: args.reference_spp,
         diff_spp,
+        adaptive: args.adaptive,
         out: args.out.clone(),
     };
     let bar = progress_bar(plan.total_samples(), false);
@@ -704,6 +802,47 @@ fn compare_command(args: CompareArgs) -> Result<(), Failure> {
             errors.rmse_trimmed,
             errors.relmse_trimmed
         );
+    }
+    Ok(())
+}
+
+fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
+    use lightsplit::bench::features;
+    for (name, value) in [("width", args.width), ("height", args.height), ("spp", args.spp)] {
+        if value == 0 {
+            return Err(Failure::input(format!("--{name} must be at least 1")));
+        }
+    }
+    if args.rounds == 0 || args.threads == Some(0) {
+        return Err(Failure::input("--rounds and --threads must be at least 1"));
+    }
+    // Every scene is loaded before any is measured, so a bad file fails at once.
+    let scenes = args
+        .scenes
+        .iter()
+        .map(|p| scene::load(p).map(|s| (p, s)))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(Failure::input)?;
+    let options = features::BenchFeaturesOptions {
+        width: args.width,
+        height: args.height,
+        spp: args.spp,
+        rounds: args.rounds,
+        threads: args.threads,
+        accel: args.accel,
+    };
+    let bar = progress_bar(scenes.len() as u64, args.json);
+    let mut rows = Vec::new();
+    for (path, scene) in &scenes {
+        bar.set_message(path.display().to_string());
+        rows.push(features::bench_scene(path, scene, &options).map_err(Failure::failed)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if args.json {
+        println!("{}", serde_json::json!({ "rows": rows }));
+    } else {
+        print!("{}", features::table(&rows, &options));
     }
     Ok(())
 }

@@ -134,8 +134,13 @@ impl Device {
         unsafe { sys::rtcGetDeviceProperty(self.inner.raw, sys::RTC_DEVICE_PROPERTY_VERSION) as i64 }
     }
 
-    /// A new, empty scene to fill and commit.
+    /// A new, empty scene to fill and commit: robust (watertight) and of high build quality.
     pub fn scene(&self) -> Result<SceneBuilder, EmbreeError> {
+        self.scene_with(SceneSettings::default())
+    }
+
+    /// A new, empty scene with these settings.
+    pub fn scene_with(&self, settings: SceneSettings) -> Result<SceneBuilder, EmbreeError> {
         // SAFETY: `raw` is a live device.
         let raw = unsafe { sys::rtcNewScene(self.inner.raw) };
         self.inner.take_error()?;
@@ -145,11 +150,58 @@ impl Device {
         let scene = SceneBuilder { raw, device: self.inner.clone(), meshes: Vec::new() };
         // SAFETY: `raw` is a live scene; these are plain setters.
         unsafe {
-            sys::rtcSetSceneFlags(raw, sys::RTC_SCENE_FLAG_ROBUST);
-            sys::rtcSetSceneBuildQuality(raw, sys::RTC_BUILD_QUALITY_HIGH);
+            let flags = if settings.robust { sys::RTC_SCENE_FLAG_ROBUST } else { sys::RTC_SCENE_FLAG_NONE };
+            sys::rtcSetSceneFlags(raw, flags);
+            sys::rtcSetSceneBuildQuality(raw, settings.quality.raw());
         }
         self.inner.take_error()?;
         Ok(scene)
+    }
+}
+
+/// Embree's BVH build quality: how hard the builder works for a faster tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BuildQuality {
+    Low,
+    Medium,
+    /// Spatial splits: the slowest build, the fastest traversal.
+    #[default]
+    High,
+}
+
+impl BuildQuality {
+    pub const ALL: [BuildQuality; 3] = [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High];
+
+    fn raw(self) -> sys::RTCBuildQuality {
+        match self {
+            BuildQuality::Low => sys::RTC_BUILD_QUALITY_LOW,
+            BuildQuality::Medium => sys::RTC_BUILD_QUALITY_MEDIUM,
+            BuildQuality::High => sys::RTC_BUILD_QUALITY_HIGH,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildQuality::Low => "low",
+            BuildQuality::Medium => "medium",
+            BuildQuality::High => "high",
+        }
+    }
+}
+
+/// How Embree builds a scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct SceneSettings {
+    /// `RTC_SCENE_FLAG_ROBUST`: the watertight triangle test (no ray slips through a shared
+    /// edge) and no traversal shortcuts that lose accuracy.
+    pub robust: bool,
+    pub quality: BuildQuality,
+}
+
+impl Default for SceneSettings {
+    fn default() -> Self {
+        SceneSettings { robust: true, quality: BuildQuality::High }
     }
 }
 

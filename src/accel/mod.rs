@@ -89,10 +89,19 @@ pub fn build_embree(
     scene: &crate::scene::Scene,
     threads: Option<usize>,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
+    build_embree_with(scene, threads, embree::SceneSettings::default())
+}
+
+/// [`build_embree`] with these scene flags and build quality.
+pub fn build_embree_with(
+    scene: &crate::scene::Scene,
+    threads: Option<usize>,
+    settings: embree::SceneSettings,
+) -> Result<embree::CommittedScene, embree::EmbreeError> {
     use crate::scene::Geometry;
     let config = threads.map(|n| format!("threads={n}")).unwrap_or_default();
     let device = embree::Device::with_config(&config)?;
-    let mut builder = device.scene()?;
+    let mut builder = device.scene_with(settings)?;
     for (id, shape) in scene.shapes.iter().enumerate() {
         match &shape.geometry {
             Geometry::Sphere { center, radius } => {

@@ -1,6 +1,7 @@
 //! Benchmarks behind the command line: `bench-accel` measures both backends on identical ray
 //! sets, side by side in one run, so their ratio means something on a noisy machine.
 
+pub mod features;
 pub mod rays;
 
 use std::time::Instant;
@@ -203,4 +204,112 @@ impl BenchAccelReport {
         }
         out
     }
+}
+
+/// One Embree setting measured by [`bench_embree_settings`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SettingsRow {
+    pub settings: accel::embree::SceneSettings,
+    /// The best of three builds.
+    pub build_seconds: f64,
+    /// Millions of rays per second for primary, shadow and incoherent rays (median of rounds).
+    pub mrays_per_second: [f64; 3],
+    /// For each ray set, the median over rounds of this setting's rate over the default's
+    /// (robust, high), measured back to back.
+    pub speed_vs_default: [f64; 3],
+    /// Rays of all three sets whose answer (hit or miss, and which primitive) differs from the
+    /// default's.
+    pub answers_changed: usize,
+}
+
+/// Measures every Embree scene setting (robust or not, each build quality) on the same ray
+/// sets, each round measuring the default and then the others back to back on all threads.
+pub fn bench_embree_settings(
+    scene: &Scene,
+    options: &BenchAccelOptions,
+    progress: &dyn Fn(usize, usize),
+) -> Result<Vec<SettingsRow>, accel::AccelError> {
+    use accel::embree::{BuildQuality, SceneSettings};
+    let mut all = vec![SceneSettings::default()];
+    for robust in [true, false] {
+        for quality in BuildQuality::ALL {
+            let s = SceneSettings { robust, quality };
+            if s != SceneSettings::default() {
+                all.push(s);
+            }
+        }
+    }
+    let mut built = Vec::new();
+    for &settings in &all {
+        let (e, seconds) = best_of(3, || {
+            let start = Instant::now();
+            let e = accel::build_embree_with(scene, None, settings);
+            (e, start.elapsed().as_secs_f64())
+        });
+        built.push((e?, seconds));
+    }
+    let sets = RaySets::generate(scene, &built[0].0, options.rays, options.seed);
+    let answers = |a: &accel::embree::CommittedScene| -> Vec<Option<(u32, u32)>> {
+        RayKind::ALL
+            .iter()
+            .flat_map(|&kind| {
+                sets.get(kind).iter().map(move |r| match kind {
+                    RayKind::Shadow => a.occluded(r).then_some((0, 0)),
+                    _ => a.intersect(r).map(|h| (h.shape, h.prim)),
+                })
+            })
+            .collect()
+    };
+    let reference = answers(&built[0].0);
+    let pool = accel::thread_pool(options.threads)?;
+    let total = options.rounds.max(1) * RayKind::ALL.len();
+    let mut rates = vec![[const { Vec::new() }; 3]; all.len()];
+    let mut ratios = vec![[const { Vec::new() }; 3]; all.len()];
+    let mut done = 0;
+    for _ in 0..options.rounds.max(1) {
+        for (k, &kind) in RayKind::ALL.iter().enumerate() {
+            let rays = sets.get(kind);
+            let measured: Vec<f64> = pool
+                .install(|| built.iter().map(|(e, _)| rate(e, rays, kind, options.min_seconds)).collect());
+            for (i, r) in measured.iter().enumerate() {
+                rates[i][k].push(*r);
+                ratios[i][k].push(r / measured[0].max(1e-12));
+            }
+            done += 1;
+            progress(done, total);
+        }
+    }
+    Ok(all
+        .iter()
+        .zip(&built)
+        .enumerate()
+        .map(|(i, (&settings, (e, build_seconds)))| SettingsRow {
+            settings,
+            build_seconds: *build_seconds,
+            mrays_per_second: std::array::from_fn(|k| median(rates[i][k].clone())),
+            speed_vs_default: std::array::from_fn(|k| median(ratios[i][k].clone())),
+            answers_changed: answers(e).iter().zip(&reference).filter(|(a, b)| a != b).count(),
+        })
+        .collect())
+}
+
+/// The settings rows as a plain-text table.
+pub fn settings_table(rows: &[SettingsRow]) -> String {
+    let mut out = String::from(
+        "robust  quality   build s   primary Mrays/s   shadow Mrays/s   incoherent Mrays/s   answers changed\n",
+    );
+    for r in rows {
+        let cell = |k: usize| format!("{:.2} ({:.2}x)", r.mrays_per_second[k], r.speed_vs_default[k]);
+        out += &format!(
+            "{:<7} {:<8} {:>8.4}   {:>15}   {:>14}   {:>18}   {:>15}\n",
+            if r.settings.robust { "yes" } else { "no" },
+            r.settings.quality.name(),
+            r.build_seconds,
+            cell(0),
+            cell(1),
+            cell(2),
+            r.answers_changed
+        );
+    }
+    out
 }

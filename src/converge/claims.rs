@@ -12,13 +12,14 @@ fn find<'a>(table: &'a Table, filter: &str, target: Target, edge: Edge) -> Optio
         !s.points.is_empty()
             && s.choice.filter == filter
             && s.choice.kernel.is_some() == (filter != "none")
+            && s.choice.adaptive.is_none()
             && s.choice.target == target
             && s.choice.edge_aware == edge
     })
 }
 
 fn unfiltered(table: &Table) -> Option<&Series> {
-    table.series.iter().find(|s| s.choice.kernel.is_none())
+    table.series.iter().find(|s| s.choice.is_base())
 }
 
 /// RMSE of `s` over the unfiltered RMSE at each spp both have.

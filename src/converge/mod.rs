@@ -67,16 +67,39 @@ pub struct Choice {
     pub kernel: Option<Kernel>,
     pub target: Target,
     pub edge_aware: Edge,
+    /// An unfiltered render with adaptive sampling at this threshold (its spp is the most a
+    /// pixel takes), instead of uniform sampling.
+    pub adaptive: Option<f32>,
 }
 
 impl Choice {
     /// The unfiltered render.
     pub fn none() -> Self {
-        Choice { filter: "none".into(), kernel: None, target: Target::None, edge_aware: Edge::Off }
+        Choice {
+            filter: "none".into(),
+            kernel: None,
+            target: Target::None,
+            edge_aware: Edge::Off,
+            adaptive: None,
+        }
+    }
+
+    /// The unfiltered render with adaptive sampling; `results.csv` names it `adaptive:T`.
+    pub fn adaptive(threshold: f32) -> Self {
+        Choice { filter: format!("adaptive:{threshold}"), adaptive: Some(threshold), ..Choice::none() }
+    }
+
+    /// Whether this is the uniform unfiltered render, the base every other setting is read
+    /// against.
+    pub fn is_base(&self) -> bool {
+        self.kernel.is_none() && self.adaptive.is_none()
     }
 
     /// A short label: `weighted3 indirect edge-aware`.
     pub fn label(&self) -> String {
+        if let Some(t) = self.adaptive {
+            return format!("adaptive {t}");
+        }
         match self.kernel {
             None => "unfiltered".into(),
             Some(_) => {
@@ -107,7 +130,13 @@ pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<
                 );
             }
             for &edge_aware in edge {
-                out.push(Choice { filter: kernel.name(), kernel: Some(kernel.clone()), target, edge_aware });
+                out.push(Choice {
+                    filter: kernel.name(),
+                    kernel: Some(kernel.clone()),
+                    target,
+                    edge_aware,
+                    adaptive: None,
+                });
             }
         }
     }
@@ -132,6 +161,8 @@ pub struct Plan {
     pub reference_spp: u32,
     /// The sample count whose difference images (Figure 6) are written.
     pub diff_spp: Option<u32>,
+    /// Also render with adaptive sampling at this threshold, up to each spp.
+    pub adaptive: Option<f32>,
     pub out: PathBuf,
 }
 
@@ -238,7 +269,8 @@ impl Plan {
             (None, Ok(text)) if !self.reference_cache(&text).exists() => self.reference_spp as u64,
             _ => 0,
         };
-        pixels * (self.spps.iter().map(|&s| s as u64).sum::<u64>() * self.seeds as u64 + reference)
+        let renders = 1 + self.adaptive.is_some() as u64;
+        pixels * (self.spps.iter().map(|&s| s as u64).sum::<u64>() * self.seeds as u64 * renders + reference)
     }
 
     fn scene_name(&self) -> String {
@@ -315,8 +347,8 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
     let mut options = plan.options.clone();
     options.spp = plan.reference_spp;
     options.seed = plan.options.seed.wrapping_add(0x5eed_0000_0000);
-    let spp = options.spp as u64;
-    let out = render::render(scene, &options, &|n| report(Event::Samples(n * spp)))
+    options.adaptive = None;
+    let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     let image = out.film.raw.clone();
     film::write_film(&out.film, &image, None, &cache, 0.0)
@@ -355,10 +387,16 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
         write_line(&mut csv, "")?;
     }
     let pixels = plan.options.width as u64 * plan.options.height as u64;
+    // The uniform render, filtered every way; then the adaptive one, unfiltered.
+    let adaptive = plan.adaptive.map(Choice::adaptive);
+    let renders: Vec<Vec<&Choice>> = [plan.choices.iter().collect(), adaptive.iter().collect()]
+        .into_iter()
+        .filter(|c: &Vec<&Choice>| !c.is_empty())
+        .collect();
     for &spp in &plan.spps {
-        for k in 0..plan.seeds {
+        for (k, choices) in (0..plan.seeds).flat_map(|k| renders.iter().map(move |c| (k, c))) {
             let todo: Vec<&Choice> =
-                plan.choices.iter().filter(|c| !done.contains(&(spp, k, c.key()))).collect();
+                choices.iter().copied().filter(|c| !done.contains(&(spp, k, c.key()))).collect();
             if todo.is_empty() {
                 report(Event::Samples(pixels * spp as u64));
                 continue;
@@ -366,7 +404,8 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
             let mut options = plan.options.clone();
             options.spp = spp;
             options.seed = plan.seed(k);
-            let out = render::render(scene, &options, &|n| report(Event::Samples(n * spp as u64)))
+            options.adaptive = choices[0].adaptive;
+            let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
                 .map_err(|e| ConvergeError::Failed(e.to_string()))?;
             let borders = metrics::object_borders(&out.film.object, out.film.width, out.film.height);
             // Every difference image of this render at the unfiltered one's scale, so they compare.
@@ -416,7 +455,9 @@ fn stops(c: &Choice) -> EdgeStops {
 
 /// Writes `summary.md` and the two plots for `rows`.
 pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
-    let table = summary::Table::new(rows, &plan.choices, &plan.spps);
+    let mut choices = plan.choices.clone();
+    choices.extend(plan.adaptive.map(Choice::adaptive));
+    let table = summary::Table::new(rows, &choices, &plan.spps);
     let mut md = String::new();
     let _ = writeln!(md, "# converge: {}\n", plan.scene_name());
     let _ = writeln!(

@@ -119,12 +119,12 @@ impl Table {
             })
             .collect();
         // The unfiltered curves: RMSE and render seconds against spp.
-        let base = series.iter().find(|s| s.choice.kernel.is_none()).cloned();
+        let base = series.iter().find(|s| s.choice.is_base()).cloned();
         if let Some(base) = base {
             let err: Vec<(f64, f64)> = base.points.iter().map(|p| (p.spp as f64, p.rmse.mean)).collect();
             let time: Vec<(f64, f64)> =
                 base.points.iter().map(|p| (p.spp as f64, p.render_seconds.mean)).collect();
-            for s in series.iter_mut().filter(|s| s.choice.kernel.is_some()) {
+            for s in series.iter_mut().filter(|s| !s.choice.is_base()) {
                 for p in &mut s.points {
                     p.equal_spp = inverse_loglog(&err, p.rmse.mean);
                     p.equal_seconds = p.equal_spp.and_then(|n| loglog(&time, n));

@@ -26,6 +26,11 @@ impl Image {
         Image { width, height, pixels: bytemuck::allocation::cast_vec(floats) }
     }
 
+    /// An image of no pixels: a buffer a render did not need.
+    pub fn empty() -> Self {
+        Image { width: 0, height: 0, pixels: Vec::new() }
+    }
+
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
         self.pixels[y as usize * self.width as usize + x as usize]
     }
@@ -73,19 +78,46 @@ pub struct Film {
 }
 
 impl Film {
+    /// A film with every buffer.
     pub fn new(width: u32, height: u32) -> Film {
+        Film::with_buffers(width, height, true, true)
+    }
+
+    /// A film with the component split and the guide buffers only when asked for; a buffer
+    /// left out is empty (no pixels), and the EXR writer leaves its layers out.
+    pub fn with_buffers(width: u32, height: u32, split: bool, guides: bool) -> Film {
         let n = width as usize * height as usize;
+        let image = |on: bool| if on { Image::new(width, height) } else { Image::empty() };
+        let floats = |on: bool, value: f32| if on { vec![value; n] } else { Vec::new() };
         Film {
             width,
             height,
             raw: Image::new(width, height),
-            components: std::array::from_fn(|_| Image::new(width, height)),
-            albedo: Image::new(width, height),
-            normal: Image::new(width, height),
-            depth: vec![0.0; n],
-            object: vec![-1.0; n],
-            coverage: vec![1.0; n],
+            components: std::array::from_fn(|_| image(split)),
+            albedo: image(guides),
+            normal: image(guides),
+            depth: floats(guides, 0.0),
+            object: floats(guides, -1.0),
+            coverage: floats(guides, 1.0),
         }
+    }
+
+    /// Whether the film holds the component split.
+    pub fn has_split(&self) -> bool {
+        !self.components[0].pixels.is_empty()
+    }
+
+    /// Whether the film holds the guide buffers.
+    pub fn has_guides(&self) -> bool {
+        !self.object.is_empty()
+    }
+
+    /// Bytes of its pixel buffers.
+    pub fn bytes(&self) -> u64 {
+        let images = [&self.raw, &self.albedo, &self.normal].into_iter().chain(&self.components);
+        let rgb: usize = images.map(|i| i.pixels.capacity() * size_of::<Vec3>()).sum();
+        let scalars = self.depth.capacity() + self.object.capacity() + self.coverage.capacity();
+        (rgb + scalars * size_of::<f32>()) as u64
     }
 
     /// `indirect` (L_r,d,d) of this film.
@@ -222,10 +254,14 @@ pub type Channels = Vec<(String, Vec<f32>)>;
 
 /// The channels of a film for a multi-layer EXR: the final image as `R`, `G`, `B`, then
 /// `raw`, the four components, `indirect_filtered` (when given), `albedo`, `normal` (X, Y, Z),
-/// `depth` (Z) and `objectid` (ID).
+/// `depth` (Z) and `objectid` (ID); the split and the guides only when the film holds them.
 pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option<&Image>) -> Channels {
     let mut out: Channels = Vec::new();
+    // A buffer the render did not fill (empty) has no layer.
     let mut rgb = |prefix: &str, img: &Image, names: [&str; 3]| {
+        if img.pixels.is_empty() {
+            return;
+        }
         for (c, name) in names.iter().enumerate() {
             let full = if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
             out.push((full, img.pixels.iter().map(|p| p[c]).collect()));
@@ -241,9 +277,11 @@ pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option
     }
     rgb("albedo", &film.albedo, ["R", "G", "B"]);
     rgb("normal", &film.normal, ["X", "Y", "Z"]);
-    out.push(("depth.Z".into(), film.depth.clone()));
-    out.push(("objectid.ID".into(), film.object.clone()));
-    out.push(("objectid.coverage".into(), film.coverage.clone()));
+    if film.has_guides() {
+        out.push(("depth.Z".into(), film.depth.clone()));
+        out.push(("objectid.ID".into(), film.object.clone()));
+        out.push(("objectid.coverage".into(), film.coverage.clone()));
+    }
     out
 }
 

@@ -1,13 +1,15 @@
 //! The path integrator: next-event estimation with multiple importance sampling (power
 //! heuristic) for area lights, the sun and the sky, Russian roulette, and a depth limit. Generic
 //! over the accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch
-//! per ray.
+//! per ray, and over the [`Features`] a render needs (a const bit set), so a feature the scene
+//! and its outputs cannot use is compiled out of that render's copy, not skipped by a branch.
 
 use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3;
 
 use super::bsdf::{Glossy, Lobe};
+use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::surface;
@@ -15,8 +17,9 @@ use crate::accel::{Accel, Ray};
 use crate::math::{cosine_hemisphere, Frame};
 use crate::scene::{Material, Scene};
 
-/// What the integrator reads for every path: the scene, its accelerator and its lights.
-pub struct Integrator<'a, A: Accel> {
+/// What the integrator reads for every path: the scene, its accelerator and its lights. `F` is
+/// the [`super::features::Features`] bit set this copy computes; the default is all of them.
+pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     pub scene: &'a Scene,
     pub accel: &'a A,
     pub lights: &'a Lights,
@@ -48,9 +51,12 @@ pub struct PathSample {
 }
 
 impl PathSample {
-    /// Sets the guide buffers to the vertex the pixel shows.
+    /// Sets the guide buffers to the vertex the pixel shows (nothing when `F` has no guides).
     #[inline(always)]
-    fn guide(&mut self, object: u32, normal: Vec3, depth: f32, albedo: Vec3) {
+    fn guide<const F: u8>(&mut self, object: u32, normal: Vec3, depth: f32, albedo: Vec3) {
+        if F & GUIDES == 0 {
+            return;
+        }
         self.object = Some(object);
         self.normal = normal;
         self.depth = depth;
@@ -153,7 +159,7 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
     }
 }
 
-impl<A: Accel> Integrator<'_, A> {
+impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     /// Bookkeeping of an S vertex: before any D vertex the guide buffers follow the specular
     /// chain (the last vertex of an all-specular path is what a pixel shows); after the first D
     /// vertex an S bounce makes light arriving next a caustic. Returns false when the new
@@ -172,7 +178,7 @@ impl<A: Accel> Integrator<'_, A> {
         side: Vec3,
     ) -> bool {
         if class.diffuse == 0 {
-            out.guide(object, normal, travelled, color);
+            out.guide::<F>(object, normal, travelled, color);
         }
         *class = class.through_specular();
         wi.is_finite() && side.is_finite()
@@ -242,7 +248,9 @@ impl<A: Accel> Integrator<'_, A> {
         // Adds a contribution to the beauty and to its component.
         let add = |out: &mut PathSample, c: Vec3, component: usize| {
             out.beauty += c;
-            out.components[component] += c;
+            if F & SPLIT != 0 {
+                out.components[component] += c;
+            }
         };
         let mut beta = Vec3::ONE;
         // The camera counts as a specular vertex: emission seen directly takes no MIS weight.
@@ -254,6 +262,9 @@ impl<A: Accel> Integrator<'_, A> {
             *rays += 1;
             let Some(hit) = self.accel.intersect(&ray) else {
                 record.escaped(depth, ray.dir, beta);
+                if F & MIS == 0 {
+                    break; // no sun or sky to see
+                }
                 for &i in &lights.distant {
                     let (le, light_pdf) = lights.distant(i, ray.dir, specular);
                     if le != Vec3::ZERO {
@@ -270,8 +281,8 @@ impl<A: Accel> Integrator<'_, A> {
             let wo = -ray.dir;
             travelled += hit.t * ray.dir.length();
 
-            // Emission, on the front side only.
-            if shape.is_emissive() && s.ng.dot(wo) > 0.0 {
+            // Emission, on the front side only (a scene without MIS has no hittable light).
+            if F & MIS != 0 && shape.is_emissive() && s.ng.dot(wo) > 0.0 {
                 let w = match (specular, lights.of_shape(hit.shape)) {
                     (false, Some(light)) => {
                         power_heuristic(bsdf_pdf, lights.pdf_shape(light, prev_p, s.p, s.ng))
@@ -288,7 +299,7 @@ impl<A: Accel> Integrator<'_, A> {
             // Both normals on the side the ray came from (surfaces are two-sided).
             let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
             let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-            let maps = scene.maps(shape.material);
+            let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
             if let Some((t, height)) = maps.bump {
                 ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
             }
@@ -299,20 +310,30 @@ impl<A: Accel> Integrator<'_, A> {
             };
             // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
             let origin = s.origin(ng);
+            // Without a light a path can hit, the ray after the last vertex could only find one:
+            // not traced.
+            let last = F & MIS == 0 && depth + 1 >= self.max_depth;
             let wi = match scene.materials[shape.material as usize] {
                 Material::Diffuse { albedo } => {
                     let albedo = textured(albedo);
                     // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
                     class = class.through_diffuse();
                     if class.diffuse == 1 {
-                        out.guide(shape.object, ns, travelled, albedo);
+                        out.guide::<F>(shape.object, ns, travelled, albedo);
                     }
                     let f = albedo * FRAC_1_PI;
                     self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
-                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, cos * FRAC_1_PI) };
+                        let w = if F & MIS == 0 || ls.delta {
+                            1.0
+                        } else {
+                            power_heuristic(ls.pdf, cos * FRAC_1_PI)
+                        };
                         let component = class.component(lights.diffuse_source[ls.light as usize]);
                         add(&mut out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
                     });
+                    if last {
+                        break;
+                    }
 
                     // Continue the path by sampling the BSDF.
                     let local = cosine_hemisphere(sampler.next_2d());
@@ -345,12 +366,16 @@ impl<A: Accel> Integrator<'_, A> {
                         ];
                         for (f, pdf, lobe_class) in lobes {
                             if f != Vec3::ZERO {
-                                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+                                let w =
+                                    if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
                                 let c = beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
                                 add(&mut out, c, lobe_class.component(source));
                             }
                         }
                     });
+                    if last {
+                        break;
+                    }
 
                     let (wi_l, lobe) = g.sample(wo_l, sampler.next_1d(), sampler.next_2d());
                     let wi = frame.to_world(wi_l);
@@ -375,7 +400,7 @@ impl<A: Accel> Integrator<'_, A> {
                         Lobe::Base => {
                             class = base_class;
                             if class.diffuse == 1 {
-                                out.guide(shape.object, ns, travelled, g.base);
+                                out.guide::<F>(shape.object, ns, travelled, g.base);
                             }
                             bsdf_pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
                             beta *= g.eval_base(wo_l, wi_l) * (wi_l.z / bsdf_pdf);
@@ -389,6 +414,7 @@ impl<A: Accel> Integrator<'_, A> {
                 Material::Mirror { color } => {
                     let wi = reflect(wo, ns);
                     if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, ng)
+                        || last
                     {
                         break;
                     }
@@ -400,6 +426,20 @@ impl<A: Accel> Integrator<'_, A> {
                 Material::Glass { ior, color } => {
                     // Entering when the ray meets the outside (the side the geometric normal
                     // points to); eta is the ratio of the indices across the boundary.
+                    if last {
+                        // The guides still show this vertex, as they do when the ray is traced.
+                        let _ = self.specular_bounce(
+                            &mut out,
+                            &mut class,
+                            shape.object,
+                            ns,
+                            travelled,
+                            color,
+                            wo,
+                            ng,
+                        );
+                        break;
+                    }
                     let entering = s.ng.dot(wo) > 0.0;
                     let eta = if entering { ior } else { 1.0 / ior };
                     let cos_i = ns.dot(wo).clamp(0.0, 1.0);

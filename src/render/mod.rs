@@ -3,6 +3,7 @@
 
 pub mod bsdf;
 pub mod camera;
+pub mod features;
 pub mod integrator;
 pub mod lights;
 pub mod sampler;
@@ -14,10 +15,13 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::accel::embree::SceneSettings;
 use crate::accel::{self, Accel, Backend};
 use crate::film::Film;
+use crate::scene::analysis::Analysis;
 use crate::scene::Scene;
 use camera::PinholeCamera;
+pub use features::{Features, Outputs};
 use integrator::Integrator;
 use lights::Lights;
 use sampler::Sampler;
@@ -41,11 +45,20 @@ pub struct RenderOptions {
     pub accel: Backend,
     /// Print each dropped non-finite sample (the first few): pixel, sample index, path.
     pub debug_nonfinite: bool,
+    /// What the integrator computes: by default what the scene needs for every layer.
+    pub features: Features,
+    /// How Embree builds the scene: by default what the scene needs.
+    pub embree: SceneSettings,
+    /// Adaptive sampling: stop a pixel once the relative standard error of its mean falls to
+    /// this (checked after 16, 32, 64, ... samples; `spp` is the most a pixel takes).
+    pub adaptive: Option<f32>,
 }
 
 impl RenderOptions {
-    /// The scene file's settings.
+    /// The scene file's settings, and the features its analysis says a render with every
+    /// layer needs.
     pub fn from_scene(scene: &Scene) -> Self {
+        let analysis = Analysis::of(scene);
         RenderOptions {
             width: scene.film.width,
             height: scene.film.height,
@@ -55,6 +68,9 @@ impl RenderOptions {
             threads: None,
             accel: Backend::Embree,
             debug_nonfinite: false,
+            features: Features::needed(&analysis, Outputs::ALL),
+            embree: Features::embree_settings(&analysis),
+            adaptive: None,
         }
     }
 }
@@ -72,6 +88,10 @@ pub struct RenderStats {
     pub rays: u64,
     /// Samples dropped because their value was NaN or infinite.
     pub nonfinite_samples: u64,
+    /// Bytes of the per-pixel buffers the render filled: the film and the tiles' pixels.
+    pub buffer_bytes: u64,
+    /// Pixels adaptive sampling stopped before the spp.
+    pub stopped_early: u64,
 }
 
 /// A finished render.
@@ -89,8 +109,8 @@ pub enum RenderError {
     Size(u32, u32),
 }
 
-/// Renders `scene` with `options`; `progress` is called with the number of pixels of each
-/// finished tile, from worker threads.
+/// Renders `scene` with `options`; `progress` is called with the number of samples each tile
+/// pass has done (a converged pixel's skipped samples count as done), from worker threads.
 pub fn render(
     scene: &Scene,
     options: &RenderOptions,
@@ -108,7 +128,8 @@ pub fn render(
         };
         Ok(match options.accel {
             Backend::Embree => {
-                built(render_with(scene, &accel::build_embree(scene, options.threads)?, options, progress))
+                let accel = accel::build_embree_with(scene, options.threads, options.embree)?;
+                built(render_with(scene, &accel, options, progress))
             }
             Backend::Bvh => built(render_with(scene, &accel::bvh::Bvh::new(scene)?, options, progress)),
         })
@@ -119,120 +140,244 @@ pub fn render(
     })
 }
 
-/// One pixel's means over its samples (the object ID is sample 0's, never averaged).
+/// One pixel's guide values: means over its samples, and the object of sample 0 (never
+/// averaged) with how many samples saw it.
 #[derive(Clone, Copy, Default)]
-struct Pixel {
-    beauty: Vec3,
-    components: [Vec3; 4],
+struct Guides {
     albedo: Vec3,
     normal: Vec3,
     depth: f32,
     object: Option<u32>,
-    /// Samples that saw the same object as sample 0.
     same: u32,
 }
 
-/// One tile's pixels and counts.
+/// One tile's sums and counts; the split, the guides and the moments are empty when not
+/// computed.
 struct Tile {
     x0: u32,
     y0: u32,
     w: u32,
-    pixels: Vec<Pixel>,
+    h: u32,
+    /// Samples taken per pixel.
+    n: Vec<u32>,
+    beauty: Vec<Vec3>,
+    components: Vec<[Vec3; 4]>,
+    guides: Vec<Guides>,
+    /// Adaptive sampling: the sums of each pixel's sample luminances and of their squares, and
+    /// whether the pixel has converged.
+    moments: Vec<[f64; 2]>,
+    converged: Vec<bool>,
     rays: u64,
     nonfinite: u64,
 }
 
-/// Renders with a given accelerator, on the current rayon pool. The image depends only on the
-/// scene, the options and the seed: never on the thread count or the order of tiles.
+impl Tile {
+    fn new(x0: u32, y0: u32, w: u32, h: u32, split: bool, guides: bool, adaptive: bool) -> Tile {
+        let n = (w * h) as usize;
+        let some = |on: bool| if on { n } else { 0 };
+        Tile {
+            x0,
+            y0,
+            w,
+            h,
+            n: vec![0; n],
+            beauty: vec![Vec3::ZERO; n],
+            components: vec![[Vec3::ZERO; 4]; some(split)],
+            guides: vec![Guides::default(); some(guides)],
+            moments: vec![[0.0; 2]; some(adaptive)],
+            converged: vec![false; some(adaptive)],
+            rays: 0,
+            nonfinite: 0,
+        }
+    }
+
+    fn bytes(&self) -> u64 {
+        (self.n.capacity() * size_of::<u32>()
+            + self.beauty.capacity() * size_of::<Vec3>()
+            + self.components.capacity() * size_of::<[Vec3; 4]>()
+            + self.guides.capacity() * size_of::<Guides>()
+            + self.moments.capacity() * size_of::<[f64; 2]>()
+            + self.converged.capacity()) as u64
+    }
+
+    fn done(&self) -> bool {
+        !self.converged.is_empty() && self.converged.iter().all(|&c| c)
+    }
+}
+
+/// The first pass of an adaptive render takes this many samples a pixel; each later pass
+/// doubles the count, up to the render's spp.
+pub const ADAPTIVE_FIRST_PASS: u32 = 16;
+
+/// The sample counts at which passes end: the spp alone, or for adaptive sampling 16, 32, 64
+/// and so on up to the spp.
+fn pass_ends(spp: u32, adaptive: bool) -> Vec<u32> {
+    if !adaptive {
+        return vec![spp];
+    }
+    let mut ends = vec![ADAPTIVE_FIRST_PASS.min(spp)];
+    while let Some(&last) = ends.last().filter(|&&l| l < spp) {
+        ends.push((last.saturating_mul(2)).min(spp));
+    }
+    ends
+}
+
+/// The relative standard error of a pixel's mean from its `n` sample luminances' sum and sum of
+/// squares; 0 for a pixel that was black in every sample.
+pub fn relative_error(n: u32, sum: f64, sum_sq: f64) -> f64 {
+    if n < 2 {
+        return f64::INFINITY;
+    }
+    let n = n as f64;
+    let mean = sum / n;
+    let var = ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0);
+    if mean <= 0.0 {
+        return if var == 0.0 { 0.0 } else { f64::INFINITY };
+    }
+    (var / n).sqrt() / mean
+}
+
+/// Renders with a given accelerator, on the current rayon pool, with the integrator
+/// specialised to `options.features`. The image depends only on the scene, the options and the
+/// seed: never on the thread count or the order of tiles; the beauty not on the features.
 pub fn render_with<A: Accel>(
     scene: &Scene,
     accel: &A,
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> RenderOutput {
+    macro_rules! specialised {
+        ($($bits:literal)*) => {
+            match options.features.bits() {
+                $($bits => render_features::<A, $bits>(scene, accel, options, progress),)*
+                _ => render_features::<A, { features::ALL }>(scene, accel, options, progress),
+            }
+        };
+    }
+    specialised!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15)
+}
+
+/// [`render_with`] for one feature set `F`.
+fn render_features<A: Accel, const F: u8>(
+    scene: &Scene,
+    accel: &A,
+    options: &RenderOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> RenderOutput {
+    let (split, guides) = (F & features::SPLIT != 0, F & features::GUIDES != 0);
     let start = Instant::now();
     let (width, height) = (options.width, options.height);
     let camera = PinholeCamera::new(&scene.camera, width, height);
     let lights = Lights::new(scene);
-    let integrator = Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
+    let integrator: Integrator<'_, A, F> =
+        Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
     let spp = options.spp.max(1);
     let reported = AtomicU32::new(0);
 
-    let tiles: Vec<(u32, u32)> = (0..height.div_ceil(TILE))
+    let adaptive = options.adaptive;
+    let mut tiles: Vec<Tile> = (0..height.div_ceil(TILE))
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
-        .collect();
-    let done: Vec<Tile> = tiles
-        .par_iter()
-        .map(|&(x0, y0)| {
+        .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            let mut tile =
-                Tile { x0, y0, w, pixels: Vec::with_capacity((w * h) as usize), rays: 0, nonfinite: 0 };
-            for y in y0..y0 + h {
-                for x in x0..x0 + w {
-                    let pixel = y as u64 * width as u64 + x as u64;
-                    let mut sum = Pixel::default();
-                    for i in 0..spp {
-                        let mut sampler = Sampler::new(options.seed, pixel, i as u64);
-                        let ray = camera.ray(x, y, sampler.next_2d());
-                        let s = integrator.sample(ray, &mut sampler, &mut tile.rays);
-                        if i == 0 {
-                            sum.object = s.object;
-                        }
-                        sum.same += (s.object == sum.object) as u32;
-                        if !s.beauty.is_finite() || s.components.iter().any(|c| !c.is_finite()) {
-                            tile.nonfinite += 1;
-                            if options.debug_nonfinite && reported.fetch_add(1, Ordering::Relaxed) < MAX_REPORTS {
-                                // The sampler is a pure function of (seed, pixel, sample): the
-                                // same path again, recorded.
-                                let mut sampler = Sampler::new(options.seed, pixel, i as u64);
-                                let ray = camera.ray(x, y, sampler.next_2d());
-                                let mut path = Vec::new();
-                                let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
-                                eprintln!(
-                                    "non-finite sample dropped at pixel ({x}, {y}), sample {i}: radiance {}\n{}",
-                                    again.beauty,
-                                    path.join("\n")
-                                );
-                            }
-                            continue; // dropped: counts as a zero sample
-                        }
-                        sum.beauty += s.beauty;
-                        for (a, c) in sum.components.iter_mut().zip(s.components) {
-                            *a += c;
-                        }
-                        sum.albedo += s.albedo;
-                        sum.normal += s.normal;
-                        sum.depth += s.depth;
-                    }
-                    let inv = 1.0 / spp as f32;
-                    sum.beauty *= inv;
-                    sum.components = sum.components.map(|c| c * inv);
-                    sum.albedo *= inv;
-                    sum.normal = sum.normal.normalize_or_zero();
-                    sum.depth *= inv;
-                    tile.pixels.push(sum);
-                }
-            }
-            progress((w * h) as u64);
-            tile
+            Tile::new(x0, y0, w, h, split, guides, adaptive.is_some())
         })
         .collect();
 
-    let mut film = Film::new(width, height);
-    let mut stats = RenderStats { samples: width as u64 * height as u64 * spp as u64, ..Default::default() };
-    for tile in done {
-        for (i, p) in tile.pixels.iter().enumerate() {
-            let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
-            film.raw.set(x, y, p.beauty);
-            for (layer, c) in film.components.iter_mut().zip(p.components) {
-                layer.set(x, y, c);
+    // Samples [from, to) of every pixel not yet converged, tile by tile; the pixel's sample i
+    // always draws from the same stream, so passes change no sample.
+    let mut from = 0;
+    for to in pass_ends(spp, adaptive.is_some()) {
+        tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
+            let mut taken = 0u64;
+            for i in 0..(tile.w * tile.h) as usize {
+                if tile.converged.get(i) == Some(&true) {
+                    continue;
+                }
+                let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
+                let pixel = y as u64 * width as u64 + x as u64;
+                for k in from..to {
+                    let mut sampler = Sampler::new(options.seed, pixel, k as u64);
+                    let ray = camera.ray(x, y, sampler.next_2d());
+                    let s = integrator.sample(ray, &mut sampler, &mut tile.rays);
+                    if let Some(g) = tile.guides.get_mut(i) {
+                        if k == 0 {
+                            g.object = s.object;
+                        }
+                        g.same += (s.object == g.object) as u32;
+                    }
+                    if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
+                        tile.nonfinite += 1;
+                        if options.debug_nonfinite && reported.fetch_add(1, Ordering::Relaxed) < MAX_REPORTS {
+                            // The sampler is a pure function of (seed, pixel, sample): the same
+                            // path again, recorded.
+                            let mut sampler = Sampler::new(options.seed, pixel, k as u64);
+                            let ray = camera.ray(x, y, sampler.next_2d());
+                            let mut path = Vec::new();
+                            let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
+                            eprintln!(
+                                "non-finite sample dropped at pixel ({x}, {y}), sample {k}: radiance {}\n{}",
+                                again.beauty,
+                                path.join("\n")
+                            );
+                        }
+                        continue; // dropped: counts as a zero sample
+                    }
+                    tile.beauty[i] += s.beauty;
+                    if let Some(m) = tile.moments.get_mut(i) {
+                        let l = crate::math::luminance(s.beauty) as f64;
+                        m[0] += l;
+                        m[1] += l * l;
+                    }
+                    if let Some(c) = tile.components.get_mut(i) {
+                        for (a, c) in c.iter_mut().zip(s.components) {
+                            *a += c;
+                        }
+                    }
+                    if let Some(g) = tile.guides.get_mut(i) {
+                        g.albedo += s.albedo;
+                        g.normal += s.normal;
+                        g.depth += s.depth;
+                    }
+                }
+                tile.n[i] = to;
+                taken += (to - from) as u64;
+                if let (Some(threshold), Some(m)) = (adaptive, tile.moments.get(i)) {
+                    if to == spp || relative_error(to, m[0], m[1]) <= threshold as f64 {
+                        tile.converged[i] = true;
+                        taken += (spp - to) as u64; // never taken: done, for the progress bar
+                    }
+                }
             }
-            film.albedo.set(x, y, p.albedo);
-            film.normal.set(x, y, p.normal);
-            let at = (y * width + x) as usize;
-            film.depth[at] = p.depth;
-            film.object[at] = p.object.map_or(-1.0, |o| o as f32);
-            film.coverage[at] = p.same as f32 / spp as f32;
+            progress(taken);
+        });
+        from = to;
+    }
+
+    let mut film = Film::with_buffers(width, height, split, guides);
+    let mut stats = RenderStats {
+        buffer_bytes: film.bytes() + tiles.iter().map(Tile::bytes).sum::<u64>(),
+        ..Default::default()
+    };
+    for tile in &tiles {
+        for (i, &n) in tile.n.iter().enumerate() {
+            let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
+            let inv = 1.0 / n as f32;
+            film.raw.set(x, y, tile.beauty[i] * inv);
+            if let Some(c) = tile.components.get(i) {
+                for (layer, &c) in film.components.iter_mut().zip(c) {
+                    layer.set(x, y, c * inv);
+                }
+            }
+            if let Some(g) = tile.guides.get(i) {
+                film.albedo.set(x, y, g.albedo * inv);
+                film.normal.set(x, y, g.normal.normalize_or_zero());
+                let at = (y * width + x) as usize;
+                film.depth[at] = g.depth * inv;
+                film.object[at] = g.object.map_or(-1.0, |o| o as f32);
+                film.coverage[at] = g.same as f32 / n as f32;
+            }
+            stats.samples += n as u64;
+            stats.stopped_early += (n < spp) as u64;
         }
         stats.rays += tile.rays;
         stats.nonfinite_samples += tile.nonfinite;

@@ -65,6 +65,8 @@ pub struct Analysis {
     pub bump_maps: usize,
     pub triangles: usize,
     pub spheres: usize,
+    /// Shapes (Embree geometries).
+    pub shapes: usize,
 }
 
 impl Analysis {
@@ -77,6 +79,7 @@ impl Analysis {
             bump_maps: 0,
             triangles: scene.triangle_count(),
             spheres: 0,
+            shapes: scene.shapes.len(),
         };
         for shape in &scene.shapes {
             if let Some(u) = used.get_mut(shape.material as usize) {

@@ -1,0 +1,170 @@
+//! `bench-features`: what skipping what a scene does not need is worth. Each scene is rendered
+//! three ways in every round, back to back: specialised (the features and the Embree build the
+//! scene and a PNG of its final image need), the general integrator on the specialised build
+//! (so the integrator's share is seen alone), and everything forced on (every feature, Embree's
+//! robust high-quality build). Speeds are medians over rounds of ratios measured side by side.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::accel::{embree::SceneSettings, Backend};
+use crate::film::Film;
+use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
+use crate::scene::{analysis::Analysis, Scene};
+
+/// How each scene is rendered.
+#[derive(Clone, Debug)]
+pub struct BenchFeaturesOptions {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub rounds: usize,
+    pub threads: Option<usize>,
+    pub accel: Backend,
+}
+
+/// One scene's row.
+#[derive(Clone, Debug, Serialize)]
+pub struct FeaturesRow {
+    pub scene: String,
+    /// The specialised render's features and Embree build.
+    pub features: Features,
+    pub embree: SceneSettings,
+    /// Path samples per second (median over rounds) of the specialised render, of the general
+    /// integrator on the specialised build, and of everything forced on.
+    pub samples_per_second: [f64; 3],
+    /// Median over rounds of specialised / forced on, measured back to back.
+    pub speedup: f64,
+    /// Median over rounds of (general integrator, same build) / forced on: the Embree build's
+    /// share of the speed-up; speedup over this is the integrator's.
+    pub build_speedup: f64,
+    /// Bytes of per-pixel buffers, specialised and forced on.
+    pub buffer_bytes: [u64; 2],
+    /// Pixels whose beauty differs between the specialised integrator and the general one on
+    /// the same Embree build (the integrator's promise: none).
+    pub integrator_pixels_differing: usize,
+    /// Pixels whose beauty differs between the specialised render and everything forced on,
+    /// and the largest difference relative to the pixel's value: a different Embree build may
+    /// report the other of two triangles a ray meets exactly on their shared edge.
+    pub pixels_differing: usize,
+    pub max_relative_difference: f32,
+}
+
+fn differing(a: &Film, b: &Film) -> (usize, f32) {
+    let mut n = 0;
+    let mut worst = 0.0f32;
+    for (x, y) in a.raw.pixels.iter().zip(&b.raw.pixels) {
+        if x != y {
+            n += 1;
+            let rel = ((*x - *y).abs() / y.abs().max(glam::Vec3::splat(1e-3))).max_element();
+            worst = worst.max(rel);
+        }
+    }
+    (n, worst)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        0.0
+    } else {
+        v[v.len() / 2]
+    }
+}
+
+/// Measures one scene.
+pub fn bench_scene(
+    path: &Path,
+    scene: &Scene,
+    options: &BenchFeaturesOptions,
+) -> Result<FeaturesRow, RenderError> {
+    let analysis = Analysis::of(scene);
+    let mut base = RenderOptions::from_scene(scene);
+    base.width = options.width;
+    base.height = options.height;
+    base.spp = options.spp;
+    base.threads = options.threads;
+    base.accel = options.accel;
+    let png = Outputs::read(false, &scene.filter, false, false);
+    let specialised = RenderOptions {
+        features: Features::needed(&analysis, png),
+        embree: Features::embree_settings(&analysis),
+        ..base.clone()
+    };
+    let general_same_build = RenderOptions { features: Features::ALL, ..specialised.clone() };
+    let forced = RenderOptions { features: Features::ALL, embree: SceneSettings::default(), ..base };
+    let modes = [&specialised, &general_same_build, &forced];
+
+    let mut rates: [Vec<f64>; 3] = Default::default();
+    let (mut speedup, mut build_speedup) = (Vec::new(), Vec::new());
+    let mut films: [Option<Film>; 3] = Default::default();
+    let mut stats = [RenderStats::default(); 3];
+    for round in 0..options.rounds.max(1) {
+        let mut r = [0.0; 3];
+        // Each round starts with another mode, so no mode always runs first.
+        for k in 0..modes.len() {
+            let i = (k + round) % modes.len();
+            let mode = modes[i];
+            let out = render::render(scene, mode, &|_| {})?;
+            r[i] = out.stats.samples as f64 / out.stats.seconds.max(1e-9);
+            rates[i].push(r[i]);
+            if round == 0 {
+                films[i] = Some(out.film);
+                stats[i] = out.stats;
+            }
+        }
+        speedup.push(r[0] / r[2]);
+        build_speedup.push(r[1] / r[2]);
+    }
+    let [Some(specialised_film), Some(general_film), Some(forced_film)] = films else {
+        unreachable!("round 0 renders every mode")
+    };
+    let (integrator_pixels_differing, _) = differing(&specialised_film, &general_film);
+    let (pixels_differing, max_relative_difference) = differing(&specialised_film, &forced_film);
+    Ok(FeaturesRow {
+        scene: path.display().to_string(),
+        features: specialised.features,
+        embree: specialised.embree,
+        samples_per_second: rates.map(median),
+        speedup: median(speedup),
+        build_speedup: median(build_speedup),
+        buffer_bytes: [stats[0].buffer_bytes, stats[2].buffer_bytes],
+        integrator_pixels_differing,
+        pixels_differing,
+        max_relative_difference,
+    })
+}
+
+/// The rows as a Markdown table.
+pub fn table(rows: &[FeaturesRow], options: &BenchFeaturesOptions) -> String {
+    let mut out = format!(
+        "{}x{} at {} spp, {}, median of {} rounds; a PNG of the final image (the scene's own filter)\n\n",
+        options.width, options.height, options.spp, options.accel, options.rounds
+    );
+    out += "| scene | computes | Embree build | M samples/s specialised | forced on | speed-up | of which the build | buffers (KiB) specialised / forced | pixels differing: integrator / all |\n";
+    out += "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |\n";
+    for r in rows {
+        out += &format!(
+            "| {} | {} | {}, {} | {:.3} | {:.3} | {:.2}x | {:.2}x | {} / {} | {} / {}{} |\n",
+            Path::new(&r.scene).file_name().map_or(r.scene.clone(), |n| n.to_string_lossy().into_owned()),
+            r.features.names(),
+            if r.embree.robust { "robust" } else { "not robust" },
+            r.embree.quality.name(),
+            r.samples_per_second[0] / 1e6,
+            r.samples_per_second[2] / 1e6,
+            r.speedup,
+            r.build_speedup,
+            r.buffer_bytes[0] / 1024,
+            r.buffer_bytes[1] / 1024,
+            r.integrator_pixels_differing,
+            r.pixels_differing,
+            if r.pixels_differing > 0 {
+                format!(" (at most {:.1e} relative)", r.max_relative_difference)
+            } else {
+                String::new()
+            }
+        );
+    }
+    out
+}

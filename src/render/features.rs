@@ -1,0 +1,121 @@
+//! What a render computes, chosen once per render from the scene's analysis and from what its
+//! outputs read. Each combination is its own monomorphised integrator and tile loop (a const bit
+//! set, [`Features::bits`]), so a feature left out costs nothing per sample: no branch, no buffer.
+
+use serde::Serialize;
+
+use crate::accel::embree::{BuildQuality, SceneSettings};
+use crate::filter::{EdgeStops, Setting, Target};
+use crate::scene::analysis::Analysis;
+
+/// Emission at hits, lookups at infinity, MIS weights, and the ray after the last vertex: what
+/// a path needs when it can hit a light. Off with only point and spot lights.
+pub const MIS: u8 = 1;
+/// The component split (emitted, direct, caustic, indirect) and its buffers.
+pub const SPLIT: u8 = 2;
+/// The guide buffers: object ID and coverage, normal, depth, albedo.
+pub const GUIDES: u8 = 4;
+/// Colour textures and bump maps.
+pub const TEXTURES: u8 = 8;
+/// Every feature: the general integrator.
+pub const ALL: u8 = MIS | SPLIT | GUIDES | TEXTURES;
+
+/// The features one render computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Features {
+    pub mis: bool,
+    pub split: bool,
+    pub guides: bool,
+    pub textures: bool,
+}
+
+/// What a render's outputs read besides the beauty.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Outputs {
+    /// The component split: an EXR, a filter on `indirect`, or a component layer.
+    pub split: bool,
+    /// The guide buffers: an EXR, edge-aware filtering, or the albedo layer.
+    pub guides: bool,
+}
+
+impl Outputs {
+    /// Every layer (an EXR).
+    pub const ALL: Outputs = Outputs { split: true, guides: true };
+
+    /// What an output reads: an EXR keeps every layer; a PNG or HDR its one layer (a component
+    /// layer needs the split, the albedo layer the guides) and what the filter reads to make it.
+    pub fn read(exr: bool, setting: &Setting, component_layer: bool, albedo_layer: bool) -> Outputs {
+        Outputs {
+            split: exr || (setting.kernel.is_some() && setting.target == Target::Indirect) || component_layer,
+            guides: exr || setting.stops != EdgeStops::default() || albedo_layer,
+        }
+    }
+}
+
+impl Features {
+    /// Every feature on, whatever the scene: the general integrator, for comparison.
+    pub const ALL: Features = Features { mis: true, split: true, guides: true, textures: true };
+
+    /// Only what a scene with this analysis, written to these outputs, can use.
+    pub fn needed(analysis: &Analysis, outputs: Outputs) -> Features {
+        Features {
+            mis: analysis.lights.hittable() > 0,
+            split: outputs.split,
+            guides: outputs.guides,
+            textures: analysis.color_textures + analysis.bump_maps > 0,
+        }
+    }
+
+    /// The Embree build a scene needs, from `bench-accel --embree-settings` over `scenes/`:
+    /// the robust (watertight) mode whenever there are triangles (without it rays slipped
+    /// through shared edges of `paper-sky.toml` and the terrain), and none for spheres alone;
+    /// the two-level build (`low`) for a scene of several shapes, which measured 1.0x to 1.9x
+    /// the rays per second of `high` there with the same answers; `high` for one shape, where
+    /// it measured the same or slightly better.
+    pub fn embree_settings(analysis: &Analysis) -> SceneSettings {
+        SceneSettings {
+            robust: analysis.triangles > 0,
+            quality: if analysis.shapes > 1 { BuildQuality::Low } else { BuildQuality::High },
+        }
+    }
+
+    /// The const bit set the integrator is instantiated with.
+    pub fn bits(self) -> u8 {
+        (self.mis as u8 * MIS)
+            | (self.split as u8 * SPLIT)
+            | (self.guides as u8 * GUIDES)
+            | (self.textures as u8 * TEXTURES)
+    }
+
+    /// The features on, by name, or "none".
+    pub fn names(self) -> String {
+        let names: Vec<&str> =
+            [("mis", self.mis), ("split", self.split), ("guides", self.guides), ("textures", self.textures)]
+                .iter()
+                .filter(|(_, on)| *on)
+                .map(|(n, _)| *n)
+                .collect();
+        if names.is_empty() {
+            "none".into()
+        } else {
+            names.join("+")
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bits_are_distinct_and_all_is_all() {
+        let mut seen = std::collections::BTreeSet::new();
+        for b in 0..16u8 {
+            let f = Features { mis: b & 1 != 0, split: b & 2 != 0, guides: b & 4 != 0, textures: b & 8 != 0 };
+            assert_eq!(f.bits(), b);
+            seen.insert(f.names());
+        }
+        assert_eq!(seen.len(), 16);
+        assert_eq!(Features::ALL.bits(), ALL);
+    }
+}
