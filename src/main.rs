@@ -578,8 +578,9 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         options.features = Features::ALL;
         options.embree = Default::default();
     } else {
-        let analysis = scene::analysis::Analysis::of(&scene);
-        options.features = Features::needed(&analysis, outputs_read(format, &setting, args.out.layer));
+        // `from_scene` found what the scene needs; the output decides the split and the guides.
+        let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
+        options.features = Features { split, guides, ..options.features };
     }
 
     let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.json);

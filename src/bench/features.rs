@@ -11,7 +11,9 @@ use serde::Serialize;
 use crate::accel::{embree::SceneSettings, Backend};
 use crate::film::Film;
 use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
-use crate::scene::{analysis::Analysis, Scene};
+use crate::scene::Scene;
+
+use super::median;
 
 /// How each scene is rendered.
 #[derive(Clone, Debug)]
@@ -64,32 +66,22 @@ fn differing(a: &Film, b: &Film) -> (usize, f32) {
     (n, worst)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        0.0
-    } else {
-        v[v.len() / 2]
-    }
-}
-
 /// Measures one scene.
 pub fn bench_scene(
     path: &Path,
     scene: &Scene,
     options: &BenchFeaturesOptions,
 ) -> Result<FeaturesRow, RenderError> {
-    let analysis = Analysis::of(scene);
     let mut base = RenderOptions::from_scene(scene);
     base.width = options.width;
     base.height = options.height;
     base.spp = options.spp;
     base.threads = options.threads;
     base.accel = options.accel;
+    // `base` has what the scene needs; a PNG of the final image reads only what its filter does.
     let png = Outputs::read(false, &scene.filter, false, false);
     let specialised = RenderOptions {
-        features: Features::needed(&analysis, png),
-        embree: Features::embree_settings(&analysis),
+        features: Features { split: png.split, guides: png.guides, ..base.features },
         ..base.clone()
     };
     let general_same_build = RenderOptions { features: Features::ALL, ..specialised.clone() };
