@@ -3,13 +3,14 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
+use lightsplit::component::Component::Indirect;
 use lightsplit::film::Film;
 use lightsplit::filter::{filter, EdgeStops, Kernel};
 
 fn noisy_film(width: u32, height: u32) -> Film {
     let mut film = Film::new(width, height);
     let mut state = 0x9e37_79b9u32;
-    for (i, p) in film.components[3].pixels.iter_mut().enumerate() {
+    for (i, p) in film.components[Indirect].pixels.iter_mut().enumerate() {
         state ^= state << 13;
         state ^= state >> 17;
         state ^= state << 5;
@@ -45,7 +46,7 @@ fn bench(c: &mut Criterion) {
     for (w, h) in [(256, 256), (3840, 2160)] {
         let a = noisy_film(w, h);
         let mut b = noisy_film(w, h);
-        b.components[3].pixels.iter_mut().for_each(|p| *p *= 1.01);
+        b.components[Indirect].pixels.iter_mut().for_each(|p| *p *= 1.01);
         group.bench_function(BenchmarkId::new("compare", format!("{w}x{h}")), |bench| {
             bench.iter(|| lightsplit::metrics::compare(a.indirect(), b.indirect()).expect("same size"))
         });

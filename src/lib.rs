@@ -5,6 +5,7 @@
 
 pub mod accel;
 pub mod bench;
+pub mod component;
 pub mod converge;
 pub mod film;
 pub mod filter;

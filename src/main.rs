@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use lightsplit::accel::Backend;
+use lightsplit::component::Component;
 use lightsplit::film;
 use lightsplit::filter::{composite, EdgeStops, Kernel, Setting, Target};
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
@@ -385,10 +386,10 @@ fn write_output(
     let image = match layer {
         Layer::Final => final_image,
         Layer::Raw => &film.raw,
-        Layer::Emitted => &film.components[0],
-        Layer::Direct => &film.components[1],
-        Layer::Caustic => &film.components[2],
-        Layer::Indirect => &film.components[3],
+        Layer::Emitted => &film.components[Component::Emitted],
+        Layer::Direct => &film.components[Component::Direct],
+        Layer::Caustic => &film.components[Component::Caustic],
+        Layer::Indirect => &film.components[Component::Indirect],
         Layer::IndirectFiltered => {
             filtered.ok_or_else(|| Failure::input("--layer indirect-filtered needs a filter on indirect"))?
         }

@@ -14,6 +14,7 @@ use std::path::Path;
 use glam::{Vec2, Vec3, Vec3A};
 
 use crate::accel::{self, Accel, Backend};
+use crate::component::Component;
 use crate::film::{self, Film};
 use crate::math::{cosine_hemisphere, luminance, Frame};
 use crate::render::camera::PinholeCamera;
@@ -229,7 +230,7 @@ impl Ctx {
         };
         let ratio = on_objects(&film) / on_objects(&base);
         // Darker by more than a quarter of the samples could explain at an edge that moved.
-        let direct = |f: &Film, i: usize| luminance(f.components[1].pixels[i]);
+        let direct = |f: &Film, i: usize| luminance(f.components[Component::Direct].pixels[i]);
         let darker = (0..base.object.len())
             .filter(|&i| film.object[i] == base.object[i] && direct(&film, i) < 0.75 * direct(&base, i))
             .count();
@@ -283,7 +284,7 @@ impl Ctx {
                     continue;
                 }
                 lit += 1;
-                let d = film.components[1].pixels[i].x as f64;
+                let d = film.components[Component::Direct].pixels[i].x as f64;
                 worst = worst.max((d / expected - 1.0).abs());
             }
         }
@@ -403,7 +404,7 @@ impl Ctx {
             );
             let film = self.render(&parse(&text)?)?.film;
             let expected = 2.0 * 0.5 * dir.y as f64 / std::f64::consts::PI;
-            let off = film.components[1]
+            let off = film.components[Component::Direct]
                 .pixels
                 .iter()
                 .map(|p| (p.x as f64 / expected - 1.0).abs())

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use common::mean_and_standard_error;
 use glam::Vec3;
+use lightsplit::component::Component::{Caustic, Direct, Emitted, Indirect};
 use lightsplit::film::Film;
 use lightsplit::render::{render, RenderOptions};
 
@@ -37,15 +38,15 @@ fn components_sum_to_the_beauty_per_pixel_and_image() {
     let image: Vec3 = f.raw.pixels.iter().copied().sum();
     assert!((sum_parts - image).abs().max_element() <= 1e-5 * image.max_element());
     // The Cornell box has light in every component it can have.
-    for (name, layer) in ["emitted", "direct", "indirect"].iter().zip([0, 1, 3]) {
-        assert!(f.components[layer].mean().max_element() > 0.0, "{name} is empty");
+    for layer in [Emitted, Direct, Indirect] {
+        assert!(f.components[layer].mean().max_element() > 0.0, "{} is empty", layer.name());
     }
 }
 
 #[test]
 fn no_specular_material_means_no_caustic() {
     let f = cornell(24);
-    assert!(f.components[2].pixels.iter().all(|p| *p == Vec3::ZERO));
+    assert!(f.components[Caustic].pixels.iter().all(|p| *p == Vec3::ZERO));
 }
 
 /// A closed box lit by a point light: the walls get indirect light, and a point in the shadow of
@@ -83,12 +84,12 @@ fn closed_box_has_indirect_everywhere_and_no_direct_in_shadow() {
     let f = film(&text, 16);
     // The camera looks down at the floor under the blocker: its centre is in the block's shadow.
     let centre = (16 * 32 + 16) as usize;
-    assert_eq!(f.components[1].pixels[centre], Vec3::ZERO, "direct light in the shadow");
-    assert!(f.components[3].pixels[centre].x > 0.0, "no indirect light in the shadow");
-    assert!(f.components[3].mean().x > 0.0);
-    assert!(f.components[1].mean().x > 0.0, "no direct light anywhere");
+    assert_eq!(f.components[Direct].pixels[centre], Vec3::ZERO, "direct light in the shadow");
+    assert!(f.components[Indirect].pixels[centre].x > 0.0, "no indirect light in the shadow");
+    assert!(f.components[Indirect].mean().x > 0.0);
+    assert!(f.components[Direct].mean().x > 0.0, "no direct light anywhere");
     // Nothing emits, and no path sees the point light itself.
-    assert!(f.components[0].pixels.iter().all(|p| *p == Vec3::ZERO));
+    assert!(f.components[Emitted].pixels.iter().all(|p| *p == Vec3::ZERO));
 }
 
 /// The sky is a diffuse source: all its light on the scene counts as indirect, as the paper says
@@ -113,13 +114,13 @@ fn diffuse_source_sky_light_is_indirect() {
     let f = film(base, 4);
     let bottom = (23 * 24 + 12) as usize; // the plane
     let top = 12usize; // the sky
-    assert_eq!(f.components[1].pixels[bottom], Vec3::ZERO);
-    assert!(f.components[3].pixels[bottom].x > 0.0);
-    assert_eq!(f.components[0].pixels[top], Vec3::ONE);
+    assert_eq!(f.components[Direct].pixels[bottom], Vec3::ZERO);
+    assert!(f.components[Indirect].pixels[bottom].x > 0.0);
+    assert_eq!(f.components[Emitted].pixels[top], Vec3::ONE);
     // Not a diffuse source: the same light is direct.
     let f = film(&base.replace("radiance = [1, 1, 1]", "radiance = [1, 1, 1]\ndiffuse_source = false"), 4);
-    assert_eq!(f.components[3].pixels[bottom], Vec3::ZERO);
-    assert!(f.components[1].pixels[bottom].x > 0.0);
+    assert_eq!(f.components[Indirect].pixels[bottom], Vec3::ZERO);
+    assert!(f.components[Direct].pixels[bottom].x > 0.0);
 }
 
 #[test]
@@ -171,9 +172,9 @@ fn through_a_mirror_a_pixel_carries_the_reflected_object() {
     let centre = (8 * 16 + 8) as usize;
     // Objects are numbered in the order of the scene file: mirror 0, ball 1.
     assert_eq!(f.object[centre], 1.0, "the pixel shows the mirror, not the ball it reflects");
-    assert!(f.components[1].pixels[centre].x > 0.0, "E S D L must be direct");
-    assert_eq!(f.components[0].pixels[centre], Vec3::ZERO);
-    assert_eq!(f.components[2].pixels[centre], Vec3::ZERO);
+    assert!(f.components[Direct].pixels[centre].x > 0.0, "E S D L must be direct");
+    assert_eq!(f.components[Emitted].pixels[centre], Vec3::ZERO);
+    assert_eq!(f.components[Caustic].pixels[centre], Vec3::ZERO);
     // The depth is the whole way: 2 to the mirror, then about 3.5 back to the ball.
     assert!((f.depth[centre] - 5.5).abs() < 0.1, "depth {}", f.depth[centre]);
 }
@@ -213,10 +214,10 @@ fn a_glass_sphere_puts_its_focused_light_in_caustic() {
         emission = [400, 400, 400]
     "#;
     let f = film(text, 64);
-    let caustic = f.components[2].mean();
+    let caustic = f.components[Caustic].mean();
     assert!(caustic.x > 0.0, "no caustic at all");
     // The caustic is concentrated (under the sphere): its brightest pixel is far above its mean.
-    let max = f.components[2].pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
+    let max = f.components[Caustic].pixels.iter().map(|p| p.x).fold(0.0f32, f32::max);
     assert!(max > 5.0 * caustic.x, "the caustic is not focused: max {max}, mean {}", caustic.x);
 }
 
@@ -304,11 +305,11 @@ fn glossy_lobes_reflect_their_albedo_into_their_components() {
     let cell = std::f64::consts::TAU / (n * n) as f64;
     let (spec, base) = (spec * cell, base * cell);
     // Within 4 standard errors (from the spread of the pixels) of the integrals.
-    for (layer, expected, name) in [(0, spec, "GGX lobe"), (3, base, "base")] {
+    for (layer, expected, name) in [(Emitted, spec, "GGX lobe"), (Indirect, base, "base")] {
         let (mean, se) = mean_and_standard_error(&f.components[layer]);
         assert!((mean - expected).abs() < 4.0 * se, "{name}: rendered {mean} ± {se}, integral {expected}");
     }
-    assert!(f.components[1].mean() == Vec3::ZERO && f.components[2].mean() == Vec3::ZERO);
+    assert!(f.components[Direct].mean() == Vec3::ZERO && f.components[Caustic].mean() == Vec3::ZERO);
 }
 
 /// The glossy material in a white furnace, the sphere filling the frame: the BRDF never returns

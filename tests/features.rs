@@ -9,6 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use lightsplit::accel::Backend;
+use lightsplit::component::Component::Emitted;
 use lightsplit::film::Film;
 use lightsplit::render::{render, Features, Outputs, RenderOptions};
 use lightsplit::scene::{self, analysis::Analysis, Scene};
@@ -112,7 +113,7 @@ fn leaving_out_what_a_scene_needs_changes_it() {
     let (with, ..) = render_with(&area_lit, Features::ALL, Backend::Embree);
     let (without, ..) = render_with(&area_lit, Features { mis: false, ..Features::ALL }, Backend::Embree);
     // Without emission at hits the light itself goes black.
-    assert!(without.components[0].mean().x < 0.5 * with.components[0].mean().x);
+    assert!(without.components[Emitted].mean().x < 0.5 * with.components[Emitted].mean().x);
 
     let point_lit = load("embree-cornell.toml");
     assert!(!Features::needed(&Analysis::of(&point_lit), Outputs::ALL).mis);

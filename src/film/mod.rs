@@ -8,6 +8,8 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use crate::component::{Component, Split};
+
 /// A linear RGB image, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -52,10 +54,6 @@ impl Image {
     }
 }
 
-/// The names of the light-path components, in [`Film::components`] order (the paper's L_e,
-/// L_r,d,l, L_r,d,s and L_r,d,d).
-pub const COMPONENTS: [&str; 4] = ["emitted", "direct", "caustic", "indirect"];
-
 /// Everything a render measures per pixel: the beauty, its split by light path, and the guide
 /// buffers the edge-aware filter reads.
 #[derive(Clone, Debug, PartialEq)]
@@ -64,8 +62,8 @@ pub struct Film {
     pub height: u32,
     /// The unfiltered beauty (the `raw` layer).
     pub raw: Image,
-    /// emitted, direct, caustic, indirect: they sum to `raw` up to float rounding.
-    pub components: [Image; 4],
+    /// The light-path components: they sum to `raw` up to float rounding.
+    pub components: Split<Image>,
     pub albedo: Image,
     /// Unit shading normals (zero where the path left the scene).
     pub normal: Image,
@@ -93,7 +91,7 @@ impl Film {
             width,
             height,
             raw: Image::new(width, height),
-            components: std::array::from_fn(|_| image(split)),
+            components: Split::from_fn(|_| image(split)),
             albedo: image(guides),
             normal: image(guides),
             depth: floats(guides, 0.0),
@@ -104,7 +102,7 @@ impl Film {
 
     /// Whether the film holds the component split.
     pub fn has_split(&self) -> bool {
-        !self.components[0].pixels.is_empty()
+        !self.components[Component::Emitted].pixels.is_empty()
     }
 
     /// Whether the film holds the guide buffers.
@@ -122,7 +120,7 @@ impl Film {
 
     /// `indirect` (L_r,d,d) of this film.
     pub fn indirect(&self) -> &Image {
-        &self.components[3]
+        &self.components[Component::Indirect]
     }
 }
 
@@ -269,8 +267,8 @@ pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option
     };
     rgb("", final_image, ["R", "G", "B"]);
     rgb("raw", &film.raw, ["R", "G", "B"]);
-    for (name, layer) in COMPONENTS.iter().zip(&film.components) {
-        rgb(name, layer, ["R", "G", "B"]);
+    for (c, layer) in film.components.named() {
+        rgb(c.name(), layer, ["R", "G", "B"]);
     }
     if let Some(f) = indirect_filtered {
         rgb("indirect_filtered", f, ["R", "G", "B"]);
@@ -378,8 +376,8 @@ impl Film {
         };
         let mut film = Film::new(width, height);
         film.raw = rgb("raw", ["R", "G", "B"])?;
-        for (layer, name) in film.components.iter_mut().zip(COMPONENTS) {
-            *layer = rgb(name, ["R", "G", "B"])?;
+        for (c, layer) in film.components.named_mut() {
+            *layer = rgb(c.name(), ["R", "G", "B"])?;
         }
         film.normal = rgb("normal", ["X", "Y", "Z"])?;
         if let Ok(albedo) = rgb("albedo", ["R", "G", "B"]) {
@@ -518,8 +516,8 @@ mod tests {
             film.depth[i] = 10.0 + i as f32;
             film.object[i] = (i % 3) as f32 - 1.0;
         }
-        let final_image = film.components[0].clone();
-        let filtered = film.components[3].clone();
+        let final_image = film.components[Component::Emitted].clone();
+        let filtered = film.components[Component::Indirect].clone();
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("film.exr");
         write_film(&film, &final_image, Some(&filtered), &path, 0.0).expect("write");

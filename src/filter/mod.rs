@@ -7,6 +7,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::component::Component::{self, Caustic, Direct, Emitted};
 use crate::film::{Film, Image};
 
 /// A filter kernel.
@@ -443,8 +444,8 @@ pub fn composite(
             let filtered = filter(film.indirect(), k, film, stops);
             let mut out = Image::new(film.width, film.height);
             for (i, px) in out.pixels.iter_mut().enumerate() {
-                let [e, d, c, _] = film.components.each_ref().map(|l| l.pixels[i]);
-                *px = e + d + c + filtered.pixels[i];
+                let unfiltered = |c: Component| film.components[c].pixels[i];
+                *px = unfiltered(Emitted) + unfiltered(Direct) + unfiltered(Caustic) + filtered.pixels[i];
             }
             (out, Some(filtered))
         }

@@ -14,6 +14,7 @@ use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::surface;
 use crate::accel::{Accel, Ray};
+use crate::component::{Component, Split};
 use crate::math::{cosine_hemisphere, Frame};
 use crate::scene::{Material, Scene};
 
@@ -26,22 +27,13 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     pub max_depth: u32,
 }
 
-/// The paper's light-path components (section 2), indices into [`PathSample::components`].
-pub const EMITTED: usize = 0;
-/// L_r,d,l: E S* D L.
-pub const DIRECT: usize = 1;
-/// L_r,d,s: E S* D S+ L.
-pub const CAUSTIC: usize = 2;
-/// L_r,d,d: a D vertex after the first one (or a diffuse source's light at the first).
-pub const INDIRECT: usize = 3;
-
 /// What one path sample found: its radiance, the same split by light path, and the guide
 /// values at the first diffuse vertex `x` (or the last vertex of an all-specular path).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PathSample {
     pub beauty: Vec3,
-    /// emitted, direct, caustic, indirect: they sum to `beauty` up to float rounding.
-    pub components: [Vec3; 4],
+    /// The same split by light path: the components sum to `beauty` up to float rounding.
+    pub components: Split<Vec3>,
     /// The object at `x`, or `None` when the path left the scene first.
     pub object: Option<u32>,
     pub normal: Vec3,
@@ -75,14 +67,14 @@ struct PathClass {
 impl PathClass {
     /// The component of light that reaches the eye along the path so far: from a light hit
     /// after the last vertex, or found by NEE at the current D vertex (already counted).
-    fn component(self, diffuse_source: bool) -> usize {
+    fn component(self, diffuse_source: bool) -> Component {
         match self.diffuse {
-            0 => EMITTED,
+            0 => Component::Emitted,
             // A diffuse source's light counts as already diffusely reflected once.
-            _ if diffuse_source => INDIRECT,
-            1 if self.specular_after_first => CAUSTIC,
-            1 => DIRECT,
-            _ => INDIRECT,
+            _ if diffuse_source => Component::Indirect,
+            1 if self.specular_after_first => Component::Caustic,
+            1 => Component::Direct,
+            _ => Component::Indirect,
         }
     }
 
@@ -246,7 +238,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let mut class = PathClass::default();
         let mut travelled = 0.0f32;
         // Adds a contribution to the beauty and to its component.
-        let add = |out: &mut PathSample, c: Vec3, component: usize| {
+        let add = |out: &mut PathSample, c: Vec3, component: Component| {
             out.beauty += c;
             if F & SPLIT != 0 {
                 out.components[component] += c;

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 
 use crate::accel::embree::SceneSettings;
 use crate::accel::{self, Accel, Backend};
+use crate::component::Split;
 use crate::film::Film;
 use crate::scene::analysis::Analysis;
 use crate::scene::Scene;
@@ -161,7 +162,7 @@ struct Tile {
     /// Samples taken per pixel.
     n: Vec<u32>,
     beauty: Vec<Vec3>,
-    components: Vec<[Vec3; 4]>,
+    components: Vec<Split<Vec3>>,
     guides: Vec<Guides>,
     /// Adaptive sampling: the sums of each pixel's sample luminances and of their squares, and
     /// whether the pixel has converged.
@@ -182,7 +183,7 @@ impl Tile {
             h,
             n: vec![0; n],
             beauty: vec![Vec3::ZERO; n],
-            components: vec![[Vec3::ZERO; 4]; some(split)],
+            components: vec![Split::default(); some(split)],
             guides: vec![Guides::default(); some(guides)],
             moments: vec![[0.0; 2]; some(adaptive)],
             converged: vec![false; some(adaptive)],
@@ -194,7 +195,7 @@ impl Tile {
     fn bytes(&self) -> u64 {
         (self.n.capacity() * size_of::<u32>()
             + self.beauty.capacity() * size_of::<Vec3>()
-            + self.components.capacity() * size_of::<[Vec3; 4]>()
+            + self.components.capacity() * size_of::<Split<Vec3>>()
             + self.guides.capacity() * size_of::<Guides>()
             + self.moments.capacity() * size_of::<[f64; 2]>()
             + self.converged.capacity()) as u64
