@@ -261,7 +261,7 @@ fn specular_white_furnace() {
 /// per-lobe MIS weights together.
 #[test]
 fn glossy_lobes_reflect_their_albedo_into_their_components() {
-    use lightsplit::render::bsdf::Glossy;
+    use lightsplit::render::bsdf::GlossyLobes;
     let text = r#"
         [camera]
         position = [0, 2, -2]
@@ -287,7 +287,7 @@ fn glossy_lobes_reflect_their_albedo_into_their_components() {
         radiance = [1, 1, 1]
     "#;
     let f = film(text, 256);
-    let g = Glossy { specular: Vec3::splat(0.5), alpha: 0.25, base: Vec3::splat(0.8) };
+    let g = GlossyLobes { specular: Vec3::splat(0.5), alpha: 0.25, base: Vec3::splat(0.8) };
     let wo = Vec3::new(0.0, (0.5f32).sqrt(), (0.5f32).sqrt());
     // Midpoint rule over (cos theta, phi), where d omega = d cos d phi.
     let n = 2000;

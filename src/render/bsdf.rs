@@ -1,34 +1,344 @@
-//! The glossy material: a GGX microfacet lobe (Walter et al. 2007, "Microfacet Models for
+//! Every material's scattering behind one interface, as pbrt-v4's `BSDF` and Mitsuba 3's
+//! `BSDFFlags`: a material is one type here implementing [`Bsdf`], and every lobe it samples or
+//! evaluates carries a [`Lobe`] tag (D, S or delta) from which the path's component class alone
+//! is updated. The path integrator never names a material; adding one means adding its type
+//! here, a variant of [`MaterialBsdf`] and a line in [`MaterialBsdf::new`].
+//!
+//! The glossy model: a GGX microfacet lobe (Walter et al. 2007, "Microfacet Models for
 //! Refraction through Rough Surfaces") with Schlick's Fresnel and the height-correlated
 //! shadowing-masking term, sampled by its distribution of visible normals (Heitz 2018, "Sampling
 //! the GGX Distribution of Visible Normals"), over an optional diffuse base: Ashikhmin and
 //! Shirley's coupled diffuse term (2000, "An Anisotropic Phong BRDF Model"), which is reciprocal
 //! and gives the base only the light the coating lets through.
 //!
-//! Everything here works in the local shading frame, z along the shading normal.
+//! Directions are in world space, unit, pointing away from the surface; a BSDF is built at one
+//! shading point with its shading normal already on the side the path arrived from.
 
-use std::f32::consts::{PI, TAU};
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 use glam::{Vec2, Vec3};
 
-use crate::math::{cosine_hemisphere, luminance};
+use super::sampler::Sampler;
+use crate::math::{cosine_hemisphere, luminance, Frame};
+use crate::scene::Material;
 
 /// The smallest GGX alpha: below it the lobe is a mirror for every practical purpose and its
 /// density overflows f32 near the peak.
 pub const MIN_ALPHA: f32 = 1e-3;
 
-/// The two lobes of a glossy surface.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Lobe {
-    /// The GGX lobe: a specular-like (S) vertex for the component split.
-    Specular,
-    /// The diffuse base: a diffuse-like (D) vertex.
-    Base,
+/// GGX alpha of a perceptual roughness in [0, 1] (squared, as Burley's and glTF's models do).
+pub fn alpha(roughness: f32) -> f32 {
+    (roughness * roughness).max(MIN_ALPHA)
 }
 
-/// A GGX lobe with reflectance `specular` at normal incidence, over a diffuse `base`.
+/// What kind of vertex a lobe makes in the paper's component split (Heckbert's notation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lobe {
+    /// Diffuse-like (D): Lambertian reflection, a glossy surface's base.
+    Diffuse,
+    /// Specular-like (S) with a density: a glossy surface's GGX lobe. Light sampling sees it.
+    Specular,
+    /// Specular-like (S) in one direction only: a mirror, glass. Light sampling cannot see it,
+    /// and emission found after it takes no MIS weight.
+    Delta,
+}
+
+impl Lobe {
+    /// Whether the component split counts it as an S vertex.
+    pub fn is_specular(self) -> bool {
+        self != Lobe::Diffuse
+    }
+
+    pub fn is_delta(self) -> bool {
+        self == Lobe::Delta
+    }
+}
+
+/// A direction a BSDF sampled.
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    pub wi: Vec3,
+    /// f cos / pdf: what the path throughput is multiplied by.
+    pub weight: Vec3,
+    /// The density in solid angle of sampling `wi` (the chosen lobe's probability included);
+    /// 1 for a delta lobe, where it has no meaning.
+    pub pdf: f32,
+    pub lobe: Lobe,
+}
+
+/// One material's scattering at one shading point.
+pub trait Bsdf {
+    /// The kind of every direction it scatters into, when it has one kind; `None` when it has
+    /// several lobes, whose kind is known only once a direction has been sampled.
+    fn lobe(&self) -> Option<Lobe>;
+
+    /// Whether any light leaves toward `wo` at all; when not, the path ends here.
+    fn scatters(&self, _wo: Vec3) -> bool {
+        true
+    }
+
+    /// The colour a lobe reflects, for the albedo guide buffer.
+    fn albedo(&self, lobe: Lobe) -> Vec3;
+
+    /// A direction toward which light arriving along `-wo` leaves, or `None` when none can be
+    /// used. Draws from `u` only the numbers it needs (a mirror none), so the dimensions a path
+    /// uses depend only on the surfaces it meets.
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample>;
+
+    /// The BSDF value `f` and sampling density `pdf` of each non-delta lobe for light arriving
+    /// from `wi` and leaving toward `wo`, handed to `each` lobe by lobe (nothing for a delta
+    /// BSDF): light sampling needs them apart, since each lobe makes its own component.
+    fn eval_lobes(&self, _wo: Vec3, _wi: Vec3, _each: impl FnMut(Lobe, Vec3, f32)) {}
+
+    /// The whole BSDF value, all lobes together.
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let mut f = Vec3::ZERO;
+        self.eval_lobes(wo, wi, |_, lobe_f, _| f += lobe_f);
+        f
+    }
+
+    /// The density of [`Bsdf::sample`] choosing `wi`, all lobes together.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let mut pdf = 0.0;
+        self.eval_lobes(wo, wi, |_, _, lobe_pdf| pdf += lobe_pdf);
+        pdf
+    }
+}
+
+/// The mirror direction of `wo` about `n`.
+pub fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
+    2.0 * wo.dot(n) * n - wo
+}
+
+/// The refracted direction of `wo` (on `n`'s side, cos_i = n.wo) through a boundary with index
+/// ratio `eta` (transmitted over incident); only called below total internal reflection.
+pub fn refract(wo: Vec3, n: Vec3, eta: f32, cos_i: f32) -> Vec3 {
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    (-wo / eta + (cos_i / eta - cos_t) * n).normalize()
+}
+
+/// Unpolarised Fresnel reflectance of a dielectric boundary (1 under total internal reflection).
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// Lambertian reflection of `albedo` about the shading normal `n`: one D lobe, sampled by the
+/// cosine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Diffuse {
+    pub albedo: Vec3,
+    pub n: Vec3,
+}
+
+impl Bsdf for Diffuse {
+    fn lobe(&self) -> Option<Lobe> {
+        Some(Lobe::Diffuse)
+    }
+
+    fn albedo(&self, _: Lobe) -> Vec3 {
+        self.albedo
+    }
+
+    fn sample(&self, _wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        let local = cosine_hemisphere(u.next_2d());
+        let wi = Frame::new(self.n).to_world(local);
+        // f cos / pdf of a Lambertian lobe is its albedo.
+        Some(BsdfSample { wi, weight: self.albedo, pdf: local.z * FRAC_1_PI, lobe: Lobe::Diffuse })
+    }
+
+    fn eval_lobes(&self, _wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
+        let cos = self.n.dot(wi);
+        if cos > 0.0 {
+            each(Lobe::Diffuse, self.albedo * FRAC_1_PI, cos * FRAC_1_PI);
+        }
+    }
+}
+
+/// Perfect specular reflection about the shading normal `n`, tinted by `color`: one delta lobe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mirror {
+    pub color: Vec3,
+    pub n: Vec3,
+}
+
+impl Bsdf for Mirror {
+    fn lobe(&self) -> Option<Lobe> {
+        Some(Lobe::Delta)
+    }
+
+    fn albedo(&self, _: Lobe) -> Vec3 {
+        self.color
+    }
+
+    fn sample(&self, wo: Vec3, _: &mut Sampler) -> Option<BsdfSample> {
+        Some(BsdfSample { wi: reflect(wo, self.n), weight: self.color, pdf: 1.0, lobe: Lobe::Delta })
+    }
+}
+
+/// A smooth dielectric of index `ior` tinted by `color`: Fresnel reflection or refraction about
+/// the shading normal `n`, chosen by the reflectance, both delta.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Glass {
+    pub ior: f32,
+    pub color: Vec3,
+    pub n: Vec3,
+    /// Whether the path arrived from outside (the side the geometric normal points to).
+    pub entering: bool,
+}
+
+impl Bsdf for Glass {
+    fn lobe(&self) -> Option<Lobe> {
+        Some(Lobe::Delta)
+    }
+
+    fn albedo(&self, _: Lobe) -> Vec3 {
+        self.color
+    }
+
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        // eta is the ratio of the indices across the boundary.
+        let eta = if self.entering { self.ior } else { 1.0 / self.ior };
+        let cos_i = self.n.dot(wo).clamp(0.0, 1.0);
+        let reflectance = fresnel_dielectric(cos_i, eta);
+        let (wi, weight) = if u.next_1d() < reflectance {
+            (reflect(wo, self.n), self.color)
+        } else {
+            // Radiance is squeezed into the denser medium's smaller solid angle.
+            (refract(wo, self.n, eta, cos_i), self.color / (eta * eta))
+        };
+        Some(BsdfSample { wi, weight, pdf: 1.0, lobe: Lobe::Delta })
+    }
+}
+
+/// The glossy material: [`GlossyLobes`] in the shading frame `frame`. Its GGX lobe is an S
+/// vertex, its base a D vertex; which one a path went through is known only once sampled.
+#[derive(Clone, Copy, Debug)]
 pub struct Glossy {
+    pub lobes: GlossyLobes,
+    pub frame: Frame,
+}
+
+impl Bsdf for Glossy {
+    fn lobe(&self) -> Option<Lobe> {
+        None
+    }
+
+    fn scatters(&self, wo: Vec3) -> bool {
+        self.frame.to_local(wo).z > 0.0
+    }
+
+    fn albedo(&self, lobe: Lobe) -> Vec3 {
+        if lobe == Lobe::Diffuse {
+            self.lobes.base
+        } else {
+            self.lobes.specular
+        }
+    }
+
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        let g = &self.lobes;
+        let wo_l = self.frame.to_local(wo);
+        let p_spec = g.specular_probability(wo_l);
+        let (wi_l, lobe) = g.sample(wo_l, u.next_1d(), u.next_2d());
+        if wi_l.z <= 0.0 {
+            return None;
+        }
+        let (weight, pdf) = match lobe {
+            Lobe::Diffuse => {
+                let pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
+                (g.eval_base(wo_l, wi_l) * (wi_l.z / pdf), pdf)
+            }
+            _ => (g.specular_weight(wo_l, wi_l) / p_spec, p_spec * g.pdf_specular(wo_l, wi_l)),
+        };
+        Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe })
+    }
+
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
+        let g = &self.lobes;
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        let p_spec = g.specular_probability(wo_l);
+        each(Lobe::Specular, g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l));
+        each(Lobe::Diffuse, g.eval_base(wo_l, wi_l), (1.0 - p_spec) * g.pdf_base(wi_l));
+    }
+}
+
+/// The BSDF of a scene material at one shading point: one variant per material type.
+#[derive(Clone, Copy, Debug)]
+pub enum MaterialBsdf {
+    Diffuse(Diffuse),
+    Mirror(Mirror),
+    Glass(Glass),
+    Glossy(Glossy),
+}
+
+impl MaterialBsdf {
+    /// The BSDF of `material` at a point with shading normal `n` (on the side the path arrived
+    /// from), `entering` when it arrived from the outside; `color` gives a textured material's
+    /// colour in place of its constant.
+    pub fn new(material: &Material, color: impl FnOnce(Vec3) -> Vec3, n: Vec3, entering: bool) -> Self {
+        match *material {
+            Material::Diffuse { albedo } => MaterialBsdf::Diffuse(Diffuse { albedo: color(albedo), n }),
+            Material::Mirror { color } => MaterialBsdf::Mirror(Mirror { color, n }),
+            Material::Glass { ior, color } => MaterialBsdf::Glass(Glass { ior, color, n, entering }),
+            Material::Glossy { specular, alpha, base } => MaterialBsdf::Glossy(Glossy {
+                lobes: GlossyLobes { specular, alpha, base: color(base) },
+                frame: Frame::new(n),
+            }),
+        }
+    }
+}
+
+/// Forwards a [`Bsdf`] method to the variant's type.
+macro_rules! each_material {
+    ($self:ident, $b:ident => $call:expr) => {
+        match $self {
+            MaterialBsdf::Diffuse($b) => $call,
+            MaterialBsdf::Mirror($b) => $call,
+            MaterialBsdf::Glass($b) => $call,
+            MaterialBsdf::Glossy($b) => $call,
+        }
+    };
+}
+
+impl Bsdf for MaterialBsdf {
+    #[inline(always)]
+    fn lobe(&self) -> Option<Lobe> {
+        each_material!(self, b => b.lobe())
+    }
+
+    #[inline(always)]
+    fn scatters(&self, wo: Vec3) -> bool {
+        each_material!(self, b => b.scatters(wo))
+    }
+
+    #[inline(always)]
+    fn albedo(&self, lobe: Lobe) -> Vec3 {
+        each_material!(self, b => b.albedo(lobe))
+    }
+
+    #[inline(always)]
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        each_material!(self, b => b.sample(wo, u))
+    }
+
+    #[inline(always)]
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3, each: impl FnMut(Lobe, Vec3, f32)) {
+        each_material!(self, b => b.eval_lobes(wo, wi, each))
+    }
+}
+
+/// The glossy model in the local shading frame (z along the normal): a GGX lobe with
+/// reflectance `specular` at normal incidence, over a diffuse `base`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlossyLobes {
     pub specular: Vec3,
     pub alpha: f32,
     pub base: Vec3,
@@ -41,7 +351,7 @@ fn schlick(f0: Vec3, cos: f32) -> Vec3 {
     f0 + (Vec3::ONE - f0) * (m2 * m2 * m)
 }
 
-impl Glossy {
+impl GlossyLobes {
     /// GGX normal distribution of microfacet normal `m`.
     fn d(&self, m: Vec3) -> f32 {
         if m.z <= 0.0 {
@@ -95,7 +405,7 @@ impl Glossy {
         f * (self.d(h) * self.g2(wo, wi) / (4.0 * wo.z * wi.z))
     }
 
-    /// The density of [`Glossy::sample_specular`] in solid angle (defined below the horizon
+    /// The density of [`GlossyLobes::sample_specular`] in solid angle (defined below the horizon
     /// too, where visible-normal sampling can send a direction).
     pub fn pdf_specular(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 {
@@ -164,7 +474,7 @@ impl Glossy {
         self.eval_specular(wo, wi) + self.eval_base(wo, wi)
     }
 
-    /// The density of [`Glossy::sample`], both lobes together.
+    /// The density of [`GlossyLobes::sample`], both lobes together.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let p = self.specular_probability(wo);
         p * self.pdf_specular(wo, wi) + (1.0 - p) * self.pdf_base(wi)
@@ -175,7 +485,7 @@ impl Glossy {
         if u_lobe < self.specular_probability(wo) {
             (self.sample_specular(wo, u), Lobe::Specular)
         } else {
-            (self.sample_base(u), Lobe::Base)
+            (self.sample_base(u), Lobe::Diffuse)
         }
     }
 }
@@ -193,7 +503,7 @@ mod tests {
     #[test]
     fn ggx_visible_normal_sampling_matches_its_density() {
         for (alpha, theta) in [(0.3, 0.0), (0.3, 60.0), (0.6, 30.0), (1.0, 80.0)] {
-            let g = Glossy { specular: Vec3::splat(0.9), alpha, base: Vec3::ZERO };
+            let g = GlossyLobes { specular: Vec3::splat(0.9), alpha, base: Vec3::ZERO };
             let wo = wo(theta);
             let z = z_score(|s| Some(g.sample_specular(wo, s.next_2d())), |d| g.pdf_specular(wo, d));
             assert!(z < 4.0, "alpha {alpha}, theta {theta}: z = {z}");
@@ -202,7 +512,7 @@ mod tests {
 
     #[test]
     fn both_lobes_together_match_the_mixture_density() {
-        let g = Glossy { specular: Vec3::splat(0.04), alpha: 0.4, base: Vec3::new(0.7, 0.2, 0.1) };
+        let g = GlossyLobes { specular: Vec3::splat(0.04), alpha: 0.4, base: Vec3::new(0.7, 0.2, 0.1) };
         let wo = wo(45.0);
         let p = g.specular_probability(wo);
         assert!(p > 0.0 && p < 1.0, "{p}");
@@ -213,8 +523,8 @@ mod tests {
     #[test]
     fn a_wrong_ggx_density_fails() {
         // The test has power: a lobe judged by the density of a rougher one must fail.
-        let g = Glossy { specular: Vec3::ONE, alpha: 0.3, base: Vec3::ZERO };
-        let rough = Glossy { alpha: 0.36, ..g };
+        let g = GlossyLobes { specular: Vec3::ONE, alpha: 0.3, base: Vec3::ZERO };
+        let rough = GlossyLobes { alpha: 0.36, ..g };
         let wo = wo(30.0);
         let z = z_score(|s| Some(g.sample_specular(wo, s.next_2d())), |d| rough.pdf_specular(wo, d));
         assert!(z > 10.0, "z = {z}");
@@ -222,7 +532,7 @@ mod tests {
 
     #[test]
     fn the_sampling_weight_is_f_cos_over_pdf() {
-        let g = Glossy { specular: Vec3::new(0.9, 0.5, 0.2), alpha: 0.25, base: Vec3::ZERO };
+        let g = GlossyLobes { specular: Vec3::new(0.9, 0.5, 0.2), alpha: 0.25, base: Vec3::ZERO };
         let wo = wo(50.0);
         let mut s = crate::render::sampler::Sampler::new(1, 2, 3);
         for _ in 0..1000 {
@@ -248,7 +558,7 @@ mod tests {
             (0.3, 0.95, Vec3::ZERO),
             (1.0, 0.5, Vec3::new(0.8, 0.2, 0.1)),
         ] {
-            let g = Glossy { specular: Vec3::splat(f0), alpha, base };
+            let g = GlossyLobes { specular: Vec3::splat(f0), alpha, base };
             for i in 0..2000 {
                 let a = if i % 10 == 0 { wo(89.9) } else { cosine_hemisphere(s.next_2d()) };
                 let b = cosine_hemisphere(s.next_2d());
@@ -260,7 +570,7 @@ mod tests {
                 );
             }
         }
-        let g = Glossy { specular: Vec3::splat(0.04), alpha: 0.3, base: Vec3::ONE };
+        let g = GlossyLobes { specular: Vec3::splat(0.04), alpha: 0.3, base: Vec3::ONE };
         // Directional albedo (the integral of f cos over the hemisphere) stays at or under 1, by
         // importance sampling the mixture with many samples.
         for theta in [0.0f32, 45.0, 75.0, 89.0] {
@@ -283,5 +593,66 @@ mod tests {
                 assert!(albedo > 0.9, "albedo {albedo}");
             }
         }
+    }
+
+    #[test]
+    fn fresnel_at_normal_incidence_grazing_and_beyond_the_critical_angle() {
+        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
+        assert!((fresnel_dielectric(1e-4, 1.5) - 1.0).abs() < 1e-2);
+        // From inside glass (eta = 1/1.5) beyond asin(1/1.5) = 41.8 degrees: total reflection.
+        assert_eq!(fresnel_dielectric(43f32.to_radians().cos(), 1.0 / 1.5), 1.0);
+        assert!(fresnel_dielectric(40f32.to_radians().cos(), 1.0 / 1.5) < 1.0);
+        // The same boundary crossed either way reflects the same fraction.
+        for cos_i in [0.2f32, 0.5, 0.9] {
+            let sin_t = (1.0 - cos_i * cos_i).sqrt() / 1.5;
+            let cos_t = (1.0 - sin_t * sin_t).sqrt();
+            assert!((fresnel_dielectric(cos_i, 1.5) - fresnel_dielectric(cos_t, 1.0 / 1.5)).abs() < 1e-5);
+        }
+    }
+
+    /// Mirror and glass are delta BSDFs: reciprocity means each specular map is reversible (the
+    /// light can run the path backwards) with the same weight. Reflection is an involution; a
+    /// refracted direction refracted back from the other side is the incident one; and Fresnel
+    /// reflectance is the same from both sides of a boundary (Stokes), so the transmitted
+    /// weights (1 - F) / eta^2 and (1 - F) eta^2 of the two directions differ exactly by the
+    /// radiance scaling 1 / eta^2 that makes the pair adjoint.
+    #[test]
+    fn mirror_and_glass_are_reciprocal() {
+        let n = Vec3::Z;
+        let mut s = crate::render::sampler::Sampler::new(9, 9, 9);
+        let mut refracted = 0;
+        for _ in 0..2000 {
+            let wo = cosine_hemisphere(s.next_2d());
+            let wr = reflect(wo, n);
+            assert!((reflect(wr, n) - wo).length() < 1e-5 && (wr.z - wo.z).abs() < 1e-6, "{wo}");
+            for eta in [1.5f32, 1.0 / 1.5, 2.42, 1.0 / 1.33] {
+                let cos_i = wo.z;
+                let f = fresnel_dielectric(cos_i, eta);
+                if f >= 1.0 {
+                    continue; // total internal reflection: only the mirror map, tested above
+                }
+                refracted += 1;
+                let wt = refract(wo, n, eta, cos_i);
+                // Backwards: wt, now the direction away from the surface on the other side.
+                let cos_t = wt.dot(-n);
+                let back = refract(wt, -n, 1.0 / eta, cos_t);
+                assert!((back - wo).length() < 1e-4, "eta {eta}: {wo} -> {wt} -> {back}");
+                let f_back = fresnel_dielectric(cos_t, 1.0 / eta);
+                assert!((f - f_back).abs() < 1e-4, "eta {eta}, cos {cos_i}: F {f} vs {f_back}");
+            }
+        }
+        assert!(refracted > 6000, "{refracted} refractions tested");
+    }
+
+    #[test]
+    fn refraction_obeys_snell() {
+        let n = Vec3::Z;
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let wt = refract(wo, n, 1.5, wo.dot(n));
+        let sin_i = 0.6;
+        let sin_t = (1.0 - wt.z * wt.z).sqrt();
+        assert!((sin_i - 1.5 * sin_t).abs() < 1e-5, "{wt}");
+        assert!(wt.z < 0.0 && wt.x < 0.0, "goes through, on the far side of the normal: {wt}");
+        assert!((reflect(wo, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
     }
 }

@@ -1,22 +1,21 @@
-//! The path integrator: next-event estimation with multiple importance sampling (power
-//! heuristic) for area lights, the sun and the sky, Russian roulette, and a depth limit. Generic
+//! The path integrator, shaped as pbrt-v4's `PathIntegrator::Li`: at every vertex emission, next-
+//! event estimation with multiple importance sampling (power heuristic) at non-delta vertices,
+//! a BSDF sample classified by its lobe's tag, one Russian roulette; and a depth limit. It never
+//! names a material: scattering is [`MaterialBsdf`]'s. Generic
 //! over the accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch
 //! per ray, and over the [`Features`] a render needs (a const bit set), so a feature the scene
 //! and its outputs cannot use is compiled out of that render's copy, not skipped by a branch.
 
-use std::f32::consts::FRAC_1_PI;
-
 use glam::Vec3;
 
-use super::bsdf::{Glossy, Lobe};
+use super::bsdf::{Bsdf, BsdfSample, Lobe, MaterialBsdf};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
-use super::surface::surface;
+use super::surface::{surface, Surface};
 use crate::accel::{Accel, Ray};
 use crate::component::{Component, Split};
-use crate::math::{cosine_hemisphere, Frame};
-use crate::scene::{Material, Scene};
+use crate::scene::Scene;
 
 /// What the integrator reads for every path: the scene, its accelerator and its lights. `F` is
 /// the [`super::features::Features`] bit set this copy computes; the default is all of them.
@@ -88,6 +87,15 @@ impl PathClass {
     fn through_specular(self) -> Self {
         PathClass { specular_after_first: self.specular_after_first || self.diffuse == 1, ..self }
     }
+
+    /// The class after a vertex of this lobe's kind.
+    fn through(self, lobe: Lobe) -> Self {
+        if lobe.is_specular() {
+            self.through_specular()
+        } else {
+            self.through_diffuse()
+        }
+    }
 }
 
 /// What a path sample tells of itself, for `--debug-nonfinite`. `()` records nothing and
@@ -116,31 +124,6 @@ impl Record for Vec<String> {
     }
 }
 
-/// The mirror direction of `wo` about `n`.
-fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
-    2.0 * wo.dot(n) * n - wo
-}
-
-/// The refracted direction of `wo` (on `n`'s side, cos_i = n.wo) through a boundary with index
-/// ratio `eta` (transmitted over incident); only called below total internal reflection.
-fn refract(wo: Vec3, n: Vec3, eta: f32, cos_i: f32) -> Vec3 {
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-    (-wo / eta + (cos_i / eta - cos_t) * n).normalize()
-}
-
-/// Unpolarised Fresnel reflectance of a dielectric boundary (1 under total internal reflection).
-pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (rs * rs + rp * rp)
-}
-
 /// Veach's power heuristic with exponent 2.
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
@@ -151,29 +134,237 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
     }
 }
 
-impl<A: Accel, const F: u8> Integrator<'_, A, F> {
-    /// Bookkeeping of an S vertex: before any D vertex the guide buffers follow the specular
-    /// chain (the last vertex of an all-specular path is what a pixel shows); after the first D
-    /// vertex an S bounce makes light arriving next a caustic. Returns false when the new
-    /// direction is unusable.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn specular_bounce(
-        &self,
-        out: &mut PathSample,
-        class: &mut PathClass,
-        object: u32,
-        normal: Vec3,
-        travelled: f32,
-        color: Vec3,
-        wi: Vec3,
-        side: Vec3,
-    ) -> bool {
-        if class.diffuse == 0 {
-            out.guide::<F>(object, normal, travelled, color);
+/// What a path carries from one vertex to the next, besides what it has gathered.
+#[derive(Clone, Copy, Debug)]
+struct PathState {
+    /// Throughput: the product of the BSDF weights so far.
+    beta: Vec3,
+    class: PathClass,
+    /// The last bounce was a delta one (the camera counts as one): emission found next takes
+    /// no MIS weight, since light sampling could not have found it.
+    after_delta: bool,
+    /// The density of the last bounce's direction, for the MIS weight of emission found next.
+    bsdf_pdf: f32,
+    /// Where the last bounce left from.
+    prev_p: Vec3,
+    /// Distance from the eye along the path.
+    travelled: f32,
+}
+
+impl PathState {
+    /// Follows a sampled direction: false when it cannot carry light (no density, or a zero
+    /// throughput: nothing more can reach the eye along it).
+    fn scatter(&mut self, bs: &BsdfSample, p: Vec3) -> bool {
+        if bs.pdf <= 0.0 {
+            return false;
         }
-        *class = class.through_specular();
-        wi.is_finite() && side.is_finite()
+        self.beta *= bs.weight;
+        self.after_delta = bs.lobe.is_delta();
+        self.bsdf_pdf = bs.pdf;
+        self.prev_p = p;
+        self.beta != Vec3::ZERO
+    }
+
+    /// Russian roulette: false when the path ends here, else the survivor's weight goes up.
+    fn survives(&mut self, sampler: &mut Sampler) -> bool {
+        let survive = self.beta.max_element();
+        if survive < 1.0 {
+            if sampler.next_1d() >= survive {
+                return false;
+            }
+            self.beta /= survive;
+        }
+        true
+    }
+}
+
+impl PathSample {
+    /// Adds a contribution to the beauty and to its component (the split only when `F` has it).
+    #[inline(always)]
+    fn add<const F: u8>(&mut self, c: Vec3, component: Component) {
+        self.beauty += c;
+        if F & SPLIT != 0 {
+            self.components[component] += c;
+        }
+    }
+
+    /// Bookkeeping of a vertex whose lobe is known: while the path is still all-specular, the
+    /// guide buffers follow it (the first D vertex is `x`, the last vertex of an all-specular
+    /// path is what the pixel shows); then the class moves on by the lobe's tag alone.
+    #[inline(always)]
+    fn vertex<const F: u8>(
+        &mut self,
+        class: &mut PathClass,
+        lobe: Lobe,
+        object: u32,
+        n: Vec3,
+        depth: f32,
+        albedo: Vec3,
+    ) {
+        if class.diffuse == 0 {
+            self.guide::<F>(object, n, depth, albedo);
+        }
+        *class = class.through(lobe);
+    }
+}
+
+impl<A: Accel, const F: u8> Integrator<'_, A, F> {
+    /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
+    /// traced rays.
+    pub fn sample(&self, ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
+        self.sample_recorded(ray, sampler, rays, &mut ())
+    }
+
+    /// [`Integrator::sample`], reporting each vertex to `record` (nothing, for `()`).
+    pub fn sample_recorded<R: Record>(
+        &self,
+        mut ray: Ray,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+        record: &mut R,
+    ) -> PathSample {
+        let scene = self.scene;
+        let mut out = PathSample::default();
+        let mut path = PathState {
+            beta: Vec3::ONE,
+            class: PathClass::default(),
+            after_delta: true,
+            bsdf_pdf: 0.0,
+            prev_p: ray.origin,
+            travelled: 0.0,
+        };
+        for depth in 0.. {
+            *rays += 1;
+            let Some(hit) = self.accel.intersect(&ray) else {
+                record.escaped(depth, ray.dir, path.beta);
+                self.escaped(&mut out, &path, ray.dir);
+                break;
+            };
+            let s = surface(scene, &ray, &hit);
+            let shape = &scene.shapes[hit.shape as usize];
+            record.vertex(depth, &shape.name, s.p, path.beta, out.beauty);
+            let wo = -ray.dir;
+            path.travelled += hit.t * ray.dir.length();
+            self.emitted(&mut out, &path, hit.shape, &s, wo);
+            if depth >= self.max_depth {
+                break;
+            }
+
+            let (ns, ng, bsdf) = self.bsdf_at(hit.shape, &s, wo);
+            if !bsdf.scatters(wo) {
+                break;
+            }
+            let before = path.class;
+            // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see
+            // it even when the path ends here; one of several lobes, once a lobe is sampled.
+            let vertex = |out: &mut PathSample, class: &mut PathClass, lobe: Lobe| {
+                out.vertex::<F>(class, lobe, shape.object, ns, path.travelled, bsdf.albedo(lobe));
+            };
+            if let Some(lobe) = bsdf.lobe() {
+                vertex(&mut out, &mut path.class, lobe);
+            }
+            // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
+            let origin = s.origin(ng);
+            if bsdf.lobe() != Some(Lobe::Delta) {
+                self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
+                    // Light through each lobe goes to the component that lobe makes, with its
+                    // own MIS weight, so the split stays exact in expectation.
+                    let source = self.lights.diffuse_source[ls.light as usize];
+                    bsdf.eval_lobes(wo, ls.wi, |lobe, f, pdf| {
+                        if f != Vec3::ZERO {
+                            let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+                            let c = path.beta * f * ls.radiance * (cos * w / ls.pdf);
+                            out.add::<F>(c, before.through(lobe).component(source));
+                        }
+                    });
+                });
+            }
+            // Without a light a path can hit, the ray after the last vertex could only find one:
+            // not traced.
+            if F & MIS == 0 && depth + 1 >= self.max_depth {
+                break;
+            }
+
+            let Some(bs) = bsdf.sample(wo, sampler) else { break };
+            // A non-delta direction under the geometric surface is an artefact of the shading
+            // normal: dropped. A delta one is exact (and glass transmits).
+            if !bs.wi.is_finite() || (!bs.lobe.is_delta() && ng.dot(bs.wi) <= 0.0) {
+                break;
+            }
+            if bsdf.lobe().is_none() {
+                vertex(&mut out, &mut path.class, bs.lobe);
+            }
+            if !path.scatter(&bs, s.p) {
+                break;
+            }
+            // Russian roulette once the path has had a chance to gather light, after non-delta
+            // bounces only: a delta bounce draws no random number and keeps its throughput.
+            if !bs.lobe.is_delta() && depth >= 2 && !path.survives(sampler) {
+                break;
+            }
+            let origin = if bs.wi.dot(ng) > 0.0 { origin } else { s.origin(-ng) };
+            ray = Ray::new(origin, bs.wi);
+        }
+        out
+    }
+
+    /// The BSDF at a hit on `shape`, with the shading and geometric normals both turned to the
+    /// side the path came from (surfaces are two-sided), the shading one bumped and the
+    /// material's colour textured where the material says so.
+    #[inline(always)]
+    fn bsdf_at(&self, shape: u32, s: &Surface, wo: Vec3) -> (Vec3, Vec3, MaterialBsdf) {
+        let scene = self.scene;
+        let material = scene.shapes[shape as usize].material;
+        let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
+        let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
+        let maps = if F & TEXTURES != 0 { scene.maps(material) } else { Default::default() };
+        if let Some((t, height)) = maps.bump {
+            ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
+        }
+        let textured = |constant: Vec3| match maps.color {
+            Some(t) => scene.textures[t as usize].color(s.p, s.uv),
+            None => constant,
+        };
+        // Entering when the ray meets the outside, the side the geometric normal points to.
+        let entering = s.ng.dot(wo) > 0.0;
+        (ns, ng, MaterialBsdf::new(&scene.materials[material as usize], textured, ns, entering))
+    }
+
+    /// Emission at a hit on `shape`, on its front side only (a scene without MIS has no light
+    /// a path can hit), weighted against light sampling's chance of finding the same point.
+    #[inline(always)]
+    fn emitted(&self, out: &mut PathSample, path: &PathState, shape: u32, s: &Surface, wo: Vec3) {
+        let (emission, lights) = (self.scene.shapes[shape as usize].emission, self.lights);
+        if F & MIS == 0 || emission.max_element() <= 0.0 || s.ng.dot(wo) <= 0.0 {
+            return;
+        }
+        let light = lights.of_shape(shape);
+        let w = match light {
+            Some(light) if !path.after_delta => {
+                power_heuristic(path.bsdf_pdf, lights.pdf_shape(light, path.prev_p, s.p, s.ng))
+            }
+            _ => 1.0,
+        };
+        let source = light.is_some_and(|i| lights.diffuse_source[i as usize]);
+        out.add::<F>(path.beta * emission * w, path.class.component(source));
+    }
+
+    /// What a path that left the scene along `dir` sees of the sun and the sky (nothing in a
+    /// scene without them).
+    #[inline(always)]
+    fn escaped(&self, out: &mut PathSample, path: &PathState, dir: Vec3) {
+        if F & MIS == 0 {
+            return;
+        }
+        let lights = self.lights;
+        for &i in &lights.distant {
+            let (le, light_pdf) = lights.distant(i, dir, path.after_delta);
+            if le != Vec3::ZERO {
+                let w = if path.after_delta { 1.0 } else { power_heuristic(path.bsdf_pdf, light_pdf) };
+                let component = path.class.component(lights.diffuse_source[i as usize]);
+                out.add::<F>(path.beta * le * w, component);
+            }
+        }
     }
 
     /// Next-event estimation at a reflecting vertex at `p` (shading normal `ns`, geometric `ng`,
@@ -216,330 +407,5 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         } else if let Some(ls) = lights.sample(scene, p, sampler.next_1d(), sampler.next_2d()) {
             trace(ls, rays);
         }
-    }
-
-    /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
-    /// traced rays.
-    pub fn sample(&self, ray: Ray, sampler: &mut Sampler, rays: &mut u64) -> PathSample {
-        self.sample_recorded(ray, sampler, rays, &mut ())
-    }
-
-    /// [`Integrator::sample`], reporting each vertex to `record` (nothing, for `()`).
-    pub fn sample_recorded<R: Record>(
-        &self,
-        mut ray: Ray,
-        sampler: &mut Sampler,
-        rays: &mut u64,
-        record: &mut R,
-    ) -> PathSample {
-        let scene = self.scene;
-        let lights = self.lights;
-        let mut out = PathSample::default();
-        let mut class = PathClass::default();
-        let mut travelled = 0.0f32;
-        // Adds a contribution to the beauty and to its component.
-        let add = |out: &mut PathSample, c: Vec3, component: Component| {
-            out.beauty += c;
-            if F & SPLIT != 0 {
-                out.components[component] += c;
-            }
-        };
-        let mut beta = Vec3::ONE;
-        // The camera counts as a specular vertex: emission seen directly takes no MIS weight.
-        let mut specular = true;
-        let mut bsdf_pdf = 0.0f32;
-        let mut prev_p = ray.origin;
-
-        for depth in 0.. {
-            *rays += 1;
-            let Some(hit) = self.accel.intersect(&ray) else {
-                record.escaped(depth, ray.dir, beta);
-                if F & MIS == 0 {
-                    break; // no sun or sky to see
-                }
-                for &i in &lights.distant {
-                    let (le, light_pdf) = lights.distant(i, ray.dir, specular);
-                    if le != Vec3::ZERO {
-                        let w = if specular { 1.0 } else { power_heuristic(bsdf_pdf, light_pdf) };
-                        let component = class.component(lights.diffuse_source[i as usize]);
-                        add(&mut out, beta * le * w, component);
-                    }
-                }
-                break;
-            };
-            let s = surface(scene, &ray, &hit);
-            let shape = &scene.shapes[hit.shape as usize];
-            record.vertex(depth, &shape.name, s.p, beta, out.beauty);
-            let wo = -ray.dir;
-            travelled += hit.t * ray.dir.length();
-
-            // Emission, on the front side only (a scene without MIS has no hittable light).
-            if F & MIS != 0 && shape.is_emissive() && s.ng.dot(wo) > 0.0 {
-                let w = match (specular, lights.of_shape(hit.shape)) {
-                    (false, Some(light)) => {
-                        power_heuristic(bsdf_pdf, lights.pdf_shape(light, prev_p, s.p, s.ng))
-                    }
-                    _ => 1.0,
-                };
-                let source = lights.of_shape(hit.shape).is_some_and(|i| lights.diffuse_source[i as usize]);
-                add(&mut out, beta * shape.emission * w, class.component(source));
-            }
-            if depth >= self.max_depth {
-                break;
-            }
-
-            // Both normals on the side the ray came from (surfaces are two-sided).
-            let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
-            let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-            let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
-            if let Some((t, height)) = maps.bump {
-                ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
-            }
-            // The albedo of a diffuse material or a glossy one's base, textured or constant.
-            let textured = |constant: Vec3| match maps.color {
-                Some(t) => scene.textures[t as usize].color(s.p, s.uv),
-                None => constant,
-            };
-            // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
-            let origin = s.origin(ng);
-            // Without a light a path can hit, the ray after the last vertex could only find one:
-            // not traced.
-            let last = F & MIS == 0 && depth + 1 >= self.max_depth;
-            let wi = match scene.materials[shape.material as usize] {
-                Material::Diffuse { albedo } => {
-                    let albedo = textured(albedo);
-                    // A diffuse (D) vertex; the first one is `x`, where the guide buffers look.
-                    class = class.through_diffuse();
-                    if class.diffuse == 1 {
-                        out.guide::<F>(shape.object, ns, travelled, albedo);
-                    }
-                    let f = albedo * FRAC_1_PI;
-                    self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
-                        let w = if F & MIS == 0 || ls.delta {
-                            1.0
-                        } else {
-                            power_heuristic(ls.pdf, cos * FRAC_1_PI)
-                        };
-                        let component = class.component(lights.diffuse_source[ls.light as usize]);
-                        add(&mut out, beta * f * ls.radiance * (cos * w / ls.pdf), component);
-                    });
-                    if last {
-                        break;
-                    }
-
-                    // Continue the path by sampling the BSDF.
-                    let local = cosine_hemisphere(sampler.next_2d());
-                    let wi = Frame::new(ns).to_world(local);
-                    bsdf_pdf = local.z * FRAC_1_PI;
-                    if bsdf_pdf <= 0.0 || ng.dot(wi) <= 0.0 {
-                        break;
-                    }
-                    beta *= albedo; // f cos / pdf for a Lambertian lobe
-                    wi
-                }
-                Material::Glossy { specular, alpha, base } => {
-                    // Each lobe is its own vertex type: the GGX lobe S, the base D. Light found
-                    // through each lobe goes to the component that lobe makes, with its own MIS
-                    // weight, so the split stays exact in expectation.
-                    let g = Glossy { specular, alpha, base: textured(base) };
-                    let frame = Frame::new(ns);
-                    let wo_l = frame.to_local(wo);
-                    if wo_l.z <= 0.0 {
-                        break;
-                    }
-                    let p_spec = g.specular_probability(wo_l);
-                    let (spec_class, base_class) = (class.through_specular(), class.through_diffuse());
-                    self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, _| {
-                        let wi_l = frame.to_local(ls.wi);
-                        let source = lights.diffuse_source[ls.light as usize];
-                        let lobes = [
-                            (g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l), spec_class),
-                            (g.eval_base(wo_l, wi_l), (1.0 - p_spec) * g.pdf_base(wi_l), base_class),
-                        ];
-                        for (f, pdf, lobe_class) in lobes {
-                            if f != Vec3::ZERO {
-                                let w =
-                                    if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
-                                let c = beta * f * ls.radiance * (wi_l.z * w / ls.pdf);
-                                add(&mut out, c, lobe_class.component(source));
-                            }
-                        }
-                    });
-                    if last {
-                        break;
-                    }
-
-                    let (wi_l, lobe) = g.sample(wo_l, sampler.next_1d(), sampler.next_2d());
-                    let wi = frame.to_world(wi_l);
-                    if wi_l.z <= 0.0 || ng.dot(wi) <= 0.0 || !wi.is_finite() {
-                        break;
-                    }
-                    match lobe {
-                        Lobe::Specular => {
-                            self.specular_bounce(
-                                &mut out,
-                                &mut class,
-                                shape.object,
-                                ns,
-                                travelled,
-                                specular,
-                                wi,
-                                ng,
-                            );
-                            bsdf_pdf = p_spec * g.pdf_specular(wo_l, wi_l);
-                            beta *= g.specular_weight(wo_l, wi_l) / p_spec;
-                        }
-                        Lobe::Base => {
-                            class = base_class;
-                            if class.diffuse == 1 {
-                                out.guide::<F>(shape.object, ns, travelled, g.base);
-                            }
-                            bsdf_pdf = (1.0 - p_spec) * g.pdf_base(wi_l);
-                            beta *= g.eval_base(wo_l, wi_l) * (wi_l.z / bsdf_pdf);
-                        }
-                    }
-                    if bsdf_pdf <= 0.0 {
-                        break;
-                    }
-                    wi
-                }
-                Material::Mirror { color } => {
-                    let wi = reflect(wo, ns);
-                    if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, ng)
-                        || last
-                    {
-                        break;
-                    }
-                    beta *= color;
-                    ray = Ray::new(origin, wi);
-                    specular = true;
-                    continue;
-                }
-                Material::Glass { ior, color } => {
-                    // Entering when the ray meets the outside (the side the geometric normal
-                    // points to); eta is the ratio of the indices across the boundary.
-                    if last {
-                        // The guides still show this vertex, as they do when the ray is traced.
-                        let _ = self.specular_bounce(
-                            &mut out,
-                            &mut class,
-                            shape.object,
-                            ns,
-                            travelled,
-                            color,
-                            wo,
-                            ng,
-                        );
-                        break;
-                    }
-                    let entering = s.ng.dot(wo) > 0.0;
-                    let eta = if entering { ior } else { 1.0 / ior };
-                    let cos_i = ns.dot(wo).clamp(0.0, 1.0);
-                    let reflectance = fresnel_dielectric(cos_i, eta);
-                    let (wi, scale) = if sampler.next_1d() < reflectance {
-                        (reflect(wo, ns), color)
-                    } else {
-                        // Radiance is squeezed into the denser medium's smaller solid angle.
-                        (refract(wo, ns, eta, cos_i), color / (eta * eta))
-                    };
-                    if !self.specular_bounce(&mut out, &mut class, shape.object, ns, travelled, color, wi, wi)
-                    {
-                        break;
-                    }
-                    beta *= scale;
-                    let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
-                    ray = Ray::new(s.origin(side), wi);
-                    specular = true;
-                    if beta == Vec3::ZERO {
-                        break;
-                    }
-                    continue;
-                }
-            };
-            if beta == Vec3::ZERO {
-                break; // nothing more can reach the eye along this path
-            }
-            specular = false;
-            prev_p = s.p;
-
-            // Russian roulette once the path has had a chance to gather light.
-            if depth >= 2 {
-                let survive = beta.max_element();
-                if survive < 1.0 {
-                    if sampler.next_1d() >= survive {
-                        break;
-                    }
-                    beta /= survive;
-                }
-            }
-            ray = Ray::new(origin, wi);
-        }
-        out
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fresnel_at_normal_incidence_grazing_and_beyond_the_critical_angle() {
-        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
-        assert!((fresnel_dielectric(1e-4, 1.5) - 1.0).abs() < 1e-2);
-        // From inside glass (eta = 1/1.5) beyond asin(1/1.5) = 41.8 degrees: total reflection.
-        assert_eq!(fresnel_dielectric(43f32.to_radians().cos(), 1.0 / 1.5), 1.0);
-        assert!(fresnel_dielectric(40f32.to_radians().cos(), 1.0 / 1.5) < 1.0);
-        // The same boundary crossed either way reflects the same fraction.
-        for cos_i in [0.2f32, 0.5, 0.9] {
-            let sin_t = (1.0 - cos_i * cos_i).sqrt() / 1.5;
-            let cos_t = (1.0 - sin_t * sin_t).sqrt();
-            assert!((fresnel_dielectric(cos_i, 1.5) - fresnel_dielectric(cos_t, 1.0 / 1.5)).abs() < 1e-5);
-        }
-    }
-
-    /// Mirror and glass are delta BSDFs: reciprocity means each specular map is reversible (the
-    /// light can run the path backwards) with the same weight. Reflection is an involution; a
-    /// refracted direction refracted back from the other side is the incident one; and Fresnel
-    /// reflectance is the same from both sides of a boundary (Stokes), so the transmitted
-    /// weights (1 - F) / eta^2 and (1 - F) eta^2 of the two directions differ exactly by the
-    /// radiance scaling 1 / eta^2 that makes the pair adjoint.
-    #[test]
-    fn mirror_and_glass_are_reciprocal() {
-        let n = Vec3::Z;
-        let mut s = crate::render::sampler::Sampler::new(9, 9, 9);
-        let mut refracted = 0;
-        for _ in 0..2000 {
-            let wo = cosine_hemisphere(s.next_2d());
-            let wr = reflect(wo, n);
-            assert!((reflect(wr, n) - wo).length() < 1e-5 && (wr.z - wo.z).abs() < 1e-6, "{wo}");
-            for eta in [1.5f32, 1.0 / 1.5, 2.42, 1.0 / 1.33] {
-                let cos_i = wo.z;
-                let f = fresnel_dielectric(cos_i, eta);
-                if f >= 1.0 {
-                    continue; // total internal reflection: only the mirror map, tested above
-                }
-                refracted += 1;
-                let wt = refract(wo, n, eta, cos_i);
-                // Backwards: wt, now the direction away from the surface on the other side.
-                let cos_t = wt.dot(-n);
-                let back = refract(wt, -n, 1.0 / eta, cos_t);
-                assert!((back - wo).length() < 1e-4, "eta {eta}: {wo} -> {wt} -> {back}");
-                let f_back = fresnel_dielectric(cos_t, 1.0 / eta);
-                assert!((f - f_back).abs() < 1e-4, "eta {eta}, cos {cos_i}: F {f} vs {f_back}");
-            }
-        }
-        assert!(refracted > 6000, "{refracted} refractions tested");
-    }
-
-    #[test]
-    fn refraction_obeys_snell() {
-        let n = Vec3::Z;
-        let wo = Vec3::new(0.6, 0.0, 0.8);
-        let wt = refract(wo, n, 1.5, wo.dot(n));
-        let sin_i = 0.6;
-        let sin_t = (1.0 - wt.z * wt.z).sqrt();
-        assert!((sin_i - 1.5 * sin_t).abs() < 1e-5, "{wt}");
-        assert!(wt.z < 0.0 && wt.x < 0.0, "goes through, on the far side of the normal: {wt}");
-        assert!((reflect(wo, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
     }
 }
