@@ -1,96 +1,25 @@
-//! Light sampling for next-event estimation, and the matching densities for multiple importance
-//! sampling: point lights, the sun (a cone of directions), a uniform sky, and emissive shapes
-//! (triangle meshes sampled by area, spheres by the cone they subtend). A light is picked in
-//! proportion to its power.
+//! Light sampling for next-event estimation: the registry of a scene's lights ([`Lights`]), how
+//! one is picked (in proportion to its power, or all of them when there are few), and the
+//! matching densities for multiple importance sampling. The lights themselves are in
+//! [`emitter`], the cloudy sky's table in [`sky_table`].
+
+pub mod emitter;
+pub mod sky_table;
 
 use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-use rayon::prelude::*;
+pub use emitter::{Emitter, LightSample, ShadowEnd};
+use sky_table::sky_table;
 
-use crate::math::{
-    luminance, offset_ray_origin, one_minus_cos_between, sphere_magnitude, triangle_magnitude, uniform_cone,
-    uniform_sphere, uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
-};
-use crate::scene::sky::CloudySky;
-use crate::scene::{Geometry, Light, Mesh, Scene};
+use crate::math::{luminance, Distribution1D, Frame, FOUR_PI};
+use crate::scene::{Geometry, Light, Scene};
 
 /// No light on this shape.
 const NONE: u32 = u32::MAX;
 /// Scenes with at most this many lights sample all of them at every vertex.
 const SAMPLE_ALL: usize = 8;
-
-/// One light, ready to sample.
-#[derive(Clone, Debug)]
-pub enum Emitter {
-    Point {
-        position: Vec3,
-        intensity: Vec3,
-    },
-    Spot {
-        position: Vec3,
-        direction: Vec3,
-        intensity: Vec3,
-        cos_total: f32,
-        cos_falloff_start: f32,
-    },
-    Sun {
-        frame: Frame,
-        radiance: Vec3,
-        one_minus_cos: f32,
-    },
-    Sky {
-        radiance: Vec3,
-    },
-    /// A sky whose radiance varies with direction, importance-sampled from a table over
-    /// (phi / 2 pi, cos theta) of the upper hemisphere: cells of equal solid angle.
-    /// Light it sheds is looked up bilinearly in a radiance table of the same cells (the
-    /// procedural clouds cost too much to evaluate at every vertex); what the eye sees directly
-    /// or through mirrors is the exact procedural sky.
-    CloudySky {
-        sky: Box<CloudySky>,
-        table: Box<Distribution2D>,
-        radiance: Vec<Vec3>,
-    },
-    Mesh {
-        shape: u32,
-        triangles: Distribution1D,
-        area: f32,
-        emission: Vec3,
-    },
-    Sphere {
-        shape: u32,
-        center: Vec3,
-        radius: f32,
-        emission: Vec3,
-    },
-}
-
-/// Where a shadow ray toward a light sample ends.
-#[derive(Clone, Copy, Debug)]
-pub enum ShadowEnd {
-    /// A point (already moved off the light's surface toward the receiver).
-    Point(Vec3),
-    /// Infinitely far along the sampled direction.
-    Infinite,
-}
-
-/// A sampled light direction at a receiving point.
-#[derive(Clone, Copy, Debug)]
-pub struct LightSample {
-    /// Incident radiance along `wi` if unoccluded (intensity / r^2 for a point light).
-    pub radiance: Vec3,
-    pub wi: Vec3,
-    /// Solid-angle density including the light's selection probability (the selection
-    /// probability alone for a point light).
-    pub pdf: f32,
-    /// Point lights cannot be hit by a BSDF sample, so they take no MIS weight.
-    pub delta: bool,
-    pub end: ShadowEnd,
-    /// Which light: for the component split's diffuse-source test.
-    pub light: u32,
-}
 
 /// Every light of a scene and how to pick one.
 #[derive(Clone, Debug, Default)]
@@ -140,7 +69,7 @@ impl Lights {
                     (Emitter::Sky { radiance }, FOUR_PI * disc * luminance(radiance), diffuse_source)
                 }
             };
-            if !light_is_dark(&emitter) {
+            if !emitter.is_dark() {
                 if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. } | Emitter::CloudySky { .. }) {
                     lights.distant.push(lights.emitters.len() as u32);
                 }
@@ -188,10 +117,6 @@ impl Lights {
         lights
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.select.is_none()
-    }
-
     /// The emitter index of a shape, if it is a light.
     pub fn of_shape(&self, shape: u32) -> Option<u32> {
         match self.shape_light.get(shape as usize) {
@@ -230,287 +155,29 @@ impl Lights {
         self.sample_emitter(scene, i, select, p, u)
     }
 
+    /// Samples light `i`, picked with probability `select`, as seen from `p`.
     fn sample_emitter(&self, scene: &Scene, i: usize, select: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
-        let light = i as u32;
-        match &self.emitters[i] {
-            Emitter::Point { position, intensity } => {
-                point_sample(p, *position, select, light, |_| *intensity)
-            }
-            Emitter::Spot { position, direction, intensity, cos_total, cos_falloff_start } => {
-                point_sample(p, *position, select, light, |wi| {
-                    *intensity * Light::spot_falloff(-wi.dot(*direction), *cos_total, *cos_falloff_start)
-                })
-            }
-            Emitter::Sun { frame, radiance, one_minus_cos } => Some(LightSample {
-                radiance: *radiance,
-                wi: frame.to_world(uniform_cone(u, *one_minus_cos)),
-                pdf: select / (2.0 * PI * one_minus_cos),
-                delta: false,
-                end: ShadowEnd::Infinite,
-                light,
-            }),
-            Emitter::Sky { radiance } => Some(LightSample {
-                radiance: *radiance,
-                wi: uniform_sphere(u),
-                pdf: select / FOUR_PI,
-                delta: false,
-                end: ShadowEnd::Infinite,
-                light,
-            }),
-            Emitter::CloudySky { table, radiance, .. } => {
-                let (uv, pdf) = table.sample(u);
-                let wi = sky_direction(uv);
-                Some(LightSample {
-                    radiance: sky_lookup(radiance, uv),
-                    wi,
-                    pdf: select * pdf / (2.0 * PI),
-                    delta: false,
-                    end: ShadowEnd::Infinite,
-                    light,
-                })
-            }
-            Emitter::Mesh { shape, triangles, area, emission } => {
-                let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
-                    return None;
-                };
-                // u.x picks the triangle, then, rescaled, the point within it.
-                let (t, _, ux) = triangles.sample_reuse(u.x);
-                let (q, n, magnitude) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
-                area_sample(p, q, n, magnitude, *emission, select / area, light)
-            }
-            Emitter::Sphere { center, radius, emission, .. } => {
-                let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
-                let cos_l = n.dot(p - q);
-                if cos_l <= 0.0 {
-                    return None;
-                }
-                let d = q - p;
-                Some(LightSample {
-                    radiance: *emission,
-                    wi: d.normalize(),
-                    pdf: select * pdf,
-                    delta: false,
-                    end: ShadowEnd::Point(offset_ray_origin(q, n, sphere_magnitude(*center, *radius))),
-                    light,
-                })
-            }
-        }
+        self.emitters[i].sample(scene, i as u32, select, p, u)
     }
 
     /// The NEE density (selection included) of reaching emissive shape `light` at point `q`
     /// (geometric normal `n`) from `p`: what a BSDF-sampled hit needs for its MIS weight.
     pub fn pdf_shape(&self, light: u32, p: Vec3, q: Vec3, n: Vec3) -> f32 {
-        let select = self.select_pdf(light);
-        match &self.emitters[light as usize] {
-            Emitter::Mesh { area, .. } => {
-                let d = q - p;
-                let dist2 = d.length_squared();
-                let cos = n.dot(d).abs() / dist2.sqrt();
-                if cos <= 0.0 {
-                    return 0.0;
-                }
-                select * dist2 / (area * cos)
-            }
-            Emitter::Sphere { center, radius, .. } => {
-                let dc2 = (*center - p).length_squared();
-                let r2 = radius * radius;
-                if dc2 <= r2 {
-                    return 0.0;
-                }
-                select / (2.0 * PI * cone_one_minus_cos(r2 / dc2))
-            }
-            _ => 0.0,
-        }
+        self.emitters[light as usize].pdf_shape(self.select_pdf(light), p, q, n)
     }
 
     /// The radiance of distant light `light` along direction `dir` and its NEE density
-    /// (selection included). `seen` asks for what the eye sees directly (or through mirrors),
-    /// which for a cloudy sky is the exact procedural sky rather than its table.
+    /// (selection included); `seen` as in [`Emitter::distant`].
     pub fn distant(&self, light: u32, dir: Vec3, seen: bool) -> (Vec3, f32) {
-        let select = self.select_pdf(light);
-        match &self.emitters[light as usize] {
-            Emitter::Sky { radiance } => (*radiance, select / FOUR_PI),
-            Emitter::CloudySky { sky, table, radiance } => {
-                if dir.y <= 0.0 {
-                    return (Vec3::ZERO, 0.0);
-                }
-                let phi = dir.z.atan2(dir.x).rem_euclid(2.0 * PI);
-                let uv = Vec2::new(phi / (2.0 * PI), dir.y);
-                let le = if seen { sky.radiance(dir) } else { sky_lookup(radiance, uv) };
-                (le, select * table.pdf(uv) / (2.0 * PI))
-            }
-            Emitter::Sun { frame, radiance, one_minus_cos } => {
-                if one_minus_cos_between(dir, frame.n) <= *one_minus_cos {
-                    (*radiance, select / (2.0 * PI * one_minus_cos))
-                } else {
-                    (Vec3::ZERO, 0.0)
-                }
-            }
-            _ => (Vec3::ZERO, 0.0),
-        }
+        self.emitters[light as usize].distant(self.select_pdf(light), dir, seen)
     }
-}
-
-fn light_is_dark(e: &Emitter) -> bool {
-    match e {
-        Emitter::Point { intensity, .. } | Emitter::Spot { intensity, .. } => intensity.max_element() <= 0.0,
-        Emitter::Sun { radiance, .. } | Emitter::Sky { radiance } => radiance.max_element() <= 0.0,
-        Emitter::CloudySky { sky, .. } => sky.zenith.max_element() <= 0.0 && sky.clear.max_element() <= 0.0,
-        Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => emission.max_element() <= 0.0,
-    }
-}
-
-/// Cells of the cloudy sky's tables: in cos theta (horizon to zenith) and in phi.
-const SKY_ROWS: usize = 256;
-const SKY_COLUMNS: usize = 1024;
-
-/// The direction of a point of the sky table's square: u = phi / 2 pi, v = cos theta.
-fn sky_direction(uv: Vec2) -> Vec3 {
-    let phi = 2.0 * PI * uv.x;
-    let cos = uv.y;
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    Vec3::new(sin * phi.cos(), cos, sin * phi.sin())
-}
-
-/// The radiance of the sky table at a point of its square: bilinear between cell centres,
-/// wrapping around in phi and clamped at the horizon and the zenith.
-fn sky_lookup(radiance: &[Vec3], uv: Vec2) -> Vec3 {
-    let x = uv.x * SKY_COLUMNS as f32 - 0.5;
-    let y = (uv.y * SKY_ROWS as f32 - 0.5).clamp(0.0, (SKY_ROWS - 1) as f32);
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let col = |c: f32| (c as i64).rem_euclid(SKY_COLUMNS as i64) as usize;
-    let (c0, c1) = (col(x0), col(x0 + 1.0));
-    let (r0, r1) = (y0 as usize, (y0 as usize + 1).min(SKY_ROWS - 1));
-    let at = |r: usize, c: usize| radiance[r * SKY_COLUMNS + c];
-    (at(r0, c0) * (1.0 - fx) + at(r0, c1) * fx) * (1.0 - fy)
-        + (at(r1, c0) * (1.0 - fx) + at(r1, c1) * fx) * fy
-}
-
-/// The tables of a cloudy sky: the sampling distribution (the luminance at each cell's centre,
-/// plus a floor of a tenth of the mean so that no direction the sky lights is left out), the
-/// radiance at the cell centres, and the mean luminance.
-fn sky_table(sky: &CloudySky) -> (Distribution2D, Vec<Vec3>, f32) {
-    let radiance: Vec<Vec3> = (0..SKY_ROWS * SKY_COLUMNS)
-        .into_par_iter()
-        .map(|i| {
-            let (col, row) = (i % SKY_COLUMNS, i / SKY_COLUMNS);
-            let uv = Vec2::new((col as f32 + 0.5) / SKY_COLUMNS as f32, (row as f32 + 0.5) / SKY_ROWS as f32);
-            sky.radiance(sky_direction(uv))
-        })
-        .collect();
-    let lum: Vec<f32> = radiance.iter().map(|&r| luminance(r)).collect();
-    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
-    let floor = 0.1 * mean.max(1e-12);
-    let weights: Vec<f32> = lum.iter().map(|l| l + floor).collect();
-    let table = Distribution2D::new(&weights, SKY_COLUMNS, SKY_ROWS).unwrap_or_else(|| {
-        Distribution2D::new(&vec![1.0; SKY_ROWS * SKY_COLUMNS], SKY_COLUMNS, SKY_ROWS).expect("uniform")
-    });
-    (table, radiance, mean)
-}
-
-/// The sample of a light at the point `position` whose intensity toward the receiver at `p`
-/// (`wi` points from `p` to the light) is `intensity(wi)`; `None` when it sends nothing.
-fn point_sample(
-    p: Vec3,
-    position: Vec3,
-    select: f32,
-    light: u32,
-    intensity: impl Fn(Vec3) -> Vec3,
-) -> Option<LightSample> {
-    let d = position - p;
-    let dist2 = d.length_squared();
-    if dist2 == 0.0 {
-        return None;
-    }
-    let wi = d / dist2.sqrt();
-    let i = intensity(wi);
-    if i == Vec3::ZERO {
-        return None;
-    }
-    Some(LightSample {
-        radiance: i / dist2,
-        wi,
-        pdf: select,
-        delta: true,
-        end: ShadowEnd::Point(position),
-        light,
-    })
-}
-
-/// A point uniformly on triangle `t`, its geometric normal (by winding) and the magnitude of its
-/// coordinates (for [`offset_ray_origin`]).
-fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3, f32) {
-    let [a, b, c] = mesh.triangle(t);
-    let bary = uniform_triangle(u);
-    let q = a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y;
-    let n = (b - a).cross(c - a).normalize_or_zero();
-    (q, n, triangle_magnitude(a, b, c))
-}
-
-/// Turns an area sample `q` (normal `n`, coordinates of `magnitude`, one-sided emission
-/// `emission`, area density `pdf_area`) into a solid-angle sample at `p`.
-fn area_sample(
-    p: Vec3,
-    q: Vec3,
-    n: Vec3,
-    magnitude: f32,
-    emission: Vec3,
-    pdf_area: f32,
-    light: u32,
-) -> Option<LightSample> {
-    let d = q - p;
-    let dist2 = d.length_squared();
-    if dist2 == 0.0 {
-        return None;
-    }
-    let wi = d / dist2.sqrt();
-    let cos_l = -n.dot(wi);
-    if cos_l <= 0.0 {
-        return None; // the back of a one-sided emitter
-    }
-    Some(LightSample {
-        radiance: emission,
-        wi,
-        pdf: pdf_area * dist2 / cos_l,
-        delta: false,
-        end: ShadowEnd::Point(offset_ray_origin(q, n, magnitude)),
-        light,
-    })
-}
-
-/// 1 - cos(theta_max) of the cone a sphere subtends, from sin^2(theta_max), accurate when small.
-fn cone_one_minus_cos(sin2: f32) -> f32 {
-    let cos = (1.0 - sin2).max(0.0).sqrt();
-    sin2 / (1.0 + cos)
-}
-
-/// Samples the cone a sphere subtends from outside: solid-angle density, point and normal.
-fn sample_sphere_cone(p: Vec3, c: Vec3, r: f32, u: Vec2) -> Option<(f32, Vec3, Vec3)> {
-    let to_c = c - p;
-    let dc2 = to_c.length_squared();
-    let r2 = r * r;
-    if dc2 <= r2 {
-        return None; // inside a one-sided (outward) emitter: nothing to see
-    }
-    let dc = dc2.sqrt();
-    let omc = cone_one_minus_cos(r2 / dc2);
-    let frame = Frame::new(to_c / dc);
-    let local = uniform_cone(u, omc);
-    let wi = frame.to_world(local);
-    // The nearer intersection of the ray p + t wi with the sphere.
-    let cos_t = local.z;
-    let sin2_t = (1.0 - cos_t * cos_t).max(0.0);
-    let t = dc * cos_t - (r2 - dc2 * sin2_t).max(0.0).sqrt();
-    let q0 = p + wi * t;
-    let n = (q0 - c).normalize_or_zero();
-    let q = c + n * r;
-    Some((1.0 / (2.0 * PI * omc), q, n))
 }
 
 #[cfg(test)]
 mod tests {
+    use super::emitter::{cone_one_minus_cos, sample_sphere_cone};
     use super::*;
+    use crate::math::uniform_sphere;
     use crate::render::sampler::Sampler;
 
     #[test]
