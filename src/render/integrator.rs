@@ -1,10 +1,12 @@
-//! The path integrator, shaped as pbrt-v4's `PathIntegrator::Li`: at every vertex emission, next-
-//! event estimation with multiple importance sampling (power heuristic) at non-delta vertices,
-//! a BSDF sample classified by its lobe's tag, one Russian roulette; and a depth limit. It never
-//! names a material: scattering is [`MaterialBsdf`]'s. Generic
-//! over the accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch
-//! per ray, and over the [`Features`] a render needs (a const bit set), so a feature the scene
-//! and its outputs cannot use is compiled out of that render's copy, not skipped by a branch.
+//! The path integrator, shaped as pbrt-v4's `PathIntegrator::Li`: at every vertex, emission;
+//! next-event estimation with multiple importance sampling (power heuristic) at non-delta
+//! vertices; a BSDF sample, classified by its lobe's tag alone; one Russian roulette; and a
+//! depth limit. It never names a material: scattering is [`MaterialBsdf`]'s. Generic over the
+//! accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch per ray,
+//! and over the [`Features`] a render needs (a const bit set), so a feature the scene and its
+//! outputs cannot use is compiled out of that render's copy, not skipped by a branch.
+//!
+//! [`Features`]: super::features::Features
 
 use glam::Vec3;
 
