@@ -17,6 +17,12 @@ use crate::math::{cosine_hemisphere, luminance};
 /// density overflows f32 near the peak.
 pub const MIN_ALPHA: f32 = 1e-3;
 
+/// The GGX alpha of a material's roughness (as the scene file gives it, in [0, 1]): its square,
+/// kept above [`MIN_ALPHA`].
+pub fn alpha(roughness: f32) -> f32 {
+    (roughness * roughness).max(MIN_ALPHA)
+}
+
 /// The two lobes of a glossy surface.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lobe {
@@ -188,6 +194,13 @@ mod tests {
     fn wo(theta_deg: f32) -> Vec3 {
         let t = theta_deg.to_radians();
         Vec3::new(t.sin(), 0.0, t.cos())
+    }
+
+    #[test]
+    fn alpha_is_the_square_of_roughness_above_the_floor() {
+        assert_eq!(alpha(0.5), 0.25);
+        assert_eq!(alpha(1.0), 1.0);
+        assert_eq!(alpha(0.0), MIN_ALPHA);
     }
 
     #[test]

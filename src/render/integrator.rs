@@ -345,11 +345,11 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                     beta *= albedo; // f cos / pdf for a Lambertian lobe
                     wi
                 }
-                Material::Glossy { specular, alpha, base } => {
+                Material::Glossy { specular, roughness, base } => {
                     // Each lobe is its own vertex type: the GGX lobe S, the base D. Light found
                     // through each lobe goes to the component that lobe makes, with its own MIS
                     // weight, so the split stays exact in expectation.
-                    let g = Glossy { specular, alpha, base: textured(base) };
+                    let g = Glossy { specular, alpha: super::bsdf::alpha(roughness), base: textured(base) };
                     let frame = Frame::new(ns);
                     let wo_l = frame.to_local(wo);
                     if wo_l.z <= 0.0 {

@@ -13,7 +13,6 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::filter::{EdgeStops, Kernel, Setting, Target};
-use crate::render::bsdf::MIN_ALPHA;
 
 use super::sky::CloudySky;
 use super::texture::{Pattern, Texture};
@@ -359,8 +358,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
                 if !(0.0..=1.0).contains(&roughness) {
                     return ctx.err(span, "`roughness` must lie in [0, 1]");
                 }
-                let alpha = (roughness * roughness).max(MIN_ALPHA);
-                Material::Glossy { specular, alpha, base }
+                Material::Glossy { specular, roughness, base }
             }
             other => {
                 return ctx.err(
@@ -1015,8 +1013,11 @@ mod tests {
         let glossy = "[[material]]\nname = \"g\"\ntype = \"glossy\"\n";
         let s =
             parse_str(&format!("{MINIMAL}{glossy}roughness = 0.5\nbase = [0.5, 0, 0]\n")).expect("parses");
-        let Material::Glossy { alpha, base, specular } = s.materials[0] else { panic!("{:?}", s.materials) };
-        assert_eq!((alpha, base, specular), (0.25, Vec3::new(0.5, 0.0, 0.0), Vec3::splat(0.9)));
+        let Material::Glossy { roughness, base, specular } = s.materials[0] else {
+            panic!("{:?}", s.materials)
+        };
+        // Its GGX alpha, 0.25, is the renderer's business: `render::bsdf::alpha`, tested there.
+        assert_eq!((roughness, base, specular), (0.5, Vec3::new(0.5, 0.0, 0.0), Vec3::splat(0.9)));
         for (extra, needle) in
             [("roughness = 1.5\n", "roughness"), ("ior = 1.5\n", "ior"), ("base = [2, 0, 0]\n", "base")]
         {

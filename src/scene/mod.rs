@@ -79,17 +79,10 @@ pub enum Material {
     Mirror { color: Vec3 },
     /// A smooth dielectric: Fresnel reflection and refraction with index `ior` (an S vertex).
     Glass { ior: f32, color: Vec3 },
-    /// A GGX microfacet lobe with reflectance `specular` at normal incidence and GGX `alpha`
-    /// (an S vertex), over a diffuse `base` (a D vertex; black for none).
-    Glossy { specular: Vec3, alpha: f32, base: Vec3 },
-}
-
-impl Material {
-    /// Whether the paper counts this material's scattering as specular-like (S) rather than
-    /// diffuse-like (D).
-    pub fn is_specular(&self) -> bool {
-        !matches!(self, Material::Diffuse { .. })
-    }
+    /// A GGX microfacet lobe with reflectance `specular` at normal incidence and `roughness` in
+    /// [0, 1] (the renderer's GGX alpha is its square; an S vertex), over a diffuse `base` (a D
+    /// vertex; black for none).
+    Glossy { specular: Vec3, roughness: f32, base: Vec3 },
 }
 
 /// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex
