@@ -770,7 +770,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Spanned<FileTexture>) -> Result<Texture, S
         "image" => {
             ctx.only(span.clone(), &what, &present, &["file", "repeat"])?;
             let file = ctx.need(span.clone(), &what, "file", t.file.as_ref())?;
-            let image = crate::film::read_texture(&dir.join(file))
+            let image = super::image::read(&dir.join(file))
                 .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.name)))?;
             let repeat = t.repeat.map_or(Vec2::ONE, |[u, v]| Vec2::new(u.0, v.0));
             if repeat.min_element() <= 0.0 {
@@ -1083,7 +1083,7 @@ mod tests {
         }
         // An image texture cannot be a bump map (it has no gradient in space).
         let dir = tempfile::tempdir().expect("tempdir");
-        crate::film::write(&crate::film::Image::new(2, 2), &dir.path().join("i.png"), 0.0).expect("png");
+        ::image::RgbImage::new(2, 2).save(dir.path().join("i.png")).expect("png");
         let text = format!("{MINIMAL}{}{mat}bump = \"i\"\n", image.replace("nowhere.png", "i.png"));
         let e = parse(&dir.path().join("s.toml"), &text).expect_err("must fail");
         assert!(e.message.contains("solid"), "{}", e.message);

@@ -1,9 +1,10 @@
 //! The scene: what a scene file describes, resolved into flat arrays the renderer reads
 //! (camera, materials, shapes with their triangles or spheres, lights). Loading lives in
-//! [`file`] (TOML) and [`obj`] (Wavefront OBJ meshes).
+//! [`file`] (TOML), [`obj`] (Wavefront OBJ meshes) and [`image`] (texture images).
 
 pub mod analysis;
 pub mod file;
+pub mod image;
 pub mod noise;
 pub mod obj;
 pub mod procedural;
