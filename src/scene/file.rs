@@ -12,8 +12,6 @@ use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::filter::{EdgeStops, Kernel, Setting, Target};
-
 use super::sky::CloudySky;
 use super::texture::{Pattern, Texture};
 use super::{
@@ -76,7 +74,7 @@ struct FileScene {
     shape: Vec<Spanned<FileShape>>,
     #[serde(default)]
     light: Vec<Spanned<FileLight>>,
-    filter: Option<Spanned<FileFilter>>,
+    filter: Option<Spanned<FilterSection>>,
     #[serde(default)]
     texture: Vec<Spanned<FileTexture>>,
 }
@@ -97,23 +95,47 @@ struct FileTexture {
     repeat: Option<[F; 2]>,
 }
 
-/// A kernel by name or by its weights.
-#[derive(Deserialize)]
-#[serde(untagged)]
-enum FileKernel {
-    Name(String),
-    Weights(Vec<F>),
+/// The `[filter]` section as written: the scene checks its keys and that its numbers are
+/// finite; `filter::Setting::from_section` reads it (kernels, targets and edge stops belong to
+/// the filters).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FilterSection {
+    /// The kernel, by name or by its weights.
+    pub kernel: KernelSpec,
+    /// What the filter applies to (`indirect`, `image` or `none`).
+    pub target: Option<String>,
+    /// Only neighbours that show the centre's object.
+    pub edge_aware: Option<bool>,
+    /// The normal tolerance of the edge stops, in degrees.
+    #[serde(default, deserialize_with = "finite")]
+    pub edge_normal: Option<f32>,
+    /// The relative depth tolerance of the edge stops.
+    #[serde(default, deserialize_with = "finite")]
+    pub edge_depth: Option<f32>,
+    /// Leave pixels that saw more than one object unfiltered.
+    pub edge_pure: Option<bool>,
+    /// The line of the section's header, for the errors of whoever reads it.
+    #[serde(skip)]
+    pub line: usize,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FileFilter {
-    kernel: FileKernel,
-    target: Option<String>,
-    edge_aware: Option<bool>,
-    edge_normal: Option<F>,
-    edge_depth: Option<F>,
-    edge_pure: Option<bool>,
+/// A kernel by name or by its weights (row by row).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum KernelSpec {
+    /// A named kernel (`box3`, `weighted3`, ...), or weights written as one string.
+    Name(String),
+    /// The weights of an odd square kernel.
+    Weights(#[serde(deserialize_with = "finite_weights")] Vec<f32>),
+}
+
+fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    Ok(Option::<F>::deserialize(d)?.map(|f| f.0))
+}
+
+fn finite_weights<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
+    Ok(Vec::<F>::deserialize(d)?.into_iter().map(|f| f.0).collect())
 }
 
 #[derive(Deserialize)]
@@ -408,34 +430,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         lights.push(light(&ctx, l)?);
     }
 
-    let filter = match &file.filter {
-        None => Setting::default(),
-        Some(f) => {
-            let span = f.span();
-            let f = f.get_ref();
-            let kernel = match &f.kernel {
-                FileKernel::Name(name) => Kernel::parse(name),
-                FileKernel::Weights(w) => Kernel::custom(w.iter().map(|w| w.0).collect()),
-            };
-            let kernel = kernel.or_else(|e| ctx.err(span.clone(), e))?;
-            let target = match f.target.as_deref().map(|t| (t, Target::from_name(t))) {
-                None => Target::Indirect,
-                Some((_, Some(t))) => t,
-                Some((other, None)) => {
-                    return ctx
-                        .err(span, format!("unknown filter target `{other}` (indirect, image or none)"))
-                }
-            };
-            let stops = EdgeStops {
-                object: f.edge_aware.unwrap_or(false),
-                normal_degrees: f.edge_normal.map(|d| d.0),
-                depth_relative: f.edge_depth.map(|d| d.0),
-                pure: f.edge_pure.unwrap_or(false),
-            };
-            stops.check().or_else(|e| ctx.err(span, e))?;
-            Setting { kernel: Some(kernel), target, stops }
-        }
-    };
+    let filter = file.filter.map(|f| {
+        let line = line_of(text, f.span().start);
+        FilterSection { line, ..f.into_inner() }
+    });
 
     Ok(Scene {
         filter,
@@ -961,16 +959,17 @@ fn light(ctx: &Ctx, l: &Spanned<FileLight>) -> Result<Light, SceneError> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    const MINIMAL: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
+    /// A camera and nothing else: the smallest scene that parses.
+    pub(crate) const MINIMAL: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
 
-    fn parse_str(text: &str) -> Result<Scene, SceneError> {
+    pub(crate) fn parse_str(text: &str) -> Result<Scene, SceneError> {
         parse(Path::new("test.toml"), text)
     }
 
-    fn error_line(text: &str) -> (Option<usize>, String) {
+    pub(crate) fn error_line(text: &str) -> (Option<usize>, String) {
         let e = parse_str(text).expect_err("must fail");
         (e.line, e.message)
     }
@@ -1029,31 +1028,6 @@ mod tests {
             "{MINIMAL}[[material]]\nname = \"d\"\ntype = \"diffuse\"\nbase = [1, 1, 1]\n"
         ));
         assert!(msg.contains("base") && msg.contains("only glossy"), "{msg}");
-    }
-
-    #[test]
-    fn filter_section_by_name_or_weights_and_its_errors() {
-        let s = parse_str(&format!("{MINIMAL}[filter]\nkernel = \"median3\"\ntarget = \"image\"\n"))
-            .expect("parses");
-        assert_eq!(s.filter.kernel, Some(Kernel::Median3));
-        assert_eq!(s.filter.target, Target::Image);
-        let s = parse_str(&format!(
-            "{MINIMAL}[filter]\nkernel = [0, 1, 0, 1, 4, 1, 0, 1, 0]\nedge_normal = 30\n"
-        ))
-        .expect("parses");
-        assert_eq!((s.filter.target, s.filter.stops.normal_degrees), (Target::Indirect, Some(30.0)));
-        assert_eq!(parse_str(MINIMAL).expect("parses").filter, Setting::default());
-        for (extra, needle) in [
-            ("kernel = \"gauss\"\n", "gauss"),
-            ("kernel = [1, 2, 3, 4]\n", "odd square"),
-            ("kernel = \"box3\"\ntarget = \"all\"\n", "all"),
-            ("kernel = \"box3\"\nedge_normal = 0\n", "normal"),
-            ("kernel = \"box3\"\nradius = 2\n", "radius"),
-        ] {
-            let (line, msg) = error_line(&format!("{MINIMAL}[filter]\n{extra}"));
-            assert!(line.is_some_and(|l| l >= 4), "{extra}: {line:?} {msg}");
-            assert!(msg.contains(needle), "{extra}: {msg}");
-        }
     }
 
     #[test]

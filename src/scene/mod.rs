@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec3A};
 
-pub use file::load;
+pub use file::{load, FilterSection, KernelSpec};
 
 /// A bad scene file: one message naming the file and, where known, the line.
 #[derive(Debug, Clone, PartialEq)]
@@ -185,8 +185,9 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Object names; a shape's `object` indexes this.
     pub objects: Vec<String>,
-    /// The scene's own filter setting (`[filter]`), which the command line can override.
-    pub filter: crate::filter::Setting,
+    /// The scene's own `[filter]` section, as written (`filter::Setting::of_scene` reads it; the
+    /// command line can override it).
+    pub filter: Option<FilterSection>,
     pub textures: Vec<texture::Texture>,
     /// For each material (by index; missing means none), the textures it reads.
     pub maps: Vec<Maps>,
