@@ -9,8 +9,11 @@ use glam::Vec3;
 /// A linear RGB image, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// `width * height` colours, row by row from the top.
     pub pixels: Vec<Vec3>,
 }
 

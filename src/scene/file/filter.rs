@@ -39,10 +39,12 @@ pub enum KernelSpec {
     Weights(#[serde(deserialize_with = "finite_weights")] Vec<f32>),
 }
 
+/// An optional finite number, as a plain `f32`.
 fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     Ok(Option::<F>::deserialize(d)?.map(|f| f.0))
 }
 
+/// Finite weights, as plain `f32`s.
 fn finite_weights<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
     Ok(Vec::<F>::deserialize(d)?.into_iter().map(|f| f.0).collect())
 }
