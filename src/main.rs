@@ -446,11 +446,19 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// Loads a scene and the filter setting its `[filter]` section asks for: a bad section is a bad
+/// scene, whether or not the command filters.
+fn load_scene(path: &Path) -> Result<(scene::Scene, Setting), Failure> {
+    let scene = scene::load(path).map_err(Failure::input)?;
+    let filter = Setting::of_scene(&scene).map_err(Failure::input)?;
+    Ok((scene, filter))
+}
+
 fn info_command(args: InfoArgs) -> Result<(), Failure> {
-    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let (scene, scene_filter) = load_scene(&args.scene)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output).map_err(Failure::input)?;
-    let setting = args.out.check(&scene.filter, &output)?;
+    let setting = args.out.check(&scene_filter, &output)?;
     let analysis = scene::analysis::Analysis::of(&scene);
     println!("{}", args.scene.display());
     print!("{analysis}");
@@ -536,7 +544,7 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
 }
 
 fn render_command(args: RenderArgs) -> Result<(), Failure> {
-    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let (scene, scene_filter) = load_scene(&args.scene)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output).map_err(Failure::input)?;
 
@@ -572,7 +580,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if args.threads == Some(0) {
         return Err(Failure::input("--threads must be at least 1"));
     }
-    let setting = args.out.check(&scene.filter, &output)?;
+    let setting = args.out.check(&scene_filter, &output)?;
     check_adaptive(args.adaptive)?;
     options.adaptive = args.adaptive;
     if args.all_features {
@@ -670,7 +678,7 @@ fn default_output(scene: &Path) -> PathBuf {
 }
 
 fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
-    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let (scene, _) = load_scene(&args.scene)?;
     if args.rays == 0 {
         return Err(Failure::input("--rays must be at least 1"));
     }
@@ -728,7 +736,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
 
 fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     use lightsplit::converge::{self, Event, Plan};
-    let scene = scene::load(&args.scene).map_err(Failure::input)?;
+    let (scene, _) = load_scene(&args.scene)?;
     if args.spp.is_empty() || args.spp.contains(&0) {
         return Err(Failure::input("--spp must list sample counts of at least 1"));
     }
@@ -819,12 +827,8 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         return Err(Failure::input("--rounds and --threads must be at least 1"));
     }
     // Every scene is loaded before any is measured, so a bad file fails at once.
-    let scenes = args
-        .scenes
-        .iter()
-        .map(|p| scene::load(p).map(|s| (p, s)))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(Failure::input)?;
+    let scenes =
+        args.scenes.iter().map(|p| load_scene(p).map(|(s, f)| (p, s, f))).collect::<Result<Vec<_>, _>>()?;
     let options = features::BenchFeaturesOptions {
         width: args.width,
         height: args.height,
@@ -835,9 +839,9 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     };
     let bar = progress_bar(scenes.len() as u64, args.json);
     let mut rows = Vec::new();
-    for (path, scene) in &scenes {
+    for (path, scene, filter) in &scenes {
         bar.set_message(path.display().to_string());
-        rows.push(features::bench_scene(path, scene, &options).map_err(Failure::failed)?);
+        rows.push(features::bench_scene(path, scene, filter, &options).map_err(Failure::failed)?);
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use crate::accel::{embree::SceneSettings, Backend};
 use crate::film::Film;
+use crate::filter::Setting;
 use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
 use crate::scene::Scene;
 
@@ -66,10 +67,11 @@ fn differing(a: &Film, b: &Film) -> (usize, f32) {
     (n, worst)
 }
 
-/// Measures one scene.
+/// Measures one scene, whose `[filter]` section asks for `filter`.
 pub fn bench_scene(
     path: &Path,
     scene: &Scene,
+    filter: &Setting,
     options: &BenchFeaturesOptions,
 ) -> Result<FeaturesRow, RenderError> {
     let mut base = RenderOptions::from_scene(scene);
@@ -79,7 +81,7 @@ pub fn bench_scene(
     base.threads = options.threads;
     base.accel = options.accel;
     // `base` has what the scene needs; a PNG of the final image reads only what its filter does.
-    let png = Outputs::read(false, &scene.filter, false, false);
+    let png = Outputs::read(false, filter, false, false);
     let specialised = RenderOptions {
         features: Features { split: png.split, guides: png.guides, ..base.features },
         ..base.clone()

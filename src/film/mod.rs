@@ -8,51 +8,9 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+pub use crate::scene::image::{read_exr_channels, Channels, Image};
+
 use crate::component::{Component, Split};
-
-/// A linear RGB image, row-major, top row first.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<Vec3>,
-}
-
-impl Image {
-    /// A black image. Allocated as zeroed floats (one calloc, whose fresh pages the system
-    /// zeroes lazily, on the first write of whichever thread gets there): `vec![Vec3::ZERO; n]`
-    /// would write every pixel first, on one thread, which for a 4K image took 40 ms, longer
-    /// than a filter pass over it.
-    pub fn new(width: u32, height: u32) -> Self {
-        let floats = vec![0.0f32; 3 * width as usize * height as usize];
-        Image { width, height, pixels: bytemuck::allocation::cast_vec(floats) }
-    }
-
-    /// An image of no pixels: a buffer a render did not need.
-    pub fn empty() -> Self {
-        Image { width: 0, height: 0, pixels: Vec::new() }
-    }
-
-    pub fn get(&self, x: u32, y: u32) -> Vec3 {
-        self.pixels[y as usize * self.width as usize + x as usize]
-    }
-
-    pub fn set(&mut self, x: u32, y: u32, c: Vec3) {
-        self.pixels[y as usize * self.width as usize + x as usize] = c;
-    }
-
-    /// The mean over all pixels, per channel (accumulated in f64).
-    pub fn mean(&self) -> Vec3 {
-        let mut sum = [0.0f64; 3];
-        for p in &self.pixels {
-            for (s, c) in sum.iter_mut().zip(p.to_array()) {
-                *s += c as f64;
-            }
-        }
-        let n = self.pixels.len().max(1) as f64;
-        Vec3::new((sum[0] / n) as f32, (sum[1] / n) as f32, (sum[2] / n) as f32)
-    }
-}
 
 /// Everything a render measures per pixel: the beauty, its split by light path, and the guide
 /// buffers the edge-aware filter reads.
@@ -247,9 +205,6 @@ fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
     io::Write::flush(&mut out).map_err(|e| e.to_string())
 }
 
-/// Named single-float channels, in writing order.
-pub type Channels = Vec<(String, Vec<f32>)>;
-
 /// The channels of a film for a multi-layer EXR: the final image as `R`, `G`, `B`, then
 /// `raw`, the four components, `indirect_filtered` (when given), `albedo`, `normal` (X, Y, Z),
 /// `depth` (Z) and `objectid` (ID); the split and the guides only when the film holds them.
@@ -343,21 +298,6 @@ pub fn write_exr_channels(channels: &Channels, width: u32, height: u32, path: &P
     exr::image::Image::from_layer(layer).write().to_file(path).map_err(|e| e.to_string())
 }
 
-/// Reads every float channel of an EXR's first layer, by name, with the image size.
-pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Channels), String> {
-    use exr::prelude::*;
-    let image = read_all_flat_layers_from_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let layer = image.layer_data.first().ok_or_else(|| format!("{}: no layers", path.display()))?;
-    let size = layer.size;
-    let channels = layer
-        .channel_data
-        .list
-        .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect::<Vec<f32>>()))
-        .collect();
-    Ok((size.width() as u32, size.height() as u32, channels))
-}
-
 impl Film {
     /// A film back from the channels of a multi-layer EXR written by [`write_film`]. Every layer
     /// the filters need must be there; `albedo` may be missing.
@@ -397,51 +337,11 @@ impl Film {
     }
 }
 
-/// Reads a texture as linear RGB: EXR and HDR as they are, PNG (8-bit) decoded from sRGB.
-pub fn read_texture(path: &Path) -> Result<Image, String> {
-    if matches!(Format::from_path(path), Ok(Format::Exr | Format::Hdr)) {
-        return read_image(path);
-    }
-    let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb8();
-    let decode = |c: u8| {
-        let c = c as f32 / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    };
-    Ok(Image {
-        width: img.width(),
-        height: img.height(),
-        pixels: img.pixels().map(|p| Vec3::from(p.0.map(decode))).collect(),
-    })
-}
-
 /// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
 /// Radiance HDR.
 pub fn read_image(path: &Path) -> Result<Image, String> {
     match Format::from_path(path).map_err(|e| e.to_string())? {
-        Format::Exr => {
-            let (width, height, channels) = read_exr_channels(path)?;
-            let get = |name: &str| {
-                channels
-                    .iter()
-                    .find(|(n, _)| n == name)
-                    .map(|(_, d)| d)
-                    .ok_or_else(|| format!("{}: no `{name}` channel", path.display()))
-            };
-            let (r, g, b) = (get("R")?, get("G")?, get("B")?);
-            Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
-        }
-        Format::Hdr => {
-            let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb32f();
-            Ok(Image {
-                width: img.width(),
-                height: img.height(),
-                pixels: img.pixels().map(|p| Vec3::from(p.0)).collect(),
-            })
-        }
+        Format::Exr | Format::Hdr => crate::scene::image::read(path),
         Format::Png => Err(format!("{}: compare needs linear values: use .exr or .hdr", path.display())),
     }
 }

@@ -4,6 +4,8 @@
 //! neighbour counts only if it shows the same object as the centre, optionally also a similar
 //! normal and depth. Linear in the pixel count and parallel over rows.
 
+mod section;
+
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -288,8 +288,8 @@ impl MaterialBsdf {
             Material::Diffuse { albedo } => MaterialBsdf::Diffuse(Diffuse { albedo: color(albedo), n }),
             Material::Mirror { color } => MaterialBsdf::Mirror(Mirror { color, n }),
             Material::Glass { ior, color } => MaterialBsdf::Glass(Glass { ior, color, n, entering }),
-            Material::Glossy { specular, alpha, base } => MaterialBsdf::Glossy(Glossy {
-                lobes: GlossyLobes { specular, alpha, base: color(base) },
+            Material::Glossy { specular, roughness, base } => MaterialBsdf::Glossy(Glossy {
+                lobes: GlossyLobes { specular, alpha: alpha(roughness), base: color(base) },
                 frame: Frame::new(n),
             }),
         }
@@ -498,6 +498,13 @@ mod tests {
     fn wo(theta_deg: f32) -> Vec3 {
         let t = theta_deg.to_radians();
         Vec3::new(t.sin(), 0.0, t.cos())
+    }
+
+    #[test]
+    fn alpha_is_the_square_of_roughness_above_the_floor() {
+        assert_eq!(alpha(0.5), 0.25);
+        assert_eq!(alpha(1.0), 1.0);
+        assert_eq!(alpha(0.0), MIN_ALPHA);
     }
 
     #[test]

@@ -1,9 +1,10 @@
 //! The scene: what a scene file describes, resolved into flat arrays the renderer reads
 //! (camera, materials, shapes with their triangles or spheres, lights). Loading lives in
-//! [`file`] (TOML) and [`obj`] (Wavefront OBJ meshes).
+//! [`file`] (TOML), [`obj`] (Wavefront OBJ meshes) and [`image`] (texture images).
 
 pub mod analysis;
 pub mod file;
+pub mod image;
 pub mod noise;
 pub mod obj;
 pub mod procedural;
@@ -17,7 +18,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec3A};
 
-pub use file::load;
+pub use file::{load, FilterSection, KernelSpec};
 
 /// A bad scene file: one message naming the file and, where known, the line.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,17 +80,10 @@ pub enum Material {
     Mirror { color: Vec3 },
     /// A smooth dielectric: Fresnel reflection and refraction with index `ior` (an S vertex).
     Glass { ior: f32, color: Vec3 },
-    /// A GGX microfacet lobe with reflectance `specular` at normal incidence and GGX `alpha`
-    /// (an S vertex), over a diffuse `base` (a D vertex; black for none).
-    Glossy { specular: Vec3, alpha: f32, base: Vec3 },
-}
-
-impl Material {
-    /// Whether the paper counts this material's scattering as specular-like (S) rather than
-    /// diffuse-like (D).
-    pub fn is_specular(&self) -> bool {
-        !matches!(self, Material::Diffuse { .. })
-    }
+    /// A GGX microfacet lobe with reflectance `specular` at normal incidence and `roughness` in
+    /// [0, 1] (the renderer's GGX alpha is its square; an S vertex), over a diffuse `base` (a D
+    /// vertex; black for none).
+    Glossy { specular: Vec3, roughness: f32, base: Vec3 },
 }
 
 /// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex
@@ -191,8 +185,9 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Object names; a shape's `object` indexes this.
     pub objects: Vec<String>,
-    /// The scene's own filter setting (`[filter]`), which the command line can override.
-    pub filter: crate::filter::Setting,
+    /// The scene's own `[filter]` section, as written (`filter::Setting::of_scene` reads it; the
+    /// command line can override it).
+    pub filter: Option<FilterSection>,
     pub textures: Vec<texture::Texture>,
     /// For each material (by index; missing means none), the textures it reads.
     pub maps: Vec<Maps>,

@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
+use super::image::Image;
 use super::noise::{fbm, perlin};
-use crate::film::Image;
 use crate::math::Frame;
 
 /// The pattern of a solid noise texture.

@@ -1,0 +1,74 @@
+//! A scene file's `[filter]` section as a filter setting. The scene keeps the section as written
+//! (it knows nothing of filters); the kernel names and weights, targets and edge stops are checked
+//! here, with the same rules as the command line's flags.
+
+use super::{EdgeStops, Kernel, Setting, Target};
+use crate::scene::{FilterSection, KernelSpec, Scene, SceneError};
+
+impl Setting {
+    /// The setting a `[filter]` section asks for, or what is wrong with it.
+    pub fn from_section(section: &FilterSection) -> Result<Setting, String> {
+        let kernel = match &section.kernel {
+            KernelSpec::Name(name) => Kernel::parse(name),
+            KernelSpec::Weights(weights) => Kernel::custom(weights.clone()),
+        }?;
+        let target = match section.target.as_deref() {
+            None => Target::Indirect,
+            Some(name) => Target::from_name(name)
+                .ok_or_else(|| format!("unknown filter target `{name}` (indirect, image or none)"))?,
+        };
+        let stops = EdgeStops {
+            object: section.edge_aware.unwrap_or(false),
+            normal_degrees: section.edge_normal,
+            depth_relative: section.edge_depth,
+            pure: section.edge_pure.unwrap_or(false),
+        };
+        stops.check()?;
+        Ok(Setting { kernel: Some(kernel), target, stops })
+    }
+
+    /// The setting of a scene's `[filter]` section (no filter without one); a bad section is an
+    /// error at the section's line of the scene file.
+    pub fn of_scene(scene: &Scene) -> Result<Setting, SceneError> {
+        match &scene.filter {
+            None => Ok(Setting::default()),
+            Some(section) => Setting::from_section(section)
+                .map_err(|e| SceneError::new(&scene.path, Some(section.line), e)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::file::tests::{parse_str, MINIMAL};
+
+    /// The scene's setting, or the line and message of the first error, the scene's or the section's.
+    fn setting(text: &str) -> Result<Setting, (Option<usize>, String)> {
+        parse_str(text).and_then(|s| Setting::of_scene(&s)).map_err(|e| (e.line, e.message))
+    }
+
+    #[test]
+    fn filter_section_by_name_or_weights_and_its_errors() {
+        let s = setting(&format!("{MINIMAL}[filter]\nkernel = \"median3\"\ntarget = \"image\"\n"))
+            .expect("parses");
+        assert_eq!(s.kernel, Some(Kernel::Median3));
+        assert_eq!(s.target, Target::Image);
+        let s =
+            setting(&format!("{MINIMAL}[filter]\nkernel = [0, 1, 0, 1, 4, 1, 0, 1, 0]\nedge_normal = 30\n"))
+                .expect("parses");
+        assert_eq!((s.target, s.stops.normal_degrees), (Target::Indirect, Some(30.0)));
+        assert_eq!(setting(MINIMAL).expect("parses"), Setting::default());
+        for (extra, needle) in [
+            ("kernel = \"gauss\"\n", "gauss"),
+            ("kernel = [1, 2, 3, 4]\n", "odd square"),
+            ("kernel = \"box3\"\ntarget = \"all\"\n", "all"),
+            ("kernel = \"box3\"\nedge_normal = 0\n", "normal"),
+            ("kernel = \"box3\"\nradius = 2\n", "radius"),
+        ] {
+            let (line, msg) = setting(&format!("{MINIMAL}[filter]\n{extra}")).expect_err("must fail");
+            assert!(line.is_some_and(|l| l >= 4), "{extra}: {line:?} {msg}");
+            assert!(msg.contains(needle), "{extra}: {msg}");
+        }
+    }
+}

@@ -1,0 +1,192 @@
+//! The TOML scene file: serde structs that reject unknown keys and non-finite numbers, then a
+//! pass that resolves names, builds geometry and reports every problem as `file:line: message`.
+//! One module per section; the format is documented in `docs/scene-format.md`.
+
+mod filter;
+mod light;
+mod material;
+mod settings;
+mod shape;
+mod texture;
+mod typed;
+
+use std::fmt;
+use std::ops::Range;
+use std::path::Path;
+
+use glam::Vec3;
+use serde::de::{self, Deserializer, IgnoredAny, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+use toml_edit::ImDocument;
+
+pub use filter::{FilterSection, KernelSpec};
+
+use super::{Scene, SceneError};
+
+/// A finite number: TOML's `nan` and `inf` are rejected where they are written.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct F(pub f32);
+
+impl<'de> Deserialize<'de> for F {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Finite;
+        impl Visitor<'_> for Finite {
+            type Value = F;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a finite number")
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<F, E> {
+                Ok(F(v as f32))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<F, E> {
+                Ok(F(v as f32))
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<F, E> {
+                if !v.is_finite() {
+                    Err(E::custom(format!("{v} is not a finite number")))
+                } else if v.abs() > f32::MAX as f64 {
+                    Err(E::custom(format!("{v} is too large for a 32-bit float")))
+                } else {
+                    Ok(F(v as f32))
+                }
+            }
+        }
+        d.deserialize_any(Finite)
+    }
+}
+
+/// A point, direction or colour: three finite numbers.
+type V3 = [F; 3];
+
+/// The vector of three finite numbers.
+fn v3(v: V3) -> Vec3 {
+    Vec3::new(v[0].0, v[1].0, v[2].0)
+}
+
+/// The whole file. The typed sections are read table by table, after their `type` key
+/// ([`typed::tables`]); they are named here so that serde accepts them, and lists them when a
+/// section is unknown.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileScene {
+    camera: Spanned<settings::FileCamera>,
+    film: Option<settings::FileFilm>,
+    render: Option<settings::FileRender>,
+    #[serde(rename = "material", default)]
+    _material: IgnoredAny,
+    #[serde(rename = "shape", default)]
+    _shape: IgnoredAny,
+    #[serde(rename = "light", default)]
+    _light: IgnoredAny,
+    filter: Option<Spanned<FilterSection>>,
+    #[serde(rename = "texture", default)]
+    _texture: IgnoredAny,
+}
+
+/// 1-based line of a byte offset.
+fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+}
+
+/// Reports errors against one scene file.
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    /// The error `message` at the line where `span` starts (no line without a span).
+    fn error(&self, span: Option<Range<usize>>, message: impl Into<String>) -> SceneError {
+        SceneError::new(self.path, span.map(|s| line_of(self.text, s.start)), message)
+    }
+
+    /// The error `message` at the line where `span` starts, as a result.
+    fn err<T>(&self, span: Range<usize>, message: impl Into<String>) -> Result<T, SceneError> {
+        Err(self.error(Some(span), message))
+    }
+
+    /// A TOML error, its message on one line.
+    fn toml(&self, span: Option<Range<usize>>, message: &str) -> SceneError {
+        let message: Vec<&str> = message.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        self.error(span, message.join("; "))
+    }
+}
+
+/// Reads and resolves a scene file. Every problem is one [`SceneError`] naming the file and line.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::new(path, None, format!("cannot read the scene file: {e}")))?;
+    parse(path, &text)
+}
+
+/// Parses scene text as if read from `path` (relative mesh paths resolve against its directory).
+pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
+    let ctx = Ctx { path, text };
+    let doc = ImDocument::parse(text).map_err(|e| ctx.toml(e.span(), e.message()))?;
+    let file = FileScene::deserialize(toml_edit::de::Deserializer::from(doc.clone()))
+        .map_err(|e| ctx.toml(e.span(), e.message()))?;
+    let root = doc.as_table();
+    let textures = typed::tables::<texture::TextureKind>(&ctx, root)?;
+    let materials = typed::tables::<material::MaterialKind>(&ctx, root)?;
+    let shapes = typed::tables::<shape::ShapeKind>(&ctx, root)?;
+    let lights = typed::tables::<light::LightKind>(&ctx, root)?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+
+    let camera = settings::camera(&ctx, &file.camera)?;
+    let film = settings::film(&ctx, file.film.as_ref())?;
+    let render = settings::render(&ctx, file.render.as_ref())?;
+    let (textures, texture_ids) = texture::textures(&ctx, &dir, &textures)?;
+    let material::Materials { mut materials, maps, ids: material_ids } =
+        material::materials(&ctx, &materials, &textures, &texture_ids)?;
+    let mut builder = shape::Builder::default();
+    for s in &shapes {
+        shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
+    }
+    let lights = lights.iter().map(|l| light::light(&ctx, l)).collect::<Result<Vec<_>, _>>()?;
+    let filter = file.filter.map(|f| {
+        let line = line_of(text, f.span().start);
+        FilterSection { line, ..f.into_inner() }
+    });
+
+    Ok(Scene {
+        filter,
+        textures,
+        maps,
+        path: path.to_path_buf(),
+        camera,
+        film,
+        render,
+        materials,
+        shapes: builder.shapes,
+        lights,
+        objects: builder.objects,
+    })
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A camera and nothing else: the smallest scene that parses.
+    pub(crate) const MINIMAL: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
+
+    pub(crate) fn parse_str(text: &str) -> Result<Scene, SceneError> {
+        parse(Path::new("test.toml"), text)
+    }
+
+    pub(crate) fn error_line(text: &str) -> (Option<usize>, String) {
+        let e = parse_str(text).expect_err("must fail");
+        (e.line, e.message)
+    }
+
+    #[test]
+    fn nan_and_inf_are_rejected_where_written() {
+        let text = format!("{MINIMAL}[[shape]]\ntype = \"sphere\"\nradius = nan\n");
+        let (line, msg) = error_line(&text);
+        assert_eq!(line, Some(6), "{msg}");
+        assert!(msg.contains("finite"), "{msg}");
+        let (line, msg) = error_line("[camera]\nposition = [0, inf, -5]\nlook_at = [0, 1, 0]\n");
+        assert_eq!(line, Some(2), "{msg}");
+    }
+}

@@ -1,0 +1,109 @@
+//! `[camera]`, `[film]` and `[render]`: the pinhole camera, the image size and samples per pixel,
+//! the path length limit and the seed. Each is one table of fixed keys.
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::{v3, Ctx, F, V3};
+use crate::scene::{Camera, FilmSettings, RenderSettings, SceneError};
+
+/// `[camera]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct FileCamera {
+    position: V3,
+    look_at: V3,
+    up: Option<V3>,
+    fov: Option<Spanned<F>>,
+}
+
+/// `[film]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct FileFilm {
+    width: Option<Spanned<u32>>,
+    height: Option<Spanned<u32>>,
+    spp: Option<Spanned<u32>>,
+}
+
+/// `[render]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct FileRender {
+    max_depth: Option<Spanned<u32>>,
+    seed: Option<u64>,
+}
+
+/// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient.
+pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<Camera, SceneError> {
+    let span = c.span();
+    let c = c.get_ref();
+    let position = v3(c.position);
+    let look_at = v3(c.look_at);
+    let up = c.up.map(v3).unwrap_or(glam::Vec3::Y);
+    let fov = match &c.fov {
+        Some(f) if !(f.get_ref().0 > 0.0 && f.get_ref().0 < 180.0) => {
+            return ctx.err(f.span(), "`fov` must lie strictly between 0 and 180 degrees")
+        }
+        Some(f) => f.get_ref().0,
+        None => 40.0,
+    };
+    let forward = look_at - position;
+    if forward.length_squared() == 0.0 {
+        return ctx.err(span, "the camera's `position` and `look_at` are the same point");
+    }
+    if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared() {
+        return ctx.err(span, "the camera's `up` is zero or parallel to its view direction");
+    }
+    Ok(Camera { position, look_at, up, fov })
+}
+
+/// The film settings, with their defaults (256 x 256, 16 samples per pixel).
+pub(super) fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, SceneError> {
+    let get = |v: Option<&Spanned<u32>>, name: &str, default: u32, max: u32| -> Result<u32, SceneError> {
+        match v {
+            Some(v) if *v.get_ref() == 0 || *v.get_ref() > max => {
+                ctx.err(v.span(), format!("`{name}` must lie between 1 and {max}"))
+            }
+            Some(v) => Ok(*v.get_ref()),
+            None => Ok(default),
+        }
+    };
+    Ok(FilmSettings {
+        width: get(f.and_then(|f| f.width.as_ref()), "width", 256, 1 << 16)?,
+        height: get(f.and_then(|f| f.height.as_ref()), "height", 256, 1 << 16)?,
+        spp: get(f.and_then(|f| f.spp.as_ref()), "spp", 16, 1 << 24)?,
+    })
+}
+
+/// The render settings, with their defaults (8 bounces, seed 0).
+pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings, SceneError> {
+    Ok(RenderSettings {
+        max_depth: match r.and_then(|r| r.max_depth.as_ref()) {
+            Some(d) if *d.get_ref() == 0 => return ctx.err(d.span(), "`max_depth` must be at least 1"),
+            Some(d) => *d.get_ref(),
+            None => 8,
+        },
+        seed: r.and_then(|r| r.seed).unwrap_or(0),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::file::tests::{error_line, parse_str, MINIMAL};
+
+    #[test]
+    fn minimal_scene_has_defaults() {
+        let s = parse_str(MINIMAL).expect("parses");
+        assert_eq!((s.film.width, s.film.height, s.film.spp), (256, 256, 16));
+        assert_eq!(s.render.max_depth, 8);
+        assert_eq!(s.camera.fov, 40.0);
+    }
+
+    #[test]
+    fn unknown_key_names_its_line() {
+        let (line, msg) = error_line(&format!("{MINIMAL}[film]\nwidth = 64\nhieght = 64\n"));
+        assert_eq!(line, Some(6), "{msg}");
+        assert!(msg.contains("hieght"), "{msg}");
+    }
+}
