@@ -490,11 +490,11 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
         return Err(Failure::input("--threads must be at least 1"));
     }
     let names: Vec<&str> =
-        stress::ROWS.iter().copied().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
+        stress::names().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
     if names.is_empty() {
         return Err(Failure::input(format!(
             "--only: no row matches; the rows are: {}",
-            stress::ROWS.join(", ")
+            stress::names().collect::<Vec<_>>().join(", ")
         )));
     }
     let bar = progress_bar(names.len() as u64, args.json);
