@@ -10,7 +10,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lightsplit::accel::Backend;
 use lightsplit::component::Component;
 use lightsplit::film;
-use lightsplit::filter::{composite, EdgeStops, Kernel, Setting, Target};
+use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
+use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
 use lightsplit::scene;
 
@@ -216,30 +217,30 @@ struct OutputArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
     /// Which layer a PNG or HDR output shows (an EXR holds them all).
-    #[arg(long, value_enum, default_value_t = Layer::Final)]
-    layer: Layer,
+    #[arg(long, value_enum, default_value_t = LayerName::Final)]
+    layer: LayerName,
 }
 
 impl OutputArgs {
     /// Checks before any work: the exposure, the filter (these flags over `base`), and that the
-    /// layer can be written to `output` with that filter.
-    fn check(&self, base: &Setting, output: &Path) -> Result<Setting, Failure> {
+    /// layer can be written as `format` with that filter.
+    fn check(&self, base: &Setting, format: film::Format) -> Result<Setting, Failure> {
         if !self.exposure.is_finite() {
             return Err(Failure::input("--exposure must be a finite number"));
         }
         let setting = self.filter.check(base)?;
-        check_layer(self.layer, output, &setting)?;
+        self.layer().check(format, &setting)?;
         Ok(setting)
     }
 
-    /// Filters `film` as `setting` says and writes it to `output`; returns the filter's seconds.
-    fn finish(&self, film: &film::Film, setting: &Setting, output: &Path) -> Result<f64, Failure> {
-        let start = std::time::Instant::now();
-        let (final_image, filtered) =
-            composite(film, setting.kernel.as_ref(), setting.target, &setting.stops);
-        let seconds = start.elapsed().as_secs_f64();
-        write_output(film, &final_image, filtered.as_ref(), output, self.layer, self.exposure)?;
-        Ok(seconds)
+    /// The layer asked for.
+    fn layer(&self) -> Layer {
+        self.layer.into()
+    }
+
+    /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
+    fn write(&self, film: &film::Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
+        output::write(film, setting, path, self.layer(), self.exposure)
     }
 }
 
@@ -342,9 +343,9 @@ struct RenderArgs {
     json: bool,
 }
 
-/// A layer of a render, for single-image outputs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum Layer {
+/// `--layer`'s spellings.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum LayerName {
     /// The final image (filtered when a filter is on).
     Final,
     /// The unfiltered beauty.
@@ -358,44 +359,19 @@ enum Layer {
     Albedo,
 }
 
-/// Checks before any work that `layer` can be written to `output` with this filter setting.
-fn check_layer(layer: Layer, output: &Path, setting: &Setting) -> Result<(), Failure> {
-    if layer != Layer::Final && matches!(film::Format::from_path(output), Ok(film::Format::Exr)) {
-        return Err(Failure::input(
-            "--layer picks the layer of a PNG or HDR output; an EXR holds every layer",
-        ));
-    }
-    if layer == Layer::IndirectFiltered && (setting.kernel.is_none() || setting.target != Target::Indirect) {
-        return Err(Failure::input("--layer indirect-filtered needs a filter on indirect"));
-    }
-    Ok(())
-}
-
-/// Writes the render: every layer to an EXR, or `layer` alone to a PNG or HDR.
-fn write_output(
-    film: &film::Film,
-    final_image: &film::Image,
-    filtered: Option<&film::Image>,
-    output: &Path,
-    layer: Layer,
-    exposure: f32,
-) -> Result<(), Failure> {
-    if layer == Layer::Final {
-        return film::write_film(film, final_image, filtered, output, exposure).map_err(Failure::failed);
-    }
-    let image = match layer {
-        Layer::Final => final_image,
-        Layer::Raw => &film.raw,
-        Layer::Emitted => &film.components[Component::Emitted],
-        Layer::Direct => &film.components[Component::Direct],
-        Layer::Caustic => &film.components[Component::Caustic],
-        Layer::Indirect => &film.components[Component::Indirect],
-        Layer::IndirectFiltered => {
-            filtered.ok_or_else(|| Failure::input("--layer indirect-filtered needs a filter on indirect"))?
+impl From<LayerName> for Layer {
+    fn from(l: LayerName) -> Layer {
+        match l {
+            LayerName::Final => Layer::Final,
+            LayerName::Raw => Layer::Raw,
+            LayerName::Emitted => Layer::Component(Component::Emitted),
+            LayerName::Direct => Layer::Component(Component::Direct),
+            LayerName::Caustic => Layer::Component(Component::Caustic),
+            LayerName::Indirect => Layer::Component(Component::Indirect),
+            LayerName::IndirectFiltered => Layer::IndirectFiltered,
+            LayerName::Albedo => Layer::Albedo,
         }
-        Layer::Albedo => &film.albedo,
-    };
-    film::write(image, output, exposure).map_err(Failure::failed)
+    }
 }
 
 /// A failure with its exit status.
@@ -410,6 +386,16 @@ impl Failure {
     }
     fn failed(message: impl ToString) -> Self {
         Failure { code: EXIT_FAILURE, message: message.to_string() }
+    }
+}
+
+impl From<OutputError> for Failure {
+    fn from(e: OutputError) -> Self {
+        if e.is_input() {
+            Failure::input(e)
+        } else {
+            Failure::failed(e)
+        }
     }
 }
 
@@ -450,11 +436,11 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output).map_err(Failure::input)?;
-    let setting = args.out.check(&scene.filter, &output)?;
+    let setting = args.out.check(&scene.filter, format)?;
     let analysis = scene::analysis::Analysis::of(&scene);
     println!("{}", args.scene.display());
     print!("{analysis}");
-    let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
+    let Outputs { split, guides } = args.out.layer().reads(format, &setting);
     println!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
@@ -476,12 +462,6 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let features = Features::needed(&analysis, Outputs { split, guides });
     println!("so the render computes: {} (of mis+split+guides+textures)", features.names());
     Ok(())
-}
-
-/// The buffers an output reads besides the beauty.
-fn outputs_read(format: film::Format, setting: &Setting, layer: Layer) -> Outputs {
-    let component = !matches!(layer, Layer::Final | Layer::Raw | Layer::Albedo);
-    Outputs::read(format == film::Format::Exr, setting, component, layer == Layer::Albedo)
 }
 
 fn stress_command(args: StressArgs) -> Result<(), Failure> {
@@ -572,7 +552,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if args.threads == Some(0) {
         return Err(Failure::input("--threads must be at least 1"));
     }
-    let setting = args.out.check(&scene.filter, &output)?;
+    let setting = args.out.check(&scene.filter, format)?;
     check_adaptive(args.adaptive)?;
     options.adaptive = args.adaptive;
     if args.all_features {
@@ -580,14 +560,14 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         options.embree = Default::default();
     } else {
         // `from_scene` found what the scene needs; the output decides the split and the guides.
-        let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
+        let Outputs { split, guides } = args.out.layer().reads(format, &setting);
         options.features = Features { split, guides, ..options.features };
     }
 
     let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let filter_seconds = args.out.finish(&out.film, &setting, &output)?;
+    let filter_seconds = args.out.write(&out.film, &setting, &output)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -718,12 +698,13 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 }
 
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
-    film::check_output(&args.output).map_err(Failure::input)?;
-    let setting = args.out.check(&Setting::default(), &args.output)?;
+    let format = film::check_output(&args.output).map_err(Failure::input)?;
+    let setting = args.out.check(&Setting::default(), format)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
-    args.out.finish(&film, &setting, &args.output).map(|_| ())
+    args.out.write(&film, &setting, &args.output)?;
+    Ok(())
 }
 
 fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {

@@ -9,8 +9,9 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::accel::{embree::SceneSettings, Backend};
-use crate::film::Film;
-use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
+use crate::film::{Film, Format};
+use crate::output::Layer;
+use crate::render::{self, Features, RenderError, RenderOptions, RenderStats};
 use crate::scene::Scene;
 
 use super::median;
@@ -79,7 +80,7 @@ pub fn bench_scene(
     base.threads = options.threads;
     base.accel = options.accel;
     // `base` has what the scene needs; a PNG of the final image reads only what its filter does.
-    let png = Outputs::read(false, &scene.filter, false, false);
+    let png = Layer::Final.reads(Format::Png, &scene.filter);
     let specialised = RenderOptions {
         features: Features { split: png.split, guides: png.guides, ..base.features },
         ..base.clone()
