@@ -1,17 +1,22 @@
-//! The `lightsplit` command line: parse, call the library, print. No rendering logic here.
+//! The `lightsplit` command line: parse (the grammar is in `cli.rs`), call the library, print.
+//! No rendering logic and no output rules here: those live in the library.
+
+mod cli;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use lightsplit::accel::Backend;
-use lightsplit::component::Component;
+use cli::{
+    BenchAccelArgs, BenchFeaturesArgs, Cli, Command, CompareArgs, ConvergeArgs, FilterCommandArgs, InfoArgs,
+    RenderArgs, StressArgs,
+};
 use lightsplit::film;
-use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
-use lightsplit::output::{self, Layer, OutputError};
+use lightsplit::filter::{Kernel, Setting};
+use lightsplit::output::OutputError;
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
 use lightsplit::scene;
 
@@ -19,360 +24,6 @@ use lightsplit::scene;
 const EXIT_INPUT: u8 = 2;
 /// A failure while working on valid input.
 const EXIT_FAILURE: u8 = 1;
-
-#[derive(Parser)]
-#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Render a scene file to an image.
-    Render(RenderArgs),
-    /// Re-filter a saved multi-layer EXR without rendering again.
-    Filter(FilterCommandArgs),
-    /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
-    Compare(CompareArgs),
-    /// Measure Embree and the BVH side by side on identical ray sets.
-    BenchAccel(BenchAccelArgs),
-    /// Run time against error: render each spp once per seed, filter it every way, compare
-    /// with a reference, and write results.csv, summary.md and log-log plots.
-    Converge(ConvergeArgs),
-    /// Numerical stability: adversarial scenes (far from the origin, at extreme scales, grazing,
-    /// degenerate, dark, tiny, overflowing, seamed), each with its measured figure and a verdict.
-    Stress(StressArgs),
-    /// What a scene uses (material lobes, lights, textures) and so what a render of it, with
-    /// the outputs asked for, needs.
-    Info(InfoArgs),
-    /// Samples per second, buffer memory and images of scenes rendered with only what they
-    /// need and with every feature forced on, side by side.
-    BenchFeatures(BenchFeaturesArgs),
-}
-
-#[derive(clap::Args)]
-struct BenchFeaturesArgs {
-    /// The scene files (TOML).
-    #[arg(required = true)]
-    scenes: Vec<PathBuf>,
-    #[arg(long, default_value_t = 128)]
-    width: u32,
-    #[arg(long, default_value_t = 128)]
-    height: u32,
-    #[arg(long, default_value_t = 16)]
-    spp: u32,
-    /// Rounds, each rendering every mode once; medians are reported.
-    #[arg(long, default_value_t = 5)]
-    rounds: usize,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct InfoArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// The output the render would write (its format decides which layers are kept).
-    #[arg(short, long)]
-    output: Option<PathBuf>,
-    #[command(flatten)]
-    out: OutputArgs,
-}
-
-#[derive(clap::Args)]
-struct StressArgs {
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Run only the rows whose name contains this text.
-    #[arg(long)]
-    only: Option<String>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct ConvergeArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// A reference image (.exr or .hdr) of the same size; without it one is rendered at
-    /// --reference-spp and cached in the output directory.
-    #[arg(long, conflicts_with = "reference_spp")]
-    reference: Option<PathBuf>,
-    /// Samples per pixel of the rendered reference.
-    #[arg(long, default_value_t = 1024)]
-    reference_spp: u32,
-    /// The sample counts to measure.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64,128,256")]
-    spp: Vec<u32>,
-    /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
-    #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
-    filters: Vec<String>,
-    /// What the filters apply to.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "indirect")]
-    targets: Vec<Target>,
-    /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
-    /// pixels alone, as --edge-pure does); a list measures each.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "off")]
-    edge_aware: Vec<lightsplit::converge::Edge>,
-    /// Renders per spp, each with its own seed: the summary gives their mean and spread.
-    #[arg(long, default_value_t = 1)]
-    seeds: u32,
-    /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
-    /// then is the most a pixel takes), compared with uniform sampling at equal time.
-    #[arg(long, value_name = "THRESHOLD")]
-    adaptive: Option<f32>,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Image width (default: the scene file's).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (default: the scene file's).
-    #[arg(long)]
-    height: Option<u32>,
-    /// The spp whose difference images (the paper's Figure 6) are written (default: the
-    /// measured spp nearest 50).
-    #[arg(long)]
-    diff_spp: Option<u32>,
-    /// The output directory.
-    #[arg(long)]
-    out: PathBuf,
-}
-
-/// How to filter: shared by `render` and `filter`.
-#[derive(clap::Args, Clone)]
-struct FilterArgs {
-    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, or an odd
-    /// square kernel as comma-separated weights.
-    #[arg(long)]
-    filter: Option<String>,
-    /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
-    #[arg(long, value_enum)]
-    filter_target: Option<Target>,
-    /// Average only neighbours that show the same object as the centre pixel.
-    #[arg(long)]
-    edge_aware: bool,
-    /// Also stop at creases: only neighbours whose normal is within DEG degrees.
-    #[arg(long, value_name = "DEG")]
-    edge_normal: Option<f32>,
-    /// Also stop at depth steps: only neighbours whose depth differs by at most REL (relative).
-    #[arg(long, value_name = "REL")]
-    edge_depth: Option<f32>,
-    /// Beyond the paper: leave pixels whose samples saw more than one object (antialiased
-    /// borders) unfiltered and out of their neighbours' windows.
-    #[arg(long)]
-    edge_pure: bool,
-}
-
-impl FilterArgs {
-    /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
-    fn check(&self, base: &Setting) -> Result<Setting, Failure> {
-        let kernel = match self.filter.as_deref() {
-            Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
-            None => base.kernel.clone(),
-        };
-        let target = match (self.filter_target, &self.filter) {
-            (Some(t), _) => t,
-            // A filter named here applies to its default target, not to the scene's.
-            (None, Some(_)) => Target::Indirect,
-            (None, None) => base.target,
-        };
-        if target != Target::None && kernel.is_none() {
-            return Err(Failure::input("--filter-target needs --filter"));
-        }
-        let stops = EdgeStops {
-            object: self.edge_aware || base.stops.object,
-            normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
-            depth_relative: self.edge_depth.or(base.stops.depth_relative),
-            pure: self.edge_pure || base.stops.pure,
-        };
-        stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
-        Ok(Setting { kernel, target, stops })
-    }
-}
-
-/// How a render becomes its output: filtered, exposed, one layer or all. Shared by `render`
-/// and `filter`.
-#[derive(clap::Args)]
-struct OutputArgs {
-    #[command(flatten)]
-    filter: FilterArgs,
-    /// Exposure in stops for PNG output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    exposure: f32,
-    /// Which layer a PNG or HDR output shows (an EXR holds them all).
-    #[arg(long, value_enum, default_value_t = LayerName::Final)]
-    layer: LayerName,
-}
-
-impl OutputArgs {
-    /// Checks before any work: the exposure, the filter (these flags over `base`), and that the
-    /// layer can be written as `format` with that filter.
-    fn check(&self, base: &Setting, format: film::Format) -> Result<Setting, Failure> {
-        if !self.exposure.is_finite() {
-            return Err(Failure::input("--exposure must be a finite number"));
-        }
-        let setting = self.filter.check(base)?;
-        self.layer().check(format, &setting)?;
-        Ok(setting)
-    }
-
-    /// The layer asked for.
-    fn layer(&self) -> Layer {
-        self.layer.into()
-    }
-
-    /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
-    fn write(&self, film: &film::Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
-        output::write(film, setting, path, self.layer(), self.exposure)
-    }
-}
-
-#[derive(clap::Args)]
-struct FilterCommandArgs {
-    /// A multi-layer EXR written by `lightsplit render`.
-    input: PathBuf,
-    /// The output: .exr (every layer), .png or .hdr (the final image).
-    #[arg(short, long)]
-    output: PathBuf,
-    #[command(flatten)]
-    out: OutputArgs,
-}
-
-#[derive(clap::Args)]
-struct CompareArgs {
-    /// The image to judge (.exr or .hdr).
-    test: PathBuf,
-    /// The reference (.exr or .hdr), e.g. a high-sample render of the same scene.
-    reference: PathBuf,
-    /// Write a brightened difference image (the paper's Figure 6): darker is a larger difference.
-    #[arg(long)]
-    diff: Option<PathBuf>,
-    /// Print one JSON object on stdout.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct BenchAccelArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// Primary rays per set (shadow and incoherent rays start at their hits).
-    #[arg(long, default_value_t = 1 << 20)]
-    rays: usize,
-    /// Threads for the multi-threaded rows (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Seconds each measurement runs at least.
-    #[arg(long, default_value_t = 0.3)]
-    seconds: f64,
-    /// Rounds per row, each measuring both backends back to back; medians are reported.
-    #[arg(long, default_value_t = 5)]
-    rounds: usize,
-    /// Instead of the backends, measure Embree's scene settings against each other: robust or
-    /// not, build quality low, medium, high (build time, rays per second, answers changed).
-    #[arg(long)]
-    embree_settings: bool,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct RenderArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// Output image: .exr (32-bit float), .png (8-bit sRGB) or .hdr (Radiance RGBE).
-    /// Default: the scene's name with .exr, in the current directory.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
-    /// Samples per pixel (default: the scene file's).
-    #[arg(long)]
-    spp: Option<u32>,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Random seed (default: the scene file's).
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Image width (default: the scene file's).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (default: the scene file's).
-    #[arg(long)]
-    height: Option<u32>,
-    /// Most scattering events per path (default: the scene file's).
-    #[arg(long)]
-    max_depth: Option<u32>,
-    #[command(flatten)]
-    out: OutputArgs,
-    /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
-    #[arg(long)]
-    debug_nonfinite: bool,
-    /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
-    /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
-    /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.
-    #[arg(long, value_name = "THRESHOLD")]
-    adaptive: Option<f32>,
-    /// Compute every feature (MIS, the split, the guides, textures) whatever the scene and the
-    /// output need, on Embree's robust high-quality build: the general renderer, for
-    /// comparison. The beauty is the same.
-    #[arg(long)]
-    all_features: bool,
-    /// Print one JSON object on stdout instead of the summary line.
-    #[arg(long)]
-    json: bool,
-}
-
-/// `--layer`'s spellings.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum LayerName {
-    /// The final image (filtered when a filter is on).
-    Final,
-    /// The unfiltered beauty.
-    Raw,
-    Emitted,
-    Direct,
-    Caustic,
-    Indirect,
-    /// The filtered indirect component (needs a filter on `indirect`).
-    IndirectFiltered,
-    Albedo,
-}
-
-impl From<LayerName> for Layer {
-    fn from(l: LayerName) -> Layer {
-        match l {
-            LayerName::Final => Layer::Final,
-            LayerName::Raw => Layer::Raw,
-            LayerName::Emitted => Layer::Component(Component::Emitted),
-            LayerName::Direct => Layer::Component(Component::Direct),
-            LayerName::Caustic => Layer::Component(Component::Caustic),
-            LayerName::Indirect => Layer::Component(Component::Indirect),
-            LayerName::IndirectFiltered => Layer::IndirectFiltered,
-            LayerName::Albedo => Layer::Albedo,
-        }
-    }
-}
 
 /// A failure with its exit status.
 struct Failure {
@@ -440,7 +91,7 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let analysis = scene::analysis::Analysis::of(&scene);
     println!("{}", args.scene.display());
     print!("{analysis}");
-    let Outputs { split, guides } = args.out.layer().reads(format, &setting);
+    let Outputs { split, guides } = args.out.layer.reads(format, &setting);
     println!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
@@ -560,7 +211,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         options.embree = Default::default();
     } else {
         // `from_scene` found what the scene needs; the output decides the split and the guides.
-        let Outputs { split, guides } = args.out.layer().reads(format, &setting);
+        let Outputs { split, guides } = args.out.layer.reads(format, &setting);
         options.features = Features { split, guides, ..options.features };
     }
 
