@@ -1,8 +1,10 @@
-//! The command line's grammar: every subcommand's arguments, and the small enums that spell
-//! the library's choices (`embree`, `indirect`, `final`, ...) and map onto its types, so the
-//! library never knows clap.
+//! The command line's grammar: every subcommand's arguments, the value parsers that check ranges
+//! as they parse (so a bad value is clap's usage error, exit status 2), and the small enums that
+//! spell the library's choices (`embree`, `indirect`, `final`, ...) without the library knowing clap.
 
+use std::fmt::Display;
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 
 use clap::builder::{EnumValueParser, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -28,6 +30,7 @@ pub struct Cli {
 #[derive(Subcommand)]
 pub enum Command {
     /// Render a scene file to an image.
+    #[command(mut_arg("json", |a| a.help("Print one JSON object on stdout instead of the summary line")))]
     Render(RenderArgs),
     /// Re-filter a saved multi-layer EXR without rendering again.
     Filter(FilterCommandArgs),
@@ -49,30 +52,44 @@ pub enum Command {
     BenchFeatures(BenchFeaturesArgs),
 }
 
+/// Where the rays are traced: shared by every command that renders.
+#[derive(clap::Args)]
+pub struct Engine {
+    /// Ray tracing backend.
+    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
+    pub accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = count::<usize>)]
+    pub threads: Option<usize>,
+}
+
+/// `--accel`, `--threads` and `--json`: shared by `render`, `stress` and `bench-features`.
+#[derive(clap::Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub engine: Engine,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `bench-features`.
 #[derive(clap::Args)]
 pub struct BenchFeaturesArgs {
     /// The scene files (TOML).
     #[arg(required = true)]
     pub scenes: Vec<PathBuf>,
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
     pub width: u32,
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
     pub height: u32,
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = count::<u32>)]
     pub spp: u32,
     /// Rounds, each rendering every mode once; medians are reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
     pub rounds: usize,
-    /// Ray tracing backend.
-    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
-    pub accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 /// `info`.
@@ -90,18 +107,11 @@ pub struct InfoArgs {
 /// `stress`.
 #[derive(clap::Args)]
 pub struct StressArgs {
-    /// Ray tracing backend.
-    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
-    pub accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Run only the rows whose name contains this text.
     #[arg(long)]
     pub only: Option<String>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 /// `converge`.
@@ -114,10 +124,15 @@ pub struct ConvergeArgs {
     #[arg(long, conflicts_with = "reference_spp")]
     pub reference: Option<PathBuf>,
     /// Samples per pixel of the rendered reference.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, value_parser = count::<u32>)]
     pub reference_spp: u32,
     /// The sample counts to measure.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64,128,256")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,4,8,16,32,64,128,256",
+        value_parser = count::<u32>
+    )]
     pub spp: Vec<u32>,
     /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
     #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
@@ -135,23 +150,19 @@ pub struct ConvergeArgs {
     #[arg(long, value_delimiter = ',', default_value = "off", value_parser = choice::<EdgeAware, Edge>())]
     pub edge_aware: Vec<Edge>,
     /// Renders per spp, each with its own seed: the summary gives their mean and spread.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = count::<u32>)]
     pub seeds: u32,
     /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
     /// then is the most a pixel takes), compared with uniform sampling at equal time.
-    #[arg(long, value_name = "THRESHOLD")]
+    #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
     pub adaptive: Option<f32>,
-    /// Ray tracing backend.
-    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
-    pub accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub engine: Engine,
     /// Image width (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub width: Option<u32>,
     /// Image height (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub height: Option<u32>,
     /// The spp whose difference images (the paper's Figure 6) are written (default: the
     /// measured spp nearest 50).
@@ -221,7 +232,7 @@ pub struct OutputArgs {
     #[command(flatten)]
     pub filter: FilterArgs,
     /// Exposure in stops for PNG output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite)]
     pub exposure: f32,
     /// Which layer a PNG or HDR output shows (an EXR holds them all).
     #[arg(long, default_value = "final", value_parser = choice::<LayerName, Layer>())]
@@ -229,12 +240,9 @@ pub struct OutputArgs {
 }
 
 impl OutputArgs {
-    /// Checks before any work: the exposure, the filter (these flags over `base`), and that the
-    /// layer can be written as `format` with that filter.
+    /// Checks before any work: the filter (these flags over `base`), and that the layer can be
+    /// written as `format` with that filter.
     pub fn check(&self, base: &Setting, format: Format) -> Result<Setting, Failure> {
-        if !self.exposure.is_finite() {
-            return Err(Failure::input("--exposure must be a finite number"));
-        }
         let setting = self.filter.check(base)?;
         self.layer.check(format, &setting)?;
         Ok(setting)
@@ -279,16 +287,16 @@ pub struct BenchAccelArgs {
     /// The scene file (TOML).
     pub scene: PathBuf,
     /// Primary rays per set (shadow and incoherent rays start at their hits).
-    #[arg(long, default_value_t = 1 << 20)]
+    #[arg(long, default_value_t = 1 << 20, value_parser = count::<usize>)]
     pub rays: usize,
     /// Threads for the multi-threaded rows (default: one per core).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<usize>)]
     pub threads: Option<usize>,
     /// Seconds each measurement runs at least.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, value_parser = seconds)]
     pub seconds: f64,
     /// Rounds per row, each measuring both backends back to back; medians are reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
     pub rounds: usize,
     /// Instead of the backends, measure Embree's scene settings against each other: robust or
     /// not, build quality low, medium, high (build time, rays per second, answers changed).
@@ -309,25 +317,21 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Samples per pixel (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub spp: Option<u32>,
-    /// Ray tracing backend.
-    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
-    pub accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub run: RunArgs,
     /// Random seed (default: the scene file's).
     #[arg(long)]
     pub seed: Option<u64>,
     /// Image width (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub width: Option<u32>,
     /// Image height (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub height: Option<u32>,
     /// Most scattering events per path (default: the scene file's).
-    #[arg(long)]
+    #[arg(long, value_parser = count::<u32>)]
     pub max_depth: Option<u32>,
     #[command(flatten)]
     pub out: OutputArgs,
@@ -337,16 +341,51 @@ pub struct RenderArgs {
     /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
     /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
     /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.
-    #[arg(long, value_name = "THRESHOLD")]
+    #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
     pub adaptive: Option<f32>,
     /// Compute every feature (MIS, the split, the guides, textures) whatever the scene and the
     /// output need, on Embree's robust high-quality build: the general renderer, for
     /// comparison. The beauty is the same.
     #[arg(long)]
     pub all_features: bool,
-    /// Print one JSON object on stdout instead of the summary line.
-    #[arg(long)]
-    pub json: bool,
+}
+
+/// `text` as a `T` that passes `ok`: otherwise the parse error, or that it "must be `what`".
+fn number<T>(text: &str, ok: impl Fn(T) -> bool, what: &str) -> Result<T, String>
+where
+    T: FromStr + Copy,
+    T::Err: Display,
+{
+    let value = text.parse().map_err(|e: T::Err| e.to_string())?;
+    if ok(value) {
+        Ok(value)
+    } else {
+        Err(format!("must be {what}"))
+    }
+}
+
+/// A count of at least one: sizes, samples, seeds, threads, rays, rounds.
+fn count<T>(text: &str) -> Result<T, String>
+where
+    T: FromStr + Copy + PartialOrd + From<u8>,
+    T::Err: Display,
+{
+    number(text, |n| n >= T::from(1), "at least 1")
+}
+
+/// `--exposure`: any finite number of stops.
+fn finite(text: &str) -> Result<f32, String> {
+    number(text, f32::is_finite, "a finite number")
+}
+
+/// `--adaptive`: a relative standard error above zero.
+fn relative_error(text: &str) -> Result<f32, String> {
+    number(text, |t: f32| t.is_finite() && t > 0.0, "a positive relative error such as 0.02")
+}
+
+/// `--seconds`: a positive duration.
+fn seconds(text: &str) -> Result<f64, String> {
+    number(text, |t: f64| t.is_finite() && t > 0.0, "a positive number")
 }
 
 /// A parser of `E`'s names (with their help) that gives the library's `T`.
@@ -477,5 +516,16 @@ mod tests {
         for edge in EdgeAware::value_variants() {
             assert_eq!(Edge::parse(&spelled(edge)), Some(Edge::from(*edge)));
         }
+    }
+
+    #[test]
+    fn counts_and_numbers_are_checked_as_they_parse() {
+        assert_eq!(count::<u32>("3"), Ok(3));
+        assert_eq!(count::<usize>("0"), Err("must be at least 1".into()));
+        assert!(count::<u32>("x").is_err_and(|e| e.contains("invalid digit")));
+        assert_eq!(finite("-2.5"), Ok(-2.5));
+        assert!(finite("inf").is_err());
+        assert!(relative_error("0").is_err() && relative_error("nan").is_err());
+        assert_eq!(seconds("0.3"), Ok(0.3));
     }
 }

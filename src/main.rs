@@ -117,9 +117,7 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
 
 fn stress_command(args: StressArgs) -> Result<(), Failure> {
     use lightsplit::stress;
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
+    let engine = &args.run.engine;
     let names: Vec<&str> =
         stress::names().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
     if names.is_empty() {
@@ -128,20 +126,20 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
             stress::names().collect::<Vec<_>>().join(", ")
         )));
     }
-    let bar = progress_bar(names.len() as u64, args.json);
+    let bar = progress_bar(names.len() as u64, args.run.json);
     let mut rows = Vec::new();
     for name in names {
         bar.set_message(name);
-        rows.push(stress::run_row(name, args.accel, args.threads).map_err(Failure::failed)?);
+        rows.push(stress::run_row(name, engine.accel, engine.threads).map_err(Failure::failed)?);
         bar.inc(1);
     }
     bar.finish_and_clear();
     let passed = rows.iter().filter(|r| r.pass).count();
     // A limit row may fail: it measures past what f32 holds, and says so.
     let failed = rows.iter().filter(|r| !r.pass && !r.limit).count();
-    if args.json {
+    if args.run.json {
         let json =
-            serde_json::json!({ "accel": args.accel, "passed": passed, "failed": failed, "rows": rows });
+            serde_json::json!({ "accel": engine.accel, "passed": passed, "failed": failed, "rows": rows });
         println!("{json}");
     } else {
         let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0);
@@ -158,7 +156,7 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
             let what = if r.limit { "past f32's reach" } else { "FAILED" };
             println!("\n{} {what}: {}", r.name, r.note);
         }
-        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), args.accel);
+        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), engine.accel);
     }
     if failed > 0 {
         return Err(Failure::failed(format!("{failed} stress rows failed")));
@@ -172,8 +170,8 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let format = film::check_output(&output).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
-    options.accel = args.accel;
-    options.threads = args.threads;
+    options.accel = args.run.engine.accel;
+    options.threads = args.run.engine.threads;
     options.debug_nonfinite = args.debug_nonfinite;
     if let Some(v) = args.spp {
         options.spp = v;
@@ -190,21 +188,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(v) = args.max_depth {
         options.max_depth = v;
     }
-    for (name, value) in [
-        ("spp", options.spp),
-        ("width", options.width),
-        ("height", options.height),
-        ("max-depth", options.max_depth),
-    ] {
-        if value == 0 {
-            return Err(Failure::input(format!("--{name} must be at least 1")));
-        }
-    }
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
     let setting = args.out.check(&scene.filter, format)?;
-    check_adaptive(args.adaptive)?;
     options.adaptive = args.adaptive;
     if args.all_features {
         options.features = Features::ALL;
@@ -215,7 +199,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         options.features = Features { split, guides, ..options.features };
     }
 
-    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.json);
+    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
     let filter_seconds = args.out.write(&out.film, &setting, &output)?;
@@ -223,7 +207,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
     let rays_per_second = s.rays as f64 / s.seconds.max(1e-9);
-    if args.json {
+    if args.run.json {
         let json = serde_json::json!({
             "scene": args.scene,
             "seconds": s.seconds,
@@ -281,16 +265,6 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// An adaptive threshold must be a positive, finite relative error.
-fn check_adaptive(threshold: Option<f32>) -> Result<(), Failure> {
-    match threshold {
-        Some(t) if !(t.is_finite() && t > 0.0) => {
-            Err(Failure::input(format!("--adaptive must be a positive relative error such as 0.02, not {t}")))
-        }
-        _ => Ok(()),
-    }
-}
-
 fn rayon_threads(threads: Option<usize>) -> usize {
     threads.unwrap_or_else(rayon::current_num_threads)
 }
@@ -302,20 +276,11 @@ fn default_output(scene: &Path) -> PathBuf {
 
 fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
-    if args.rays == 0 {
-        return Err(Failure::input("--rays must be at least 1"));
-    }
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        return Err(Failure::input("--seconds must be a positive number"));
-    }
     let options = lightsplit::bench::BenchAccelOptions {
         rays: args.rays,
         threads: args.threads.unwrap_or_else(rayon::current_num_threads),
         min_seconds: args.seconds,
-        rounds: args.rounds.max(1),
+        rounds: args.rounds,
         seed: 1,
     };
     let bar = progress_bar(0, args.json);
@@ -361,13 +326,6 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
 fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     use lightsplit::converge::{self, Event, Plan};
     let scene = scene::load(&args.scene).map_err(Failure::input)?;
-    if args.spp.is_empty() || args.spp.contains(&0) {
-        return Err(Failure::input("--spp must list sample counts of at least 1"));
-    }
-    if args.seeds == 0 || args.reference_spp == 0 || args.threads == Some(0) {
-        return Err(Failure::input("--seeds, --reference-spp and --threads must be at least 1"));
-    }
-    check_adaptive(args.adaptive)?;
     if args.diff_spp.is_some_and(|d| !args.spp.contains(&d)) {
         return Err(Failure::input("--diff-spp must be one of the --spp values"));
     }
@@ -375,8 +333,8 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     let filters: Vec<String> = args.filters.iter().map(|f| f.replace(';', ",")).collect();
     let choices = converge::choices(&filters, &args.targets, &args.edge_aware).map_err(Failure::input)?;
     let mut options = RenderOptions::from_scene(&scene);
-    options.accel = args.accel;
-    options.threads = args.threads;
+    options.accel = args.engine.accel;
+    options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
     let mut spps = args.spp.clone();
@@ -442,14 +400,6 @@ fn compare_command(args: CompareArgs) -> Result<(), Failure> {
 
 fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     use lightsplit::bench::features;
-    for (name, value) in [("width", args.width), ("height", args.height), ("spp", args.spp)] {
-        if value == 0 {
-            return Err(Failure::input(format!("--{name} must be at least 1")));
-        }
-    }
-    if args.rounds == 0 || args.threads == Some(0) {
-        return Err(Failure::input("--rounds and --threads must be at least 1"));
-    }
     // Every scene is loaded before any is measured, so a bad file fails at once.
     let scenes = args
         .scenes
@@ -462,10 +412,10 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         height: args.height,
         spp: args.spp,
         rounds: args.rounds,
-        threads: args.threads,
-        accel: args.accel,
+        threads: args.run.engine.threads,
+        accel: args.run.engine.accel,
     };
-    let bar = progress_bar(scenes.len() as u64, args.json);
+    let bar = progress_bar(scenes.len() as u64, args.run.json);
     let mut rows = Vec::new();
     for (path, scene) in &scenes {
         bar.set_message(path.display().to_string());
@@ -473,7 +423,7 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if args.json {
+    if args.run.json {
         println!("{}", serde_json::json!({ "rows": rows }));
     } else {
         print!("{}", features::table(&rows, &options));
