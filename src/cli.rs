@@ -22,6 +22,7 @@ use crate::Failure;
 #[derive(Parser)]
 #[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
 pub struct Cli {
+    /// What to do.
     #[command(subcommand)]
     pub command: Command,
 }
@@ -66,6 +67,7 @@ pub struct Engine {
 /// `--accel`, `--threads` and `--json`: shared by `render`, `stress` and `bench-features`.
 #[derive(clap::Args)]
 pub struct RunArgs {
+    /// `--accel` and `--threads`.
     #[command(flatten)]
     pub engine: Engine,
     /// Print one JSON object on stdout instead of the table.
@@ -79,15 +81,19 @@ pub struct BenchFeaturesArgs {
     /// The scene files (TOML).
     #[arg(required = true)]
     pub scenes: Vec<PathBuf>,
+    /// Image width of every render.
     #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
     pub width: u32,
+    /// Image height of every render.
     #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
     pub height: u32,
+    /// Samples per pixel of every render.
     #[arg(long, default_value_t = 16, value_parser = count::<u32>)]
     pub spp: u32,
     /// Rounds, each rendering every mode once; medians are reported.
     #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
     pub rounds: usize,
+    /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
     pub run: RunArgs,
 }
@@ -100,6 +106,7 @@ pub struct InfoArgs {
     /// The output the render would write (its format decides which layers are kept).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
 }
@@ -110,6 +117,7 @@ pub struct StressArgs {
     /// Run only the rows whose name contains this text.
     #[arg(long)]
     pub only: Option<String>,
+    /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
     pub run: RunArgs,
 }
@@ -156,6 +164,7 @@ pub struct ConvergeArgs {
     /// then is the most a pixel takes), compared with uniform sampling at equal time.
     #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
     pub adaptive: Option<f32>,
+    /// `--accel` and `--threads`.
     #[command(flatten)]
     pub engine: Engine,
     /// Image width (default: the scene file's).
@@ -229,6 +238,7 @@ impl FilterArgs {
 /// `filter` and `info`.
 #[derive(clap::Args)]
 pub struct OutputArgs {
+    /// The filter setting.
     #[command(flatten)]
     pub filter: FilterArgs,
     /// Exposure in stops for PNG output.
@@ -262,6 +272,7 @@ pub struct FilterCommandArgs {
     /// The output: .exr (every layer), .png or .hdr (the final image).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
 }
@@ -319,6 +330,7 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene file's).
     #[arg(long, value_parser = count::<u32>)]
     pub spp: Option<u32>,
+    /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
     pub run: RunArgs,
     /// Random seed (default: the scene file's).
@@ -333,6 +345,7 @@ pub struct RenderArgs {
     /// Most scattering events per path (default: the scene file's).
     #[arg(long, value_parser = count::<u32>)]
     pub max_depth: Option<u32>,
+    /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.

@@ -26,9 +26,11 @@ use crate::scene::{self, Geometry, Mesh, Scene, Shape};
 /// One measured row of the table.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    /// The row's name, as [`names`] lists it.
     pub name: String,
     /// What was measured, with its numbers.
     pub figure: String,
+    /// Whether the figure is within the row's bound.
     pub pass: bool,
     /// Past what f32 can hold (the scene's coordinates are rounded to more than 1e-3 of its
     /// size): measured and shown, but a failure here is f32's, explained in `note`.

@@ -22,9 +22,13 @@ pub const ALL: u8 = MIS | SPLIT | GUIDES | TEXTURES;
 /// The features one render computes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Features {
+    /// [`MIS`]: what a path needs when it can hit a light.
     pub mis: bool,
+    /// [`SPLIT`]: the component split and its buffers.
     pub split: bool,
+    /// [`GUIDES`]: the guide buffers.
     pub guides: bool,
+    /// [`TEXTURES`]: colour textures and bump maps.
     pub textures: bool,
 }
 
