@@ -11,6 +11,7 @@ pub mod film;
 pub mod filter;
 pub mod math;
 pub mod metrics;
+pub mod output;
 pub mod render;
 pub mod scene;
 pub mod stress;

@@ -1,16 +1,22 @@
-//! The `lightsplit` command line: parse, call the library, print. No rendering logic here.
+//! The `lightsplit` command line: parse (the grammar is in `cli.rs`), call the library, print.
+//! No rendering logic and no output rules here: those live in the library.
+
+mod cli;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use lightsplit::accel::Backend;
-use lightsplit::component::Component;
+use cli::{
+    BenchAccelArgs, BenchFeaturesArgs, Cli, Command, CompareArgs, ConvergeArgs, FilterCommandArgs, InfoArgs,
+    RenderArgs, StressArgs,
+};
 use lightsplit::film;
-use lightsplit::filter::{composite, EdgeStops, Kernel, Setting, Target};
+use lightsplit::filter::{Kernel, Setting};
+use lightsplit::output::OutputError;
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
 use lightsplit::scene;
 
@@ -18,385 +24,6 @@ use lightsplit::scene;
 const EXIT_INPUT: u8 = 2;
 /// A failure while working on valid input.
 const EXIT_FAILURE: u8 = 1;
-
-#[derive(Parser)]
-#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Render a scene file to an image.
-    Render(RenderArgs),
-    /// Re-filter a saved multi-layer EXR without rendering again.
-    Filter(FilterCommandArgs),
-    /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
-    Compare(CompareArgs),
-    /// Measure Embree and the BVH side by side on identical ray sets.
-    BenchAccel(BenchAccelArgs),
-    /// Run time against error: render each spp once per seed, filter it every way, compare
-    /// with a reference, and write results.csv, summary.md and log-log plots.
-    Converge(ConvergeArgs),
-    /// Numerical stability: adversarial scenes (far from the origin, at extreme scales, grazing,
-    /// degenerate, dark, tiny, overflowing, seamed), each with its measured figure and a verdict.
-    Stress(StressArgs),
-    /// What a scene uses (material lobes, lights, textures) and so what a render of it, with
-    /// the outputs asked for, needs.
-    Info(InfoArgs),
-    /// Samples per second, buffer memory and images of scenes rendered with only what they
-    /// need and with every feature forced on, side by side.
-    BenchFeatures(BenchFeaturesArgs),
-}
-
-#[derive(clap::Args)]
-struct BenchFeaturesArgs {
-    /// The scene files (TOML).
-    #[arg(required = true)]
-    scenes: Vec<PathBuf>,
-    #[arg(long, default_value_t = 128)]
-    width: u32,
-    #[arg(long, default_value_t = 128)]
-    height: u32,
-    #[arg(long, default_value_t = 16)]
-    spp: u32,
-    /// Rounds, each rendering every mode once; medians are reported.
-    #[arg(long, default_value_t = 5)]
-    rounds: usize,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct InfoArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// The output the render would write (its format decides which layers are kept).
-    #[arg(short, long)]
-    output: Option<PathBuf>,
-    #[command(flatten)]
-    out: OutputArgs,
-}
-
-#[derive(clap::Args)]
-struct StressArgs {
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Run only the rows whose name contains this text.
-    #[arg(long)]
-    only: Option<String>,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct ConvergeArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// A reference image (.exr or .hdr) of the same size; without it one is rendered at
-    /// --reference-spp and cached in the output directory.
-    #[arg(long, conflicts_with = "reference_spp")]
-    reference: Option<PathBuf>,
-    /// Samples per pixel of the rendered reference.
-    #[arg(long, default_value_t = 1024)]
-    reference_spp: u32,
-    /// The sample counts to measure.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64,128,256")]
-    spp: Vec<u32>,
-    /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
-    #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
-    filters: Vec<String>,
-    /// What the filters apply to.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "indirect")]
-    targets: Vec<Target>,
-    /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
-    /// pixels alone, as --edge-pure does); a list measures each.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "off")]
-    edge_aware: Vec<lightsplit::converge::Edge>,
-    /// Renders per spp, each with its own seed: the summary gives their mean and spread.
-    #[arg(long, default_value_t = 1)]
-    seeds: u32,
-    /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
-    /// then is the most a pixel takes), compared with uniform sampling at equal time.
-    #[arg(long, value_name = "THRESHOLD")]
-    adaptive: Option<f32>,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Image width (default: the scene file's).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (default: the scene file's).
-    #[arg(long)]
-    height: Option<u32>,
-    /// The spp whose difference images (the paper's Figure 6) are written (default: the
-    /// measured spp nearest 50).
-    #[arg(long)]
-    diff_spp: Option<u32>,
-    /// The output directory.
-    #[arg(long)]
-    out: PathBuf,
-}
-
-/// How to filter: shared by `render` and `filter`.
-#[derive(clap::Args, Clone)]
-struct FilterArgs {
-    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, or an odd
-    /// square kernel as comma-separated weights.
-    #[arg(long)]
-    filter: Option<String>,
-    /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
-    #[arg(long, value_enum)]
-    filter_target: Option<Target>,
-    /// Average only neighbours that show the same object as the centre pixel.
-    #[arg(long)]
-    edge_aware: bool,
-    /// Also stop at creases: only neighbours whose normal is within DEG degrees.
-    #[arg(long, value_name = "DEG")]
-    edge_normal: Option<f32>,
-    /// Also stop at depth steps: only neighbours whose depth differs by at most REL (relative).
-    #[arg(long, value_name = "REL")]
-    edge_depth: Option<f32>,
-    /// Beyond the paper: leave pixels whose samples saw more than one object (antialiased
-    /// borders) unfiltered and out of their neighbours' windows.
-    #[arg(long)]
-    edge_pure: bool,
-}
-
-impl FilterArgs {
-    /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
-    fn check(&self, base: &Setting) -> Result<Setting, Failure> {
-        let kernel = match self.filter.as_deref() {
-            Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
-            None => base.kernel.clone(),
-        };
-        let target = match (self.filter_target, &self.filter) {
-            (Some(t), _) => t,
-            // A filter named here applies to its default target, not to the scene's.
-            (None, Some(_)) => Target::Indirect,
-            (None, None) => base.target,
-        };
-        if target != Target::None && kernel.is_none() {
-            return Err(Failure::input("--filter-target needs --filter"));
-        }
-        let stops = EdgeStops {
-            object: self.edge_aware || base.stops.object,
-            normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
-            depth_relative: self.edge_depth.or(base.stops.depth_relative),
-            pure: self.edge_pure || base.stops.pure,
-        };
-        stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
-        Ok(Setting { kernel, target, stops })
-    }
-}
-
-/// How a render becomes its output: filtered, exposed, one layer or all. Shared by `render`
-/// and `filter`.
-#[derive(clap::Args)]
-struct OutputArgs {
-    #[command(flatten)]
-    filter: FilterArgs,
-    /// Exposure in stops for PNG output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    exposure: f32,
-    /// Which layer a PNG or HDR output shows (an EXR holds them all).
-    #[arg(long, value_enum, default_value_t = Layer::Final)]
-    layer: Layer,
-}
-
-impl OutputArgs {
-    /// Checks before any work: the exposure, the filter (these flags over `base`), and that the
-    /// layer can be written to `output` with that filter.
-    fn check(&self, base: &Setting, output: &Path) -> Result<Setting, Failure> {
-        if !self.exposure.is_finite() {
-            return Err(Failure::input("--exposure must be a finite number"));
-        }
-        let setting = self.filter.check(base)?;
-        check_layer(self.layer, output, &setting)?;
-        Ok(setting)
-    }
-
-    /// Filters `film` as `setting` says and writes it to `output`; returns the filter's seconds.
-    fn finish(&self, film: &film::Film, setting: &Setting, output: &Path) -> Result<f64, Failure> {
-        let start = std::time::Instant::now();
-        let (final_image, filtered) =
-            composite(film, setting.kernel.as_ref(), setting.target, &setting.stops);
-        let seconds = start.elapsed().as_secs_f64();
-        write_output(film, &final_image, filtered.as_ref(), output, self.layer, self.exposure)?;
-        Ok(seconds)
-    }
-}
-
-#[derive(clap::Args)]
-struct FilterCommandArgs {
-    /// A multi-layer EXR written by `lightsplit render`.
-    input: PathBuf,
-    /// The output: .exr (every layer), .png or .hdr (the final image).
-    #[arg(short, long)]
-    output: PathBuf,
-    #[command(flatten)]
-    out: OutputArgs,
-}
-
-#[derive(clap::Args)]
-struct CompareArgs {
-    /// The image to judge (.exr or .hdr).
-    test: PathBuf,
-    /// The reference (.exr or .hdr), e.g. a high-sample render of the same scene.
-    reference: PathBuf,
-    /// Write a brightened difference image (the paper's Figure 6): darker is a larger difference.
-    #[arg(long)]
-    diff: Option<PathBuf>,
-    /// Print one JSON object on stdout.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct BenchAccelArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// Primary rays per set (shadow and incoherent rays start at their hits).
-    #[arg(long, default_value_t = 1 << 20)]
-    rays: usize,
-    /// Threads for the multi-threaded rows (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Seconds each measurement runs at least.
-    #[arg(long, default_value_t = 0.3)]
-    seconds: f64,
-    /// Rounds per row, each measuring both backends back to back; medians are reported.
-    #[arg(long, default_value_t = 5)]
-    rounds: usize,
-    /// Instead of the backends, measure Embree's scene settings against each other: robust or
-    /// not, build quality low, medium, high (build time, rays per second, answers changed).
-    #[arg(long)]
-    embree_settings: bool,
-    /// Print one JSON object on stdout instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-#[derive(clap::Args)]
-struct RenderArgs {
-    /// The scene file (TOML).
-    scene: PathBuf,
-    /// Output image: .exr (32-bit float), .png (8-bit sRGB) or .hdr (Radiance RGBE).
-    /// Default: the scene's name with .exr, in the current directory.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
-    /// Samples per pixel (default: the scene file's).
-    #[arg(long)]
-    spp: Option<u32>,
-    /// Ray tracing backend.
-    #[arg(long, value_enum, default_value_t = Backend::Embree)]
-    accel: Backend,
-    /// Worker threads (default: one per core).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Random seed (default: the scene file's).
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Image width (default: the scene file's).
-    #[arg(long)]
-    width: Option<u32>,
-    /// Image height (default: the scene file's).
-    #[arg(long)]
-    height: Option<u32>,
-    /// Most scattering events per path (default: the scene file's).
-    #[arg(long)]
-    max_depth: Option<u32>,
-    #[command(flatten)]
-    out: OutputArgs,
-    /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
-    #[arg(long)]
-    debug_nonfinite: bool,
-    /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
-    /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
-    /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.
-    #[arg(long, value_name = "THRESHOLD")]
-    adaptive: Option<f32>,
-    /// Compute every feature (MIS, the split, the guides, textures) whatever the scene and the
-    /// output need, on Embree's robust high-quality build: the general renderer, for
-    /// comparison. The beauty is the same.
-    #[arg(long)]
-    all_features: bool,
-    /// Print one JSON object on stdout instead of the summary line.
-    #[arg(long)]
-    json: bool,
-}
-
-/// A layer of a render, for single-image outputs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum Layer {
-    /// The final image (filtered when a filter is on).
-    Final,
-    /// The unfiltered beauty.
-    Raw,
-    Emitted,
-    Direct,
-    Caustic,
-    Indirect,
-    /// The filtered indirect component (needs a filter on `indirect`).
-    IndirectFiltered,
-    Albedo,
-}
-
-/// Checks before any work that `layer` can be written to `output` with this filter setting.
-fn check_layer(layer: Layer, output: &Path, setting: &Setting) -> Result<(), Failure> {
-    if layer != Layer::Final && matches!(film::Format::from_path(output), Ok(film::Format::Exr)) {
-        return Err(Failure::input(
-            "--layer picks the layer of a PNG or HDR output; an EXR holds every layer",
-        ));
-    }
-    if layer == Layer::IndirectFiltered && (setting.kernel.is_none() || setting.target != Target::Indirect) {
-        return Err(Failure::input("--layer indirect-filtered needs a filter on indirect"));
-    }
-    Ok(())
-}
-
-/// Writes the render: every layer to an EXR, or `layer` alone to a PNG or HDR.
-fn write_output(
-    film: &film::Film,
-    final_image: &film::Image,
-    filtered: Option<&film::Image>,
-    output: &Path,
-    layer: Layer,
-    exposure: f32,
-) -> Result<(), Failure> {
-    if layer == Layer::Final {
-        return film::write_film(film, final_image, filtered, output, exposure).map_err(Failure::failed);
-    }
-    let image = match layer {
-        Layer::Final => final_image,
-        Layer::Raw => &film.raw,
-        Layer::Emitted => &film.components[Component::Emitted],
-        Layer::Direct => &film.components[Component::Direct],
-        Layer::Caustic => &film.components[Component::Caustic],
-        Layer::Indirect => &film.components[Component::Indirect],
-        Layer::IndirectFiltered => {
-            filtered.ok_or_else(|| Failure::input("--layer indirect-filtered needs a filter on indirect"))?
-        }
-        Layer::Albedo => &film.albedo,
-    };
-    film::write(image, output, exposure).map_err(Failure::failed)
-}
 
 /// A failure with its exit status.
 struct Failure {
@@ -410,6 +37,16 @@ impl Failure {
     }
     fn failed(message: impl ToString) -> Self {
         Failure { code: EXIT_FAILURE, message: message.to_string() }
+    }
+}
+
+impl From<OutputError> for Failure {
+    fn from(e: OutputError) -> Self {
+        if e.is_input() {
+            Failure::input(e)
+        } else {
+            Failure::failed(e)
+        }
     }
 }
 
@@ -458,11 +95,11 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let (scene, scene_filter) = load_scene(&args.scene)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output).map_err(Failure::input)?;
-    let setting = args.out.check(&scene_filter, &output)?;
+    let setting = args.out.check(&scene_filter, format)?;
     let analysis = scene::analysis::Analysis::of(&scene);
     println!("{}", args.scene.display());
     print!("{analysis}");
-    let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
+    let Outputs { split, guides } = args.out.layer.reads(format, &setting);
     println!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
@@ -486,39 +123,31 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The buffers an output reads besides the beauty.
-fn outputs_read(format: film::Format, setting: &Setting, layer: Layer) -> Outputs {
-    let component = !matches!(layer, Layer::Final | Layer::Raw | Layer::Albedo);
-    Outputs::read(format == film::Format::Exr, setting, component, layer == Layer::Albedo)
-}
-
 fn stress_command(args: StressArgs) -> Result<(), Failure> {
     use lightsplit::stress;
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
+    let engine = &args.run.engine;
     let names: Vec<&str> =
-        stress::ROWS.iter().copied().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
+        stress::names().filter(|n| args.only.as_deref().is_none_or(|o| n.contains(o))).collect();
     if names.is_empty() {
         return Err(Failure::input(format!(
             "--only: no row matches; the rows are: {}",
-            stress::ROWS.join(", ")
+            stress::names().collect::<Vec<_>>().join(", ")
         )));
     }
-    let bar = progress_bar(names.len() as u64, args.json);
+    let bar = progress_bar(names.len() as u64, args.run.json);
     let mut rows = Vec::new();
     for name in names {
         bar.set_message(name);
-        rows.push(stress::run_row(name, args.accel, args.threads).map_err(Failure::failed)?);
+        rows.push(stress::run_row(name, engine.accel, engine.threads).map_err(Failure::failed)?);
         bar.inc(1);
     }
     bar.finish_and_clear();
     let passed = rows.iter().filter(|r| r.pass).count();
     // A limit row may fail: it measures past what f32 holds, and says so.
     let failed = rows.iter().filter(|r| !r.pass && !r.limit).count();
-    if args.json {
+    if args.run.json {
         let json =
-            serde_json::json!({ "accel": args.accel, "passed": passed, "failed": failed, "rows": rows });
+            serde_json::json!({ "accel": engine.accel, "passed": passed, "failed": failed, "rows": rows });
         println!("{json}");
     } else {
         let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0);
@@ -535,7 +164,7 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
             let what = if r.limit { "past f32's reach" } else { "FAILED" };
             println!("\n{} {what}: {}", r.name, r.note);
         }
-        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), args.accel);
+        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), engine.accel);
     }
     if failed > 0 {
         return Err(Failure::failed(format!("{failed} stress rows failed")));
@@ -549,8 +178,8 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let format = film::check_output(&output).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
-    options.accel = args.accel;
-    options.threads = args.threads;
+    options.accel = args.run.engine.accel;
+    options.threads = args.run.engine.threads;
     options.debug_nonfinite = args.debug_nonfinite;
     if let Some(v) = args.spp {
         options.spp = v;
@@ -567,40 +196,26 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(v) = args.max_depth {
         options.max_depth = v;
     }
-    for (name, value) in [
-        ("spp", options.spp),
-        ("width", options.width),
-        ("height", options.height),
-        ("max-depth", options.max_depth),
-    ] {
-        if value == 0 {
-            return Err(Failure::input(format!("--{name} must be at least 1")));
-        }
-    }
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
-    let setting = args.out.check(&scene_filter, &output)?;
-    check_adaptive(args.adaptive)?;
+    let setting = args.out.check(&scene_filter, format)?;
     options.adaptive = args.adaptive;
     if args.all_features {
         options.features = Features::ALL;
         options.embree = Default::default();
     } else {
         // `from_scene` found what the scene needs; the output decides the split and the guides.
-        let Outputs { split, guides } = outputs_read(format, &setting, args.out.layer);
+        let Outputs { split, guides } = args.out.layer.reads(format, &setting);
         options.features = Features { split, guides, ..options.features };
     }
 
-    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.json);
+    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let filter_seconds = args.out.finish(&out.film, &setting, &output)?;
+    let filter_seconds = args.out.write(&out.film, &setting, &output)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
     let rays_per_second = s.rays as f64 / s.seconds.max(1e-9);
-    if args.json {
+    if args.run.json {
         let json = serde_json::json!({
             "scene": args.scene,
             "seconds": s.seconds,
@@ -658,16 +273,6 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// An adaptive threshold must be a positive, finite relative error.
-fn check_adaptive(threshold: Option<f32>) -> Result<(), Failure> {
-    match threshold {
-        Some(t) if !(t.is_finite() && t > 0.0) => {
-            Err(Failure::input(format!("--adaptive must be a positive relative error such as 0.02, not {t}")))
-        }
-        _ => Ok(()),
-    }
-}
-
 fn rayon_threads(threads: Option<usize>) -> usize {
     threads.unwrap_or_else(rayon::current_num_threads)
 }
@@ -679,20 +284,11 @@ fn default_output(scene: &Path) -> PathBuf {
 
 fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     let (scene, _) = load_scene(&args.scene)?;
-    if args.rays == 0 {
-        return Err(Failure::input("--rays must be at least 1"));
-    }
-    if args.threads == Some(0) {
-        return Err(Failure::input("--threads must be at least 1"));
-    }
-    if !(args.seconds.is_finite() && args.seconds > 0.0) {
-        return Err(Failure::input("--seconds must be a positive number"));
-    }
     let options = lightsplit::bench::BenchAccelOptions {
         rays: args.rays,
         threads: args.threads.unwrap_or_else(rayon::current_num_threads),
         min_seconds: args.seconds,
-        rounds: args.rounds.max(1),
+        rounds: args.rounds,
         seed: 1,
     };
     let bar = progress_bar(0, args.json);
@@ -726,24 +322,18 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 }
 
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
-    film::check_output(&args.output).map_err(Failure::input)?;
-    let setting = args.out.check(&Setting::default(), &args.output)?;
+    let format = film::check_output(&args.output).map_err(Failure::input)?;
+    let setting = args.out.check(&Setting::default(), format)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
-    args.out.finish(&film, &setting, &args.output).map(|_| ())
+    args.out.write(&film, &setting, &args.output)?;
+    Ok(())
 }
 
 fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     use lightsplit::converge::{self, Event, Plan};
     let (scene, _) = load_scene(&args.scene)?;
-    if args.spp.is_empty() || args.spp.contains(&0) {
-        return Err(Failure::input("--spp must list sample counts of at least 1"));
-    }
-    if args.seeds == 0 || args.reference_spp == 0 || args.threads == Some(0) {
-        return Err(Failure::input("--seeds, --reference-spp and --threads must be at least 1"));
-    }
-    check_adaptive(args.adaptive)?;
     if args.diff_spp.is_some_and(|d| !args.spp.contains(&d)) {
         return Err(Failure::input("--diff-spp must be one of the --spp values"));
     }
@@ -751,8 +341,8 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     let filters: Vec<String> = args.filters.iter().map(|f| f.replace(';', ",")).collect();
     let choices = converge::choices(&filters, &args.targets, &args.edge_aware).map_err(Failure::input)?;
     let mut options = RenderOptions::from_scene(&scene);
-    options.accel = args.accel;
-    options.threads = args.threads;
+    options.accel = args.engine.accel;
+    options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
     let mut spps = args.spp.clone();
@@ -818,14 +408,6 @@ fn compare_command(args: CompareArgs) -> Result<(), Failure> {
 
 fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     use lightsplit::bench::features;
-    for (name, value) in [("width", args.width), ("height", args.height), ("spp", args.spp)] {
-        if value == 0 {
-            return Err(Failure::input(format!("--{name} must be at least 1")));
-        }
-    }
-    if args.rounds == 0 || args.threads == Some(0) {
-        return Err(Failure::input("--rounds and --threads must be at least 1"));
-    }
     // Every scene is loaded before any is measured, so a bad file fails at once.
     let scenes =
         args.scenes.iter().map(|p| load_scene(p).map(|(s, f)| (p, s, f))).collect::<Result<Vec<_>, _>>()?;
@@ -834,10 +416,10 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         height: args.height,
         spp: args.spp,
         rounds: args.rounds,
-        threads: args.threads,
-        accel: args.accel,
+        threads: args.run.engine.threads,
+        accel: args.run.engine.accel,
     };
-    let bar = progress_bar(scenes.len() as u64, args.json);
+    let bar = progress_bar(scenes.len() as u64, args.run.json);
     let mut rows = Vec::new();
     for (path, scene, filter) in &scenes {
         bar.set_message(path.display().to_string());
@@ -845,7 +427,7 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if args.json {
+    if args.run.json {
         println!("{}", serde_json::json!({ "rows": rows }));
     } else {
         print!("{}", features::table(&rows, &options));

@@ -26,9 +26,11 @@ use crate::scene::{self, Geometry, Mesh, Scene, Shape};
 /// One measured row of the table.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
+    /// The row's name, as [`names`] lists it.
     pub name: String,
     /// What was measured, with its numbers.
     pub figure: String,
+    /// Whether the figure is within the row's bound.
     pub pass: bool,
     /// Past what f32 can hold (the scene's coordinates are rounded to more than 1e-3 of its
     /// size): measured and shown, but a failure here is f32's, explained in `note`.
@@ -51,54 +53,47 @@ pub enum StressError {
     Io(String),
 }
 
-/// The suite's rows, by name, in table order. Each is run by [`run_row`].
-pub const ROWS: [&str; 17] = [
-    "translate 1e3",
-    "translate 1e5",
-    "translate 1e6",
-    "scale 1e-4",
-    "scale 1e-2",
-    "scale 1e2",
-    "scale 1e5",
-    "grazing rays, 2e4-unit plane",
-    "degenerate triangles",
-    "zero-radius sphere",
-    "zero-power lights",
-    "only zero-power lights",
-    "sun of 0.01 degrees",
-    "radiance 1e-6 to 1e6",
-    "overflowing light",
-    "watertight: subdivided plane",
-    "watertight: closed sphere, inside",
+/// One row of the suite: its name and how it is measured.
+type RowFn = fn(&Ctx) -> Result<Row, StressError>;
+
+/// The suite's rows in table order, each named once beside what it runs, so no row can be
+/// listed without being run or run without being listed.
+const ROWS: &[(&str, RowFn)] = &[
+    ("translate 1e3", |c| c.moved(1e3, 1.0)),
+    ("translate 1e5", |c| c.moved(1e5, 1.0)),
+    ("translate 1e6", |c| c.moved(1e6, 1.0)),
+    ("scale 1e-4", |c| c.moved(0.0, 1e-4)),
+    ("scale 1e-2", |c| c.moved(0.0, 1e-2)),
+    ("scale 1e2", |c| c.moved(0.0, 1e2)),
+    ("scale 1e5", |c| c.moved(0.0, 1e5)),
+    ("grazing rays, 2e4-unit plane", Ctx::grazing),
+    ("degenerate triangles", Ctx::degenerate),
+    ("zero-radius sphere", Ctx::zero_radius),
+    ("zero-power lights", Ctx::zero_power),
+    ("only zero-power lights", Ctx::only_zero_power),
+    ("sun of 0.01 degrees", Ctx::tiny_sun),
+    ("radiance 1e-6 to 1e6", Ctx::radiance_range),
+    ("overflowing light", Ctx::overflow),
+    ("watertight: subdivided plane", Ctx::watertight_plane),
+    ("watertight: closed sphere, inside", Ctx::watertight_sphere),
 ];
+
+/// The suite's row names, in table order.
+pub fn names() -> impl Iterator<Item = &'static str> {
+    ROWS.iter().map(|(name, _)| *name)
+}
 
 /// Image size and samples of the rendered rows: small, so the suite takes seconds.
 const SIZE: u32 = 48;
 const SPP: u32 = 16;
 
-/// Runs one row of [`ROWS`] on `backend`.
+/// Runs the row named `name` (one of [`names`]) on `backend`.
 pub fn run_row(name: &str, backend: Backend, threads: Option<usize>) -> Result<Row, StressError> {
-    let ctx = Ctx { backend, threads };
-    let row = match name {
-        "translate 1e3" => ctx.moved(1e3, 1.0)?,
-        "translate 1e5" => ctx.moved(1e5, 1.0)?,
-        "translate 1e6" => ctx.moved(1e6, 1.0)?,
-        "scale 1e-4" => ctx.moved(0.0, 1e-4)?,
-        "scale 1e-2" => ctx.moved(0.0, 1e-2)?,
-        "scale 1e2" => ctx.moved(0.0, 1e2)?,
-        "scale 1e5" => ctx.moved(0.0, 1e5)?,
-        "grazing rays, 2e4-unit plane" => ctx.grazing()?,
-        "degenerate triangles" => ctx.degenerate()?,
-        "zero-radius sphere" => ctx.zero_radius()?,
-        "zero-power lights" => ctx.zero_power()?,
-        "only zero-power lights" => ctx.only_zero_power()?,
-        "sun of 0.01 degrees" => ctx.tiny_sun()?,
-        "radiance 1e-6 to 1e6" => ctx.radiance_range()?,
-        "overflowing light" => ctx.overflow()?,
-        "watertight: subdivided plane" => ctx.watertight_plane()?,
-        "watertight: closed sphere, inside" => ctx.watertight_sphere()?,
-        other => return Err(StressError::Io(format!("no stress row named `{other}`"))),
-    };
+    let (name, run) = ROWS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .ok_or_else(|| StressError::Io(format!("no stress row named `{name}`")))?;
+    let row = run(&Ctx { backend, threads })?;
     Ok(Row { name: name.to_string(), ..row })
 }
 
@@ -633,4 +628,16 @@ fn tempfile_dir() -> Result<std::path::PathBuf, StressError> {
     let dir = std::env::temp_dir().join(format!("lightsplit-stress-{}-{n}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| StressError::Io(format!("{}: {e}", dir.display())))?;
     Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_names_are_unique_and_unknown_names_are_errors() {
+        let unique: BTreeSet<&str> = names().collect();
+        assert_eq!(unique.len(), ROWS.len());
+        assert!(matches!(run_row("no such row", Backend::Bvh, Some(1)), Err(StressError::Io(_))));
+    }
 }

@@ -107,6 +107,34 @@ fn missing_scene_file_and_bad_arguments_are_status_2() {
     }
 }
 
+/// Every range a flag must lie in is checked as the command line is parsed: one error naming
+/// the flag and the rule, status 2, before any scene is read.
+#[test]
+fn out_of_range_flags_are_usage_errors_naming_the_flag() {
+    let cases: [&[&str]; 12] = [
+        &["render", "s.toml", "--width", "0"],
+        &["render", "s.toml", "--max-depth", "0"],
+        &["render", "s.toml", "--exposure", "nan"],
+        &["render", "s.toml", "--adaptive", "0"],
+        &["converge", "s.toml", "--out", "d", "--spp", "1,0"],
+        &["converge", "s.toml", "--out", "d", "--seeds", "0"],
+        &["converge", "s.toml", "--out", "d", "--threads", "0"],
+        &["bench-accel", "s.toml", "--rays", "0"],
+        &["bench-accel", "s.toml", "--seconds", "0"],
+        &["bench-features", "s.toml", "--rounds", "0"],
+        &["stress", "--threads", "0"],
+        &["stress", "--accel", "gpu"],
+    ];
+    for args in cases {
+        let out = lightsplit(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        let flag = args[args.len() - 2];
+        assert!(stderr.starts_with("error: invalid value") && stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(!stderr.contains("s.toml"), "{args:?}: the scene was read: {stderr}");
+    }
+}
+
 /// The render command the README gives a newcomer, run as written (with the output redirected
 /// into a temporary directory).
 #[test]

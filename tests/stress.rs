@@ -6,11 +6,11 @@ mod common;
 
 use common::lightsplit;
 use lightsplit::accel::Backend;
-use lightsplit::stress::{run_row, ROWS};
+use lightsplit::stress::{names, run_row};
 
 fn every_row_holds(backend: Backend) {
     let mut failed = Vec::new();
-    for name in ROWS {
+    for name in names() {
         let row = run_row(name, backend, None).expect("the row runs");
         eprintln!("{backend} {:34} {} {}", row.name, row.pass, row.figure);
         let explained = row.limit && row.note.contains("f32 runs out");

@@ -65,7 +65,7 @@ pub fn thread_pool(n: usize) -> Result<rayon::ThreadPool, AccelError> {
 }
 
 /// The backends a render can choose at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {
     /// Intel Embree through FFI.

@@ -9,9 +9,10 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::accel::{embree::SceneSettings, Backend};
-use crate::film::Film;
+use crate::film::{Film, Format};
 use crate::filter::Setting;
-use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
+use crate::output::Layer;
+use crate::render::{self, Features, RenderError, RenderOptions, RenderStats};
 use crate::scene::Scene;
 
 use super::median;
@@ -81,7 +82,7 @@ pub fn bench_scene(
     base.threads = options.threads;
     base.accel = options.accel;
     // `base` has what the scene needs; a PNG of the final image reads only what its filter does.
-    let png = Outputs::read(false, filter, false, false);
+    let png = Layer::Final.reads(Format::Png, filter);
     let specialised = RenderOptions {
         features: Features { split: png.split, guides: png.guides, ..base.features },
         ..base.clone()

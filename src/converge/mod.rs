@@ -24,7 +24,7 @@ use crate::scene::Scene;
 
 /// Edge-aware filtering in a run: off, the paper's object stop, or that and the coverage stop
 /// (mixed border pixels left alone).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Edge {
     Off,
     On,

@@ -89,7 +89,7 @@ impl Default for Setting {
 }
 
 /// What the filter is applied to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Target {
     /// Only L_r,d,d, then added back (the paper's method).
     Indirect,

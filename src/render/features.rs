@@ -5,7 +5,6 @@
 use serde::Serialize;
 
 use crate::accel::embree::{BuildQuality, SceneSettings};
-use crate::filter::{EdgeStops, Setting, Target};
 use crate::scene::analysis::Analysis;
 
 /// Emission at hits, lookups at infinity, MIS weights, and the ray after the last vertex: what
@@ -23,13 +22,18 @@ pub const ALL: u8 = MIS | SPLIT | GUIDES | TEXTURES;
 /// The features one render computes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Features {
+    /// [`MIS`]: what a path needs when it can hit a light.
     pub mis: bool,
+    /// [`SPLIT`]: the component split and its buffers.
     pub split: bool,
+    /// [`GUIDES`]: the guide buffers.
     pub guides: bool,
+    /// [`TEXTURES`]: colour textures and bump maps.
     pub textures: bool,
 }
 
-/// What a render's outputs read besides the beauty.
+/// What a render's outputs read besides the beauty: the output module decides it from the
+/// output's format, layer and filter, so the renderer never sees them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Outputs {
     /// The component split: an EXR, a filter on `indirect`, or a component layer.
@@ -41,15 +45,6 @@ pub struct Outputs {
 impl Outputs {
     /// Every layer (an EXR).
     pub const ALL: Outputs = Outputs { split: true, guides: true };
-
-    /// What an output reads: an EXR keeps every layer; a PNG or HDR its one layer (a component
-    /// layer needs the split, the albedo layer the guides) and what the filter reads to make it.
-    pub fn read(exr: bool, setting: &Setting, component_layer: bool, albedo_layer: bool) -> Outputs {
-        Outputs {
-            split: exr || (setting.kernel.is_some() && setting.target == Target::Indirect) || component_layer,
-            guides: exr || setting.stops != EdgeStops::default() || albedo_layer,
-        }
-    }
 }
 
 impl Features {

@@ -1,0 +1,544 @@
+//! The command line's grammar: every subcommand's arguments, the value parsers that check ranges
+//! as they parse (so a bad value is clap's usage error, exit status 2), and the small enums that
+//! spell the library's choices (`embree`, `indirect`, `final`, ...) without the library knowing clap.
+
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use clap::builder::{EnumValueParser, TypedValueParser};
+use clap::{Parser, Subcommand, ValueEnum};
+
+use lightsplit::accel::Backend;
+use lightsplit::component::Component;
+use lightsplit::converge::Edge;
+use lightsplit::film::{Film, Format};
+use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
+use lightsplit::output::{self, Layer, OutputError};
+
+use crate::Failure;
+
+/// The whole command line.
+#[derive(Parser)]
+#[command(name = "lightsplit", version, about = "A path tracer that filters only the indirect diffuse light")]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a scene file to an image.
+    #[command(mut_arg("json", |a| a.help("Print one JSON object on stdout instead of the summary line")))]
+    Render(RenderArgs),
+    /// Re-filter a saved multi-layer EXR without rendering again.
+    Filter(FilterCommandArgs),
+    /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
+    Compare(CompareArgs),
+    /// Measure Embree and the BVH side by side on identical ray sets.
+    BenchAccel(BenchAccelArgs),
+    /// Run time against error: render each spp once per seed, filter it every way, compare
+    /// with a reference, and write results.csv, summary.md and log-log plots.
+    Converge(ConvergeArgs),
+    /// Numerical stability: adversarial scenes (far from the origin, at extreme scales, grazing,
+    /// degenerate, dark, tiny, overflowing, seamed), each with its measured figure and a verdict.
+    Stress(StressArgs),
+    /// What a scene uses (material lobes, lights, textures) and so what a render of it, with
+    /// the outputs asked for, needs.
+    Info(InfoArgs),
+    /// Samples per second, buffer memory and images of scenes rendered with only what they
+    /// need and with every feature forced on, side by side.
+    BenchFeatures(BenchFeaturesArgs),
+}
+
+/// Where the rays are traced: shared by every command that renders.
+#[derive(clap::Args)]
+pub struct Engine {
+    /// Ray tracing backend.
+    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
+    pub accel: Backend,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = count::<usize>)]
+    pub threads: Option<usize>,
+}
+
+/// `--accel`, `--threads` and `--json`: shared by `render`, `stress` and `bench-features`.
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// `--accel` and `--threads`.
+    #[command(flatten)]
+    pub engine: Engine,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `bench-features`.
+#[derive(clap::Args)]
+pub struct BenchFeaturesArgs {
+    /// The scene files (TOML).
+    #[arg(required = true)]
+    pub scenes: Vec<PathBuf>,
+    /// Image width of every render.
+    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
+    pub width: u32,
+    /// Image height of every render.
+    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
+    pub height: u32,
+    /// Samples per pixel of every render.
+    #[arg(long, default_value_t = 16, value_parser = count::<u32>)]
+    pub spp: u32,
+    /// Rounds, each rendering every mode once; medians are reported.
+    #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
+    pub rounds: usize,
+    /// `--accel`, `--threads` and `--json`.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// `info`.
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// The output the render would write (its format decides which layers are kept).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// The filter, exposure and layer of the output.
+    #[command(flatten)]
+    pub out: OutputArgs,
+}
+
+/// `stress`.
+#[derive(clap::Args)]
+pub struct StressArgs {
+    /// Run only the rows whose name contains this text.
+    #[arg(long)]
+    pub only: Option<String>,
+    /// `--accel`, `--threads` and `--json`.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// `converge`.
+#[derive(clap::Args)]
+pub struct ConvergeArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// A reference image (.exr or .hdr) of the same size; without it one is rendered at
+    /// --reference-spp and cached in the output directory.
+    #[arg(long, conflicts_with = "reference_spp")]
+    pub reference: Option<PathBuf>,
+    /// Samples per pixel of the rendered reference.
+    #[arg(long, default_value_t = 1024, value_parser = count::<u32>)]
+    pub reference_spp: u32,
+    /// The sample counts to measure.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,4,8,16,32,64,128,256",
+        value_parser = count::<u32>
+    )]
+    pub spp: Vec<u32>,
+    /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
+    #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
+    pub filters: Vec<String>,
+    /// What the filters apply to.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "indirect",
+        value_parser = choice::<FilterTarget, Target>()
+    )]
+    pub targets: Vec<Target>,
+    /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
+    /// pixels alone, as --edge-pure does); a list measures each.
+    #[arg(long, value_delimiter = ',', default_value = "off", value_parser = choice::<EdgeAware, Edge>())]
+    pub edge_aware: Vec<Edge>,
+    /// Renders per spp, each with its own seed: the summary gives their mean and spread.
+    #[arg(long, default_value_t = 1, value_parser = count::<u32>)]
+    pub seeds: u32,
+    /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
+    /// then is the most a pixel takes), compared with uniform sampling at equal time.
+    #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
+    pub adaptive: Option<f32>,
+    /// `--accel` and `--threads`.
+    #[command(flatten)]
+    pub engine: Engine,
+    /// Image width (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub height: Option<u32>,
+    /// The spp whose difference images (the paper's Figure 6) are written (default: the
+    /// measured spp nearest 50).
+    #[arg(long)]
+    pub diff_spp: Option<u32>,
+    /// The output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// How to filter: shared by `render` and `filter`.
+#[derive(clap::Args, Clone)]
+pub struct FilterArgs {
+    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, or an odd
+    /// square kernel as comma-separated weights.
+    #[arg(long)]
+    pub filter: Option<String>,
+    /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
+    #[arg(long, value_parser = choice::<FilterTarget, Target>())]
+    pub filter_target: Option<Target>,
+    /// Average only neighbours that show the same object as the centre pixel.
+    #[arg(long)]
+    pub edge_aware: bool,
+    /// Also stop at creases: only neighbours whose normal is within DEG degrees.
+    #[arg(long, value_name = "DEG")]
+    pub edge_normal: Option<f32>,
+    /// Also stop at depth steps: only neighbours whose depth differs by at most REL (relative).
+    #[arg(long, value_name = "REL")]
+    pub edge_depth: Option<f32>,
+    /// Beyond the paper: leave pixels whose samples saw more than one object (antialiased
+    /// borders) unfiltered and out of their neighbours' windows.
+    #[arg(long)]
+    pub edge_pure: bool,
+}
+
+impl FilterArgs {
+    /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
+    fn check(&self, base: &Setting) -> Result<Setting, Failure> {
+        let kernel = match self.filter.as_deref() {
+            Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
+            None => base.kernel.clone(),
+        };
+        let target = match (self.filter_target, &self.filter) {
+            (Some(t), _) => t,
+            // A filter named here applies to its default target, not to the scene's.
+            (None, Some(_)) => Target::Indirect,
+            (None, None) => base.target,
+        };
+        if target != Target::None && kernel.is_none() {
+            return Err(Failure::input("--filter-target needs --filter"));
+        }
+        let stops = EdgeStops {
+            object: self.edge_aware || base.stops.object,
+            normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
+            depth_relative: self.edge_depth.or(base.stops.depth_relative),
+            pure: self.edge_pure || base.stops.pure,
+        };
+        stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
+        Ok(Setting { kernel, target, stops })
+    }
+}
+
+/// How a render becomes its output: filtered, exposed, one layer or all. Shared by `render`,
+/// `filter` and `info`.
+#[derive(clap::Args)]
+pub struct OutputArgs {
+    /// The filter setting.
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    /// Exposure in stops for PNG output.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite)]
+    pub exposure: f32,
+    /// Which layer a PNG or HDR output shows (an EXR holds them all).
+    #[arg(long, default_value = "final", value_parser = choice::<LayerName, Layer>())]
+    pub layer: Layer,
+}
+
+impl OutputArgs {
+    /// Checks before any work: the filter (these flags over `base`), and that the layer can be
+    /// written as `format` with that filter.
+    pub fn check(&self, base: &Setting, format: Format) -> Result<Setting, Failure> {
+        let setting = self.filter.check(base)?;
+        self.layer.check(format, &setting)?;
+        Ok(setting)
+    }
+
+    /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
+    pub fn write(&self, film: &Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
+        output::write(film, setting, path, self.layer, self.exposure)
+    }
+}
+
+/// `filter`.
+#[derive(clap::Args)]
+pub struct FilterCommandArgs {
+    /// A multi-layer EXR written by `lightsplit render`.
+    pub input: PathBuf,
+    /// The output: .exr (every layer), .png or .hdr (the final image).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The filter, exposure and layer of the output.
+    #[command(flatten)]
+    pub out: OutputArgs,
+}
+
+/// `compare`.
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    /// The image to judge (.exr or .hdr).
+    pub test: PathBuf,
+    /// The reference (.exr or .hdr), e.g. a high-sample render of the same scene.
+    pub reference: PathBuf,
+    /// Write a brightened difference image (the paper's Figure 6): darker is a larger difference.
+    #[arg(long)]
+    pub diff: Option<PathBuf>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `bench-accel`: both backends, so no `--accel`.
+#[derive(clap::Args)]
+pub struct BenchAccelArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Primary rays per set (shadow and incoherent rays start at their hits).
+    #[arg(long, default_value_t = 1 << 20, value_parser = count::<usize>)]
+    pub rays: usize,
+    /// Threads for the multi-threaded rows (default: one per core).
+    #[arg(long, value_parser = count::<usize>)]
+    pub threads: Option<usize>,
+    /// Seconds each measurement runs at least.
+    #[arg(long, default_value_t = 0.3, value_parser = seconds)]
+    pub seconds: f64,
+    /// Rounds per row, each measuring both backends back to back; medians are reported.
+    #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
+    pub rounds: usize,
+    /// Instead of the backends, measure Embree's scene settings against each other: robust or
+    /// not, build quality low, medium, high (build time, rays per second, answers changed).
+    #[arg(long)]
+    pub embree_settings: bool,
+    /// Print one JSON object on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `render`.
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Output image: .exr (32-bit float), .png (8-bit sRGB) or .hdr (Radiance RGBE).
+    /// Default: the scene's name with .exr, in the current directory.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Samples per pixel (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub spp: Option<u32>,
+    /// `--accel`, `--threads` and `--json`.
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Random seed (default: the scene file's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Image width (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub height: Option<u32>,
+    /// Most scattering events per path (default: the scene file's).
+    #[arg(long, value_parser = count::<u32>)]
+    pub max_depth: Option<u32>,
+    /// The filter, exposure and layer of the output.
+    #[command(flatten)]
+    pub out: OutputArgs,
+    /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
+    #[arg(long)]
+    pub debug_nonfinite: bool,
+    /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
+    /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
+    /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.
+    #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
+    pub adaptive: Option<f32>,
+    /// Compute every feature (MIS, the split, the guides, textures) whatever the scene and the
+    /// output need, on Embree's robust high-quality build: the general renderer, for
+    /// comparison. The beauty is the same.
+    #[arg(long)]
+    pub all_features: bool,
+}
+
+/// `text` as a `T` that passes `ok`: otherwise the parse error, or that it "must be `what`".
+fn number<T>(text: &str, ok: impl Fn(T) -> bool, what: &str) -> Result<T, String>
+where
+    T: FromStr + Copy,
+    T::Err: Display,
+{
+    let value = text.parse().map_err(|e: T::Err| e.to_string())?;
+    if ok(value) {
+        Ok(value)
+    } else {
+        Err(format!("must be {what}"))
+    }
+}
+
+/// A count of at least one: sizes, samples, seeds, threads, rays, rounds.
+fn count<T>(text: &str) -> Result<T, String>
+where
+    T: FromStr + Copy + PartialOrd + From<u8>,
+    T::Err: Display,
+{
+    number(text, |n| n >= T::from(1), "at least 1")
+}
+
+/// `--exposure`: any finite number of stops.
+fn finite(text: &str) -> Result<f32, String> {
+    number(text, f32::is_finite, "a finite number")
+}
+
+/// `--adaptive`: a relative standard error above zero.
+fn relative_error(text: &str) -> Result<f32, String> {
+    number(text, |t: f32| t.is_finite() && t > 0.0, "a positive relative error such as 0.02")
+}
+
+/// `--seconds`: a positive duration.
+fn seconds(text: &str) -> Result<f64, String> {
+    number(text, |t: f64| t.is_finite() && t > 0.0, "a positive number")
+}
+
+/// A parser of `E`'s names (with their help) that gives the library's `T`.
+fn choice<E, T>() -> impl TypedValueParser<Value = T>
+where
+    E: ValueEnum + Clone + Send + Sync + 'static,
+    T: From<E> + Clone + Send + Sync + 'static,
+{
+    EnumValueParser::<E>::new().map(T::from)
+}
+
+/// `--accel`'s spellings.
+#[derive(Clone, Copy, ValueEnum)]
+enum Accel {
+    /// Intel Embree through FFI.
+    Embree,
+    /// lightsplit's own BVH, in pure Rust.
+    Bvh,
+}
+
+impl From<Accel> for Backend {
+    fn from(a: Accel) -> Backend {
+        match a {
+            Accel::Embree => Backend::Embree,
+            Accel::Bvh => Backend::Bvh,
+        }
+    }
+}
+
+/// `--filter-target`'s and `--targets`' spellings.
+#[derive(Clone, Copy, ValueEnum)]
+enum FilterTarget {
+    /// Only L_r,d,d, then added back (the paper's method).
+    Indirect,
+    /// The whole image (the paper's Figure 3(c) baseline).
+    Image,
+    /// Nothing.
+    None,
+}
+
+impl From<FilterTarget> for Target {
+    fn from(t: FilterTarget) -> Target {
+        match t {
+            FilterTarget::Indirect => Target::Indirect,
+            FilterTarget::Image => Target::Image,
+            FilterTarget::None => Target::None,
+        }
+    }
+}
+
+/// `converge --edge-aware`'s spellings.
+#[derive(Clone, Copy, ValueEnum)]
+enum EdgeAware {
+    Off,
+    On,
+    Pure,
+}
+
+impl From<EdgeAware> for Edge {
+    fn from(e: EdgeAware) -> Edge {
+        match e {
+            EdgeAware::Off => Edge::Off,
+            EdgeAware::On => Edge::On,
+            EdgeAware::Pure => Edge::Pure,
+        }
+    }
+}
+
+/// `--layer`'s spellings.
+#[derive(Clone, Copy, ValueEnum)]
+enum LayerName {
+    /// The final image (filtered when a filter is on).
+    Final,
+    /// The unfiltered beauty.
+    Raw,
+    Emitted,
+    Direct,
+    Caustic,
+    Indirect,
+    /// The filtered indirect component (needs a filter on `indirect`).
+    IndirectFiltered,
+    Albedo,
+}
+
+impl From<LayerName> for Layer {
+    fn from(l: LayerName) -> Layer {
+        match l {
+            LayerName::Final => Layer::Final,
+            LayerName::Raw => Layer::Raw,
+            LayerName::Emitted => Layer::Component(Component::Emitted),
+            LayerName::Direct => Layer::Component(Component::Direct),
+            LayerName::Caustic => Layer::Component(Component::Caustic),
+            LayerName::Indirect => Layer::Component(Component::Indirect),
+            LayerName::IndirectFiltered => Layer::IndirectFiltered,
+            LayerName::Albedo => Layer::Albedo,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    /// The name the command line accepts for `value`.
+    fn spelled(value: &impl ValueEnum) -> String {
+        value.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default()
+    }
+
+    #[test]
+    fn every_spelling_names_its_library_value() {
+        for name in LayerName::value_variants() {
+            if let Layer::Component(c) = Layer::from(*name) {
+                assert_eq!(spelled(name), c.name());
+            }
+        }
+        for target in FilterTarget::value_variants() {
+            assert_eq!(spelled(target), Target::from(*target).name());
+        }
+        for accel in Accel::value_variants() {
+            assert_eq!(spelled(accel), Backend::from(*accel).to_string());
+        }
+        for edge in EdgeAware::value_variants() {
+            assert_eq!(Edge::parse(&spelled(edge)), Some(Edge::from(*edge)));
+        }
+    }
+
+    #[test]
+    fn counts_and_numbers_are_checked_as_they_parse() {
+        assert_eq!(count::<u32>("3"), Ok(3));
+        assert_eq!(count::<usize>("0"), Err("must be at least 1".into()));
+        assert!(count::<u32>("x").is_err_and(|e| e.contains("invalid digit")));
+        assert_eq!(finite("-2.5"), Ok(-2.5));
+        assert!(finite("inf").is_err());
+        assert!(relative_error("0").is_err() && relative_error("nan").is_err());
+        assert_eq!(seconds("0.3"), Ok(0.3));
+    }
+}

@@ -1,0 +1,155 @@
+//! What an output needs and how it is written: the layer a PNG or HDR shows, the buffers
+//! (component split, guides) that the output and its filter read, so a render fills only those,
+//! and the filtered film written to its file.
+
+use std::path::Path;
+use std::time::Instant;
+
+use crate::component::Component;
+use crate::film::{self, Film, Format, Image};
+use crate::filter::{composite, EdgeStops, Setting, Target};
+use crate::render::Outputs;
+
+/// A layer of a render, as a single-image output (PNG, HDR) shows it; an EXR holds them all.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layer {
+    /// The final image (filtered when a filter is on).
+    Final,
+    /// The unfiltered beauty.
+    Raw,
+    /// One light-path component, unfiltered.
+    Component(Component),
+    /// The filtered indirect component (needs a filter on `indirect`).
+    IndirectFiltered,
+    /// The albedo guide buffer.
+    Albedo,
+}
+
+/// An output that cannot be written as asked.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// A layer other than the final image was asked of an EXR.
+    #[error("--layer picks the layer of a PNG or HDR output; an EXR holds every layer")]
+    LayerOfExr,
+    /// The filtered indirect layer was asked without a filter on indirect.
+    #[error("--layer indirect-filtered needs a filter on indirect")]
+    NoFilteredIndirect,
+    /// The file could not be written.
+    #[error(transparent)]
+    Write(#[from] film::WriteError),
+}
+
+impl OutputError {
+    /// Whether the request itself was bad (rather than the writing).
+    pub fn is_input(&self) -> bool {
+        !matches!(self, OutputError::Write(_))
+    }
+}
+
+/// Whether `setting` filters `indirect`, and so makes the filtered indirect layer.
+fn filters_indirect(setting: &Setting) -> bool {
+    setting.kernel.is_some() && setting.target == Target::Indirect
+}
+
+impl Layer {
+    /// Checks before any work that this layer can be written as `format` with `setting`.
+    pub fn check(self, format: Format, setting: &Setting) -> Result<(), OutputError> {
+        if self != Layer::Final && format == Format::Exr {
+            return Err(OutputError::LayerOfExr);
+        }
+        if self == Layer::IndirectFiltered && !filters_indirect(setting) {
+            return Err(OutputError::NoFilteredIndirect);
+        }
+        Ok(())
+    }
+
+    /// The buffers besides the beauty that an output of this layer as `format`, filtered with
+    /// `setting`, reads: an EXR keeps every layer; a PNG or HDR its one layer (a component layer
+    /// needs the split, the albedo layer the guides) and what the filter reads to make it.
+    pub fn reads(self, format: Format, setting: &Setting) -> Outputs {
+        let exr = format == Format::Exr;
+        let component = matches!(self, Layer::Component(_) | Layer::IndirectFiltered);
+        Outputs {
+            split: exr || filters_indirect(setting) || component,
+            guides: exr || setting.stops != EdgeStops::default() || self == Layer::Albedo,
+        }
+    }
+
+    /// This layer of `film`, given its final image and filtered indirect component.
+    fn image<'a>(
+        self,
+        film: &'a Film,
+        final_image: &'a Image,
+        filtered: Option<&'a Image>,
+    ) -> Result<&'a Image, OutputError> {
+        Ok(match self {
+            Layer::Final => final_image,
+            Layer::Raw => &film.raw,
+            Layer::Component(c) => &film.components[c],
+            Layer::IndirectFiltered => filtered.ok_or(OutputError::NoFilteredIndirect)?,
+            Layer::Albedo => &film.albedo,
+        })
+    }
+}
+
+/// Filters `film` as `setting` says and writes it to `path`: every layer to an EXR, or `layer`
+/// alone to a PNG or HDR at `exposure` stops. Returns the seconds the filter took.
+pub fn write(
+    film: &Film,
+    setting: &Setting,
+    path: &Path,
+    layer: Layer,
+    exposure: f32,
+) -> Result<f64, OutputError> {
+    let start = Instant::now();
+    let (final_image, filtered) = composite(film, setting.kernel.as_ref(), setting.target, &setting.stops);
+    let seconds = start.elapsed().as_secs_f64();
+    if layer == Layer::Final {
+        film::write_film(film, &final_image, filtered.as_ref(), path, exposure)?;
+    } else {
+        film::write(layer.image(film, &final_image, filtered.as_ref())?, path, exposure)?;
+    }
+    Ok(seconds)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::Kernel;
+
+    fn indirect_filter() -> Setting {
+        Setting { kernel: Kernel::parse("box3").ok(), target: Target::Indirect, stops: EdgeStops::default() }
+    }
+
+    #[test]
+    fn an_exr_reads_everything_and_a_png_only_its_layer_and_filter() {
+        let none = Setting::default();
+        assert_eq!(Layer::Final.reads(Format::Exr, &none), Outputs::ALL);
+        assert_eq!(Layer::Final.reads(Format::Png, &none), Outputs { split: false, guides: false });
+        assert_eq!(Layer::Raw.reads(Format::Hdr, &none), Outputs { split: false, guides: false });
+        let direct = Layer::Component(Component::Direct);
+        assert_eq!(direct.reads(Format::Png, &none), Outputs { split: true, guides: false });
+        assert_eq!(Layer::Albedo.reads(Format::Png, &none), Outputs { split: false, guides: true });
+        assert_eq!(
+            Layer::Final.reads(Format::Png, &indirect_filter()),
+            Outputs { split: true, guides: false }
+        );
+        let image = Setting { target: Target::Image, ..indirect_filter() };
+        assert_eq!(Layer::Final.reads(Format::Png, &image), Outputs { split: false, guides: false });
+        let edges = Setting { stops: EdgeStops { object: true, ..EdgeStops::default() }, ..image };
+        assert_eq!(Layer::Final.reads(Format::Png, &edges), Outputs { split: false, guides: true });
+    }
+
+    #[test]
+    fn layers_are_checked_against_the_format_and_the_filter() {
+        let none = Setting::default();
+        assert!(Layer::Final.check(Format::Exr, &none).is_ok());
+        assert!(matches!(Layer::Raw.check(Format::Exr, &none), Err(OutputError::LayerOfExr)));
+        assert!(matches!(
+            Layer::IndirectFiltered.check(Format::Png, &none),
+            Err(OutputError::NoFilteredIndirect)
+        ));
+        assert!(Layer::IndirectFiltered.check(Format::Png, &indirect_filter()).is_ok());
+        assert!(OutputError::LayerOfExr.is_input());
+    }
+}
