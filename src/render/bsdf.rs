@@ -296,42 +296,45 @@ impl MaterialBsdf {
     }
 }
 
-/// Forwards a [`Bsdf`] method to the variant's type.
-macro_rules! each_material {
-    ($self:ident, $b:ident => $call:expr) => {
-        match $self {
-            MaterialBsdf::Diffuse($b) => $call,
-            MaterialBsdf::Mirror($b) => $call,
-            MaterialBsdf::Glass($b) => $call,
-            MaterialBsdf::Glossy($b) => $call,
+/// Evaluates `$body` with `$b` bound to the concrete BSDF inside the [`MaterialBsdf`] `$bsdf`:
+/// code generic over [`Bsdf`] is compiled once per material type, and the material is chosen
+/// once, here, rather than at every call.
+macro_rules! with_bsdf {
+    ($bsdf:expr, $b:ident => $body:expr) => {
+        match $bsdf {
+            $crate::render::bsdf::MaterialBsdf::Diffuse(ref $b) => $body,
+            $crate::render::bsdf::MaterialBsdf::Mirror(ref $b) => $body,
+            $crate::render::bsdf::MaterialBsdf::Glass(ref $b) => $body,
+            $crate::render::bsdf::MaterialBsdf::Glossy(ref $b) => $body,
         }
     };
 }
+pub(crate) use with_bsdf;
 
 impl Bsdf for MaterialBsdf {
     #[inline(always)]
     fn lobe(&self) -> Option<Lobe> {
-        each_material!(self, b => b.lobe())
+        with_bsdf!(*self, b => b.lobe())
     }
 
     #[inline(always)]
     fn scatters(&self, wo: Vec3) -> bool {
-        each_material!(self, b => b.scatters(wo))
+        with_bsdf!(*self, b => b.scatters(wo))
     }
 
     #[inline(always)]
     fn albedo(&self, lobe: Lobe) -> Vec3 {
-        each_material!(self, b => b.albedo(lobe))
+        with_bsdf!(*self, b => b.albedo(lobe))
     }
 
     #[inline(always)]
     fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
-        each_material!(self, b => b.sample(wo, u))
+        with_bsdf!(*self, b => b.sample(wo, u))
     }
 
     #[inline(always)]
     fn eval_lobes(&self, wo: Vec3, wi: Vec3, each: impl FnMut(Lobe, Vec3, f32)) {
-        each_material!(self, b => b.eval_lobes(wo, wi, each))
+        with_bsdf!(*self, b => b.eval_lobes(wo, wi, each))
     }
 }
 

@@ -10,7 +10,7 @@
 
 use glam::Vec3;
 
-use super::bsdf::{Bsdf, BsdfSample, Lobe, MaterialBsdf};
+use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe, MaterialBsdf};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
@@ -136,6 +136,19 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
     }
 }
 
+/// A reflecting vertex: the point, where rays leave it, the shading and geometric normals (both
+/// on the side the path came from) and the direction back toward the eye.
+#[derive(Clone, Copy, Debug)]
+struct Reflecting {
+    p: Vec3,
+    origin: Vec3,
+    ns: Vec3,
+    ng: Vec3,
+    wo: Vec3,
+    /// The object the guide buffers name.
+    object: u32,
+}
+
 /// What a path carries from one vertex to the next, besides what it has gathered.
 #[derive(Clone, Copy, Debug)]
 struct PathState {
@@ -252,69 +265,85 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 break;
             }
 
-            let (ns, ng, bsdf) = self.bsdf_at(hit.shape, &s, wo);
-            if !bsdf.scatters(wo) {
-                break;
-            }
-            let before = path.class;
-            // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see
-            // it even when the path ends here; one of several lobes, once a lobe is sampled.
-            let vertex = |out: &mut PathSample, class: &mut PathClass, lobe: Lobe| {
-                out.vertex::<F>(class, lobe, shape.object, ns, path.travelled, bsdf.albedo(lobe));
-            };
-            if let Some(lobe) = bsdf.lobe() {
-                vertex(&mut out, &mut path.class, lobe);
-            }
-            // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
-            let origin = s.origin(ng);
-            if bsdf.lobe() != Some(Lobe::Delta) {
-                self.next_event(s.p, origin, ns, ng, sampler, rays, |ls, cos| {
-                    // Light through each lobe goes to the component that lobe makes, with its
-                    // own MIS weight, so the split stays exact in expectation.
-                    let source = self.lights.diffuse_source[ls.light as usize];
-                    bsdf.eval_lobes(wo, ls.wi, |lobe, f, pdf| {
-                        if f != Vec3::ZERO {
-                            let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
-                            let c = path.beta * f * ls.radiance * (cos * w / ls.pdf);
-                            out.add::<F>(c, before.through(lobe).component(source));
-                        }
-                    });
-                });
-            }
+            let (at, bsdf) = self.bsdf_at(hit.shape, &s, wo);
             // Without a light a path can hit, the ray after the last vertex could only find one:
             // not traced.
-            if F & MIS == 0 && depth + 1 >= self.max_depth {
-                break;
+            let last = F & MIS == 0 && depth + 1 >= self.max_depth;
+            // One concrete BSDF type a call: every lobe test in `scatter` is decided when it is
+            // compiled, and the material is chosen once a vertex.
+            let next = with_bsdf!(bsdf, b => self.scatter(b, &mut out, &mut path, &at, &s, last, depth, sampler, rays));
+            match next {
+                Some(next) => ray = next,
+                None => break,
             }
-
-            let Some(bs) = bsdf.sample(wo, sampler) else { break };
-            // A non-delta direction under the geometric surface is an artefact of the shading
-            // normal: dropped. A delta one is exact (and glass transmits).
-            if !bs.wi.is_finite() || (!bs.lobe.is_delta() && ng.dot(bs.wi) <= 0.0) {
-                break;
-            }
-            if bsdf.lobe().is_none() {
-                vertex(&mut out, &mut path.class, bs.lobe);
-            }
-            if !path.scatter(&bs, s.p) {
-                break;
-            }
-            // Russian roulette once the path has had a chance to gather light, after non-delta
-            // bounces only: a delta bounce draws no random number and keeps its throughput.
-            if !bs.lobe.is_delta() && depth >= 2 && !path.survives(sampler) {
-                break;
-            }
-            let origin = if bs.wi.dot(ng) > 0.0 { origin } else { s.origin(-ng) };
-            ray = Ray::new(origin, bs.wi);
         }
         out
     }
 
-    /// The BSDF at a hit on `shape`, with the shading and geometric normals both turned to the
-    /// side the path came from (surfaces are two-sided), the shading one bumped and the
-    /// material's colour textured where the material says so.
+    /// Scatters the path at a reflecting vertex through `bsdf`: the vertex's bookkeeping,
+    /// next-event estimation at a non-delta vertex, a BSDF sample classified by its lobe, one
+    /// Russian roulette. The next ray, or `None` where the path ends; `last` ends it after
+    /// next-event estimation.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn bsdf_at(&self, shape: u32, s: &Surface, wo: Vec3) -> (Vec3, Vec3, MaterialBsdf) {
+    fn scatter<B: Bsdf>(
+        &self,
+        bsdf: &B,
+        out: &mut PathSample,
+        path: &mut PathState,
+        at: &Reflecting,
+        s: &Surface,
+        last: bool,
+        depth: u32,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+    ) -> Option<Ray> {
+        if !bsdf.scatters(at.wo) {
+            return None;
+        }
+        let before = path.class;
+        // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see it
+        // even when the path ends here; one of several lobes, once a lobe is sampled.
+        let travelled = path.travelled;
+        let vertex = |out: &mut PathSample, class: &mut PathClass, lobe: Lobe| {
+            out.vertex::<F>(class, lobe, at.object, at.ns, travelled, bsdf.albedo(lobe));
+        };
+        if let Some(lobe) = bsdf.lobe() {
+            vertex(out, &mut path.class, lobe);
+        }
+        if bsdf.lobe() != Some(Lobe::Delta) {
+            self.next_event(out, path, before, bsdf, at, sampler, rays);
+        }
+        if last {
+            return None;
+        }
+
+        let bs = bsdf.sample(at.wo, sampler)?;
+        // A non-delta direction under the geometric surface is an artefact of the shading
+        // normal: dropped. A delta one is exact (and glass transmits).
+        if !bs.wi.is_finite() || (!bs.lobe.is_delta() && at.ng.dot(bs.wi) <= 0.0) {
+            return None;
+        }
+        if bsdf.lobe().is_none() {
+            vertex(out, &mut path.class, bs.lobe);
+        }
+        if !path.scatter(&bs, at.p) {
+            return None;
+        }
+        // Russian roulette once the path has had a chance to gather light, after non-delta
+        // bounces only: a delta bounce draws no random number and keeps its throughput.
+        if !bs.lobe.is_delta() && depth >= 2 && !path.survives(sampler) {
+            return None;
+        }
+        let origin = if bs.wi.dot(at.ng) > 0.0 { at.origin } else { s.origin(-at.ng) };
+        Some(Ray::new(origin, bs.wi))
+    }
+
+    /// The reflecting vertex at a hit on `shape` and its BSDF, with the shading and geometric
+    /// normals both turned to the side the path came from (surfaces are two-sided), the shading
+    /// one bumped and the material's colour textured where the material says so.
+    #[inline(always)]
+    fn bsdf_at(&self, shape: u32, s: &Surface, wo: Vec3) -> (Reflecting, MaterialBsdf) {
         let scene = self.scene;
         let material = scene.shapes[shape as usize].material;
         let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
@@ -329,7 +358,10 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         };
         // Entering when the ray meets the outside, the side the geometric normal points to.
         let entering = s.ng.dot(wo) > 0.0;
-        (ns, ng, MaterialBsdf::new(&scene.materials[material as usize], textured, ns, entering))
+        let bsdf = MaterialBsdf::new(&scene.materials[material as usize], textured, ns, entering);
+        // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
+        let object = scene.shapes[shape as usize].object;
+        (Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo, object }, bsdf)
     }
 
     /// Emission at a hit on `shape`, on its front side only (a scene without MIS has no light
@@ -369,45 +401,69 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         }
     }
 
-    /// Next-event estimation at a reflecting vertex at `p` (shading normal `ns`, geometric `ng`,
-    /// both on the side the path came from): samples every light when there are few, else one
-    /// picked by power, traces a shadow ray from `origin` for each sample that can reflect, and
-    /// hands the unoccluded ones to `gather` with their cosine at `ns`.
+    /// Next-event estimation at a reflecting vertex: samples every light when there are few,
+    /// else one picked by power, and gathers what each sample sends through the BSDF's lobes.
+    /// `before` is the path's class before this vertex.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn next_event(
+    fn next_event<B: Bsdf>(
         &self,
-        p: Vec3,
-        origin: Vec3,
-        ns: Vec3,
-        ng: Vec3,
+        out: &mut PathSample,
+        path: &PathState,
+        before: PathClass,
+        bsdf: &B,
+        at: &Reflecting,
         sampler: &mut Sampler,
         rays: &mut u64,
-        mut gather: impl FnMut(&LightSample, f32),
     ) {
-        let mut trace = |ls: LightSample, rays: &mut u64| {
-            let cos = ns.dot(ls.wi);
-            if cos > 0.0 && ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0 {
-                let shadow = match ls.end {
-                    // Unnormalised direction: t in [0, 1] ends exactly at the light point.
-                    ShadowEnd::Point(q) => Ray { origin, dir: q - origin, t_max: 1.0 },
-                    ShadowEnd::Infinite => Ray::new(origin, ls.wi),
-                };
-                *rays += 1;
-                if !self.accel.occluded(&shadow) {
-                    gather(&ls, cos);
-                }
-            }
-        };
         let (scene, lights) = (self.scene, self.lights);
         if lights.sample_all() {
             for i in 0..lights.emitters.len() {
-                if let Some(ls) = lights.sample_one(scene, i, p, sampler.next_2d()) {
-                    trace(ls, rays);
+                if let Some(ls) = lights.sample_one(scene, i, at.p, sampler.next_2d()) {
+                    self.gather(out, path, before, bsdf, at, &ls, rays);
                 }
             }
-        } else if let Some(ls) = lights.sample(scene, p, sampler.next_1d(), sampler.next_2d()) {
-            trace(ls, rays);
+        } else if let Some(ls) = lights.sample(scene, at.p, sampler.next_1d(), sampler.next_2d()) {
+            self.gather(out, path, before, bsdf, at, &ls, rays);
         }
+    }
+
+    /// What light sample `ls` sends toward the eye through each lobe of `bsdf`, if it can
+    /// reflect (it arrives above both normals) and a shadow ray finds nothing in between. Light
+    /// through each lobe goes to the component that lobe makes, with its own MIS weight, so the
+    /// split stays exact in expectation.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn gather<B: Bsdf>(
+        &self,
+        out: &mut PathSample,
+        path: &PathState,
+        before: PathClass,
+        bsdf: &B,
+        at: &Reflecting,
+        ls: &LightSample,
+        rays: &mut u64,
+    ) {
+        let cos = at.ns.dot(ls.wi);
+        if !(cos > 0.0 && at.ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0) {
+            return;
+        }
+        let shadow = match ls.end {
+            // Unnormalised direction: t in [0, 1] ends exactly at the light point.
+            ShadowEnd::Point(q) => Ray { origin: at.origin, dir: q - at.origin, t_max: 1.0 },
+            ShadowEnd::Infinite => Ray::new(at.origin, ls.wi),
+        };
+        *rays += 1;
+        if self.accel.occluded(&shadow) {
+            return;
+        }
+        let source = self.lights.diffuse_source[ls.light as usize];
+        bsdf.eval_lobes(at.wo, ls.wi, |lobe, f, pdf| {
+            if f != Vec3::ZERO {
+                let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+                let c = path.beta * f * ls.radiance * (cos * w / ls.pdf);
+                out.add::<F>(c, before.through(lobe).component(source));
+            }
+        });
     }
 }
