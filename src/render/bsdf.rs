@@ -2,7 +2,7 @@
 //! `BSDFFlags`: a material is one type here implementing [`Bsdf`], and every lobe it samples or
 //! evaluates carries a [`Lobe`] tag (D, S or delta) from which the path's component class alone
 //! is updated. The path integrator never names a material; adding one means adding its type
-//! here, a variant of [`MaterialBsdf`] and a line in [`MaterialBsdf::new`].
+//! here and an arm of [`with_bsdf`], which hands the integrator each material's type.
 //!
 //! The glossy model: a GGX microfacet lobe (Walter et al. 2007, "Microfacet Models for
 //! Refraction through Rough Surfaces") with Schlick's Fresnel and the height-correlated
@@ -20,7 +20,6 @@ use glam::{Vec2, Vec3};
 
 use super::sampler::Sampler;
 use crate::math::{cosine_hemisphere, luminance, Frame};
-use crate::scene::Material;
 
 /// The smallest GGX alpha: below it the lobe is a mirror for every practical purpose and its
 /// density overflows f32 near the peak.
@@ -270,73 +269,43 @@ impl Bsdf for Glossy {
     }
 }
 
-/// The BSDF of a scene material at one shading point: one variant per material type.
-#[derive(Clone, Copy, Debug)]
-pub enum MaterialBsdf {
-    Diffuse(Diffuse),
-    Mirror(Mirror),
-    Glass(Glass),
-    Glossy(Glossy),
-}
-
-impl MaterialBsdf {
-    /// The BSDF of `material` at a point with shading normal `n` (on the side the path arrived
-    /// from), `entering` when it arrived from the outside; `color` gives a textured material's
-    /// colour in place of its constant.
-    pub fn new(material: &Material, color: impl FnOnce(Vec3) -> Vec3, n: Vec3, entering: bool) -> Self {
-        match *material {
-            Material::Diffuse { albedo } => MaterialBsdf::Diffuse(Diffuse { albedo: color(albedo), n }),
-            Material::Mirror { color } => MaterialBsdf::Mirror(Mirror { color, n }),
-            Material::Glass { ior, color } => MaterialBsdf::Glass(Glass { ior, color, n, entering }),
-            Material::Glossy { specular, roughness, base } => MaterialBsdf::Glossy(Glossy {
-                lobes: GlossyLobes { specular, alpha: alpha(roughness), base: color(base) },
-                frame: Frame::new(n),
-            }),
-        }
-    }
-}
-
-/// Evaluates `$body` with `$b` bound to the concrete BSDF inside the [`MaterialBsdf`] `$bsdf`:
-/// code generic over [`Bsdf`] is compiled once per material type, and the material is chosen
-/// once, here, rather than at every call.
+/// Evaluates `$body` with `$b` bound to (a reference to) the BSDF of the scene material
+/// `$material` at a shading point with normal `$n` (on the side the path arrived from),
+/// `$entering` when it arrived from the outside; `$color` maps a textured material's constant
+/// colour to its texture's. Each material's BSDF is its own type, so code generic over [`Bsdf`]
+/// is compiled once per material and the material is chosen once, here. A new material is a
+/// new type above and one arm here.
 macro_rules! with_bsdf {
-    ($bsdf:expr, $b:ident => $body:expr) => {
-        match $bsdf {
-            $crate::render::bsdf::MaterialBsdf::Diffuse(ref $b) => $body,
-            $crate::render::bsdf::MaterialBsdf::Mirror(ref $b) => $body,
-            $crate::render::bsdf::MaterialBsdf::Glass(ref $b) => $body,
-            $crate::render::bsdf::MaterialBsdf::Glossy(ref $b) => $body,
+    ($material:expr, $color:expr, $n:expr, $entering:expr, $b:ident => $body:expr) => {{
+        use $crate::render::bsdf::{Diffuse, Glass, Glossy, GlossyLobes, Mirror};
+        use $crate::scene::Material;
+        let (n, entering) = ($n, $entering);
+        match *$material {
+            Material::Diffuse { albedo } => {
+                let $b = &Diffuse { albedo: ($color)(albedo), n };
+                $body
+            }
+            Material::Mirror { color } => {
+                let $b = &Mirror { color, n };
+                $body
+            }
+            Material::Glass { ior, color } => {
+                let $b = &Glass { ior, color, n, entering };
+                $body
+            }
+            Material::Glossy { specular, roughness, base } => {
+                let lobes = GlossyLobes {
+                    specular,
+                    alpha: $crate::render::bsdf::alpha(roughness),
+                    base: ($color)(base),
+                };
+                let $b = &Glossy { lobes, frame: $crate::math::Frame::new(n) };
+                $body
+            }
         }
-    };
+    }};
 }
 pub(crate) use with_bsdf;
-
-impl Bsdf for MaterialBsdf {
-    #[inline(always)]
-    fn lobe(&self) -> Option<Lobe> {
-        with_bsdf!(*self, b => b.lobe())
-    }
-
-    #[inline(always)]
-    fn scatters(&self, wo: Vec3) -> bool {
-        with_bsdf!(*self, b => b.scatters(wo))
-    }
-
-    #[inline(always)]
-    fn albedo(&self, lobe: Lobe) -> Vec3 {
-        with_bsdf!(*self, b => b.albedo(lobe))
-    }
-
-    #[inline(always)]
-    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
-        with_bsdf!(*self, b => b.sample(wo, u))
-    }
-
-    #[inline(always)]
-    fn eval_lobes(&self, wo: Vec3, wi: Vec3, each: impl FnMut(Lobe, Vec3, f32)) {
-        with_bsdf!(*self, b => b.eval_lobes(wo, wi, each))
-    }
-}
 
 /// The glossy model in the local shading frame (z along the normal): a GGX lobe with
 /// reflectance `specular` at normal incidence, over a diffuse `base`.

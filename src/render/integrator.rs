@@ -1,7 +1,7 @@
 //! The path integrator, shaped as pbrt-v4's `PathIntegrator::Li`: at every vertex, emission;
 //! next-event estimation with multiple importance sampling (power heuristic) at non-delta
 //! vertices; a BSDF sample, classified by its lobe's tag alone; one Russian roulette; and a
-//! depth limit. It never names a material: scattering is [`MaterialBsdf`]'s. Generic over the
+//! depth limit. It never names a material: scattering is [`super::bsdf`]'s. Generic over the
 //! accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch per ray,
 //! and over the [`Features`] a render needs (a const bit set), so a feature the scene and its
 //! outputs cannot use is compiled out of that render's copy, not skipped by a branch.
@@ -10,7 +10,7 @@
 
 use glam::Vec3;
 
-use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe, MaterialBsdf};
+use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
@@ -265,14 +265,10 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 break;
             }
 
-            let (at, bsdf) = self.bsdf_at(hit.shape, &s, wo);
             // Without a light a path can hit, the ray after the last vertex could only find one:
             // not traced.
             let last = F & MIS == 0 && depth + 1 >= self.max_depth;
-            // One concrete BSDF type a call: every lobe test in `scatter` is decided when it is
-            // compiled, and the material is chosen once a vertex.
-            let next = with_bsdf!(bsdf, b => self.scatter(b, &mut out, &mut path, &at, &s, last, depth, sampler, rays));
-            match next {
+            match self.scatter_at(hit.shape, &s, wo, &mut out, &mut path, last, depth, sampler, rays) {
                 Some(next) => ray = next,
                 None => break,
             }
@@ -339,16 +335,28 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         Some(Ray::new(origin, bs.wi))
     }
 
-    /// The reflecting vertex at a hit on `shape` and its BSDF, with the shading and geometric
-    /// normals both turned to the side the path came from (surfaces are two-sided), the shading
-    /// one bumped and the material's colour textured where the material says so.
+    /// Scatters the path at a hit on `shape` through its material's BSDF, with the shading and
+    /// geometric normals both turned to the side the path came from (surfaces are two-sided),
+    /// the shading one bumped and the material's colour textured where the material says so.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn bsdf_at(&self, shape: u32, s: &Surface, wo: Vec3) -> (Reflecting, MaterialBsdf) {
+    fn scatter_at(
+        &self,
+        shape: u32,
+        s: &Surface,
+        wo: Vec3,
+        out: &mut PathSample,
+        path: &mut PathState,
+        last: bool,
+        depth: u32,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+    ) -> Option<Ray> {
         let scene = self.scene;
-        let material = scene.shapes[shape as usize].material;
+        let shape = &scene.shapes[shape as usize];
         let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
         let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-        let maps = if F & TEXTURES != 0 { scene.maps(material) } else { Default::default() };
+        let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
         if let Some((t, height)) = maps.bump {
             ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
         }
@@ -356,12 +364,12 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             Some(t) => scene.textures[t as usize].color(s.p, s.uv),
             None => constant,
         };
+        // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
+        let at = Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo, object: shape.object };
         // Entering when the ray meets the outside, the side the geometric normal points to.
         let entering = s.ng.dot(wo) > 0.0;
-        let bsdf = MaterialBsdf::new(&scene.materials[material as usize], textured, ns, entering);
-        // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
-        let object = scene.shapes[shape as usize].object;
-        (Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo, object }, bsdf)
+        let material = &scene.materials[shape.material as usize];
+        with_bsdf!(material, textured, ns, entering, b => self.scatter(b, out, path, &at, s, last, depth, sampler, rays))
     }
 
     /// Emission at a hit on `shape`, on its front side only (a scene without MIS has no light
