@@ -369,7 +369,9 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         // Entering when the ray meets the outside, the side the geometric normal points to.
         let entering = s.ng.dot(wo) > 0.0;
         let material = &scene.materials[shape.material as usize];
-        with_bsdf!(material, textured, ns, entering, b => self.scatter(b, out, path, &at, s, last, depth, sampler, rays))
+        with_bsdf!(material, textured, ns, entering, b => {
+            self.scatter(b, out, path, &at, s, last, depth, sampler, rays)
+        })
     }
 
     /// Emission at a hit on `shape`, on its front side only (a scene without MIS has no light
