@@ -472,6 +472,64 @@ mod tests {
         Vec3::new(t.sin(), 0.0, t.cos())
     }
 
+    /// Checks a non-delta BSDF through the interface the integrator uses, at normal `n`: the
+    /// directions `sample` gives follow `pdf` (restricted to above the surface, where `sample`
+    /// gives directions), and each sample's pdf and weight are its lobe's pdf and f cos / pdf.
+    fn check_through_the_interface<B: Bsdf>(name: &str, b: &B, wo: Vec3, n: Vec3) {
+        let z =
+            z_score(|s| b.sample(wo, s).map(|bs| bs.wi), |d| if n.dot(d) > 0.0 { b.pdf(wo, d) } else { 0.0 });
+        assert!(z < 4.0, "{name}: z = {z}");
+        let mut s = crate::render::sampler::Sampler::new(3, 1, 4);
+        let mut checked = 0;
+        for _ in 0..2000 {
+            let Some(bs) = b.sample(wo, &mut s) else { continue };
+            let cos = n.dot(bs.wi);
+            if cos <= 1e-3 || bs.pdf <= 1e-3 {
+                continue;
+            }
+            let mut lobe = None;
+            b.eval_lobes(wo, bs.wi, |l, f, pdf| {
+                if l == bs.lobe {
+                    lobe = Some((f, pdf));
+                }
+            });
+            let Some((f, pdf)) = lobe else { panic!("{name}: sampled lobe {:?} has no value", bs.lobe) };
+            assert!((bs.pdf - pdf).abs() <= 1e-3 * pdf, "{name}: pdf {} vs {pdf}", bs.pdf);
+            let weight = f * cos / pdf;
+            let tolerance = 1e-3 * (1.0 + weight.max_element());
+            assert!(
+                (bs.weight - weight).abs().max_element() <= tolerance,
+                "{name}: {} vs {weight}",
+                bs.weight
+            );
+            checked += 1;
+        }
+        assert!(checked > 1000, "{name}: {checked} samples checked");
+    }
+
+    #[test]
+    fn diffuse_and_glossy_sample_their_density_at_a_tilted_normal() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let wo = Vec3::new(-0.2, 0.4, 0.9).normalize();
+        check_through_the_interface("diffuse", &Diffuse { albedo: Vec3::new(0.7, 0.5, 0.2), n }, wo, n);
+        let lobes = GlossyLobes { specular: Vec3::splat(0.04), alpha: 0.3, base: Vec3::new(0.6, 0.3, 0.2) };
+        check_through_the_interface("glossy", &Glossy { lobes, frame: Frame::new(n) }, wo, n);
+    }
+
+    #[test]
+    fn a_wrong_density_through_the_interface_fails() {
+        // The check has power: a Lambertian judged by a density tilted the other way fails.
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let wo = n;
+        let b = Diffuse { albedo: Vec3::ONE, n };
+        let other = Diffuse { n: Vec3::new(-0.3, -0.5, 0.8).normalize(), ..b };
+        let z = z_score(
+            |s| b.sample(wo, s).map(|bs| bs.wi),
+            |d| if n.dot(d) > 0.0 { other.pdf(wo, d) } else { 0.0 },
+        );
+        assert!(z > 10.0, "z = {z}");
+    }
+
     #[test]
     fn alpha_is_the_square_of_roughness_above_the_floor() {
         assert_eq!(alpha(0.5), 0.25);
