@@ -17,7 +17,7 @@ use super::sampler::Sampler;
 use super::surface::{surface, Surface};
 use crate::accel::{Accel, Ray};
 use crate::component::{Component, Split};
-use crate::scene::Scene;
+use crate::scene::{Scene, Shape};
 
 /// What the integrator reads for every path: the scene, its accelerator and its lights. `F` is
 /// the [`super::features::Features`] bit set this copy computes; the default is all of them.
@@ -260,7 +260,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             record.vertex(depth, &shape.name, s.p, path.beta, out.beauty);
             let wo = -ray.dir;
             path.travelled += hit.t * ray.dir.length();
-            self.emitted(&mut out, &path, hit.shape, &s, wo);
+            self.emitted(&mut out, &path, hit.shape, shape, &s, wo);
             if depth >= self.max_depth {
                 break;
             }
@@ -268,7 +268,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             // Without a light a path can hit, the ray after the last vertex could only find one:
             // not traced.
             let last = F & MIS == 0 && depth + 1 >= self.max_depth;
-            match self.scatter_at(hit.shape, &s, wo, &mut out, &mut path, last, depth, sampler, rays) {
+            match self.scatter_at(shape, &s, wo, &mut out, &mut path, last, depth, sampler, rays) {
                 Some(next) => ray = next,
                 None => break,
             }
@@ -342,7 +342,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     #[inline(always)]
     fn scatter_at(
         &self,
-        shape: u32,
+        shape: &Shape,
         s: &Surface,
         wo: Vec3,
         out: &mut PathSample,
@@ -353,7 +353,6 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
     ) -> Option<Ray> {
         let scene = self.scene;
-        let shape = &scene.shapes[shape as usize];
         let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
         let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
         let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
@@ -374,15 +373,24 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         })
     }
 
-    /// Emission at a hit on `shape`, on its front side only (a scene without MIS has no light
-    /// a path can hit), weighted against light sampling's chance of finding the same point.
+    /// Emission at a hit on `shape` (number `index`), on its front side only (a scene without
+    /// MIS has no light a path can hit), weighted against light sampling's chance of finding the
+    /// same point.
     #[inline(always)]
-    fn emitted(&self, out: &mut PathSample, path: &PathState, shape: u32, s: &Surface, wo: Vec3) {
-        let (emission, lights) = (self.scene.shapes[shape as usize].emission, self.lights);
+    fn emitted(
+        &self,
+        out: &mut PathSample,
+        path: &PathState,
+        index: u32,
+        shape: &Shape,
+        s: &Surface,
+        wo: Vec3,
+    ) {
+        let (emission, lights) = (shape.emission, self.lights);
         if F & MIS == 0 || emission.max_element() <= 0.0 || s.ng.dot(wo) <= 0.0 {
             return;
         }
-        let light = lights.of_shape(shape);
+        let light = lights.of_shape(index);
         let w = match light {
             Some(light) if !path.after_delta => {
                 power_heuristic(path.bsdf_pdf, lights.pdf_shape(light, path.prev_p, s.p, s.ng))
