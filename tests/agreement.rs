@@ -196,3 +196,56 @@ fn rays_at_shared_edges_hit_on_both_backends() {
         assert_eq!(tally.disagreements, 0, "{name}: {tally:?}");
     }
 }
+
+/// The camera rays of a pixel traced together (`Accel::intersect_coherent`: 8-ray packets with
+/// the coherent flag on Embree) hit what the same rays traced one by one hit, on every scene,
+/// with the build the renderer uses and with the default one, in full packets and in a partial
+/// one (the valid mask).
+#[test]
+fn packets_of_camera_rays_hit_what_single_rays_hit() {
+    use lightsplit::accel::{build_embree_with, Accel};
+    use lightsplit::render::camera::PinholeCamera;
+    use lightsplit::render::features::Features;
+    use lightsplit::render::sampler::Sampler;
+    use lightsplit::scene::analysis::Analysis;
+
+    fn check<A: Accel>(scene: &Scene, accel: &A, name: &str) {
+        let (w, h) = (48, 48);
+        let camera = PinholeCamera::new(&scene.camera, w, h);
+        let (mut tally, mut identical) = (Tally::default(), 0);
+        for pixel in 0..w * h {
+            let (x, y) = (pixel % w, pixel / w);
+            // 8 rays (one packet), then 5 (a partial packet), as the renderer makes them.
+            for (first, n) in [(0u64, 8usize), (8, 5)] {
+                let rays: Vec<Ray> = (0..n as u64)
+                    .map(|k| camera.ray(x, y, Sampler::new(7, pixel as u64, first + k).next_2d()))
+                    .collect();
+                let mut hits = vec![None; n];
+                accel.intersect_coherent(&rays, &mut hits);
+                for (ray, packet) in rays.iter().zip(hits) {
+                    let single = accel.intersect(ray);
+                    identical += (packet == single) as usize;
+                    compare(scene, ray, packet, single, &mut tally);
+                }
+            }
+        }
+        eprintln!("{name}: packets against single rays: {tally:?}, bit-identical {identical}");
+        assert_eq!(tally.rays, (w * h * 13) as usize);
+        assert!(tally.hits > 0, "{name}: no camera ray hit anything");
+        assert_eq!(tally.disagreements, 0, "{name}: {tally:?}");
+        assert!(tally.ties * 1_000 <= tally.rays, "{name}: {tally:?}");
+    }
+
+    for path in scenes() {
+        let name = path.display().to_string();
+        let scene = scene::load(&path).expect("loads");
+        let rendered = Features::embree_settings(&Analysis::of(&scene));
+        check(&scene, &build_embree_with(&scene, None, rendered).expect("embree builds"), &name);
+        check(
+            &scene,
+            &build_embree(&scene, None).expect("embree builds"),
+            &format!("{name} (default build)"),
+        );
+        check(&scene, &Bvh::new(&scene).expect("bvh builds"), &format!("{name} (bvh)"));
+    }
+}

@@ -324,13 +324,25 @@ impl SceneBuilder {
         unsafe { sys::rtcCommitScene(self.raw) };
         self.device.take_error()?;
         let raw = std::mem::replace(&mut self.raw, std::ptr::null_mut());
-        Ok(CommittedScene { raw, _device: self.device.clone(), _meshes: std::mem::take(&mut self.meshes) })
+        // SAFETY: a plain integer query on a live device.
+        let native8 = unsafe {
+            sys::rtcGetDeviceProperty(self.device.raw, sys::RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED)
+        };
+        Ok(CommittedScene {
+            raw,
+            packets: native8 != 0,
+            _device: self.device.clone(),
+            _meshes: std::mem::take(&mut self.meshes),
+        })
     }
 }
 
 /// A committed scene: immutable, queried from any number of threads at once.
 pub struct CommittedScene {
     raw: sys::RTCScene,
+    /// Whether this Embree traces 8-ray packets natively (compiled with packets, and an ISA with
+    /// 8-wide SIMD); without, coherent rays go one at a time with the coherent flag.
+    packets: bool,
     _device: Arc<DeviceInner>,
     _meshes: Vec<SharedMesh>,
 }
@@ -369,6 +381,52 @@ fn ray_to_sys(ray: &Ray) -> sys::RTCRay {
 impl CommittedScene {
     /// The closest hit along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect_one(ray, Coherence::Incoherent)
+    }
+
+    /// The closest hits of `rays`, which start together and point nearly the same way (the
+    /// camera rays of one pixel): traced as 8-ray packets with the coherent flag where Embree
+    /// has native 8-wide packets, else one by one with the coherent flag. `hits[i]` is the hit
+    /// of `rays[i]`.
+    pub fn intersect_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        debug_assert_eq!(rays.len(), hits.len());
+        if !self.packets {
+            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                *hit = self.intersect_one(ray, Coherence::Coherent);
+            }
+            return;
+        }
+        for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
+            let mut valid = [0i32; PACKET];
+            let mut packet = sys::RTCRayHit8::default();
+            let (r, h) = (&mut packet.ray, &mut packet.hit);
+            for (j, ray) in rays.iter().enumerate() {
+                valid[j] = -1;
+                (r.org_x[j], r.org_y[j], r.org_z[j]) = (ray.origin.x, ray.origin.y, ray.origin.z);
+                (r.dir_x[j], r.dir_y[j], r.dir_z[j]) = (ray.dir.x, ray.dir.y, ray.dir.z);
+                r.tfar[j] = ray.t_max;
+                r.mask[j] = u32::MAX;
+                h.geomID[j] = INVALID_ID;
+                h.primID[j] = INVALID_ID;
+                for level in h.instID.iter_mut() {
+                    level[j] = INVALID_ID;
+                }
+            }
+            intersect8(self.raw, &valid, &mut packet);
+            let h = &packet.hit;
+            for (j, hit) in hits.iter_mut().enumerate() {
+                *hit = (h.geomID[j] != INVALID_ID).then_some(Hit {
+                    t: packet.ray.tfar[j],
+                    shape: h.geomID[j],
+                    prim: h.primID[j],
+                    u: h.u[j],
+                    v: h.v[j],
+                });
+            }
+        }
+    }
+
+    fn intersect_one(&self, ray: &Ray, coherence: Coherence) -> Option<Hit> {
         let mut rayhit = sys::RTCRayHit {
             ray: ray_to_sys(ray),
             hit: sys::RTCHit {
@@ -378,7 +436,7 @@ impl CommittedScene {
                 ..Default::default()
             },
         };
-        intersect1(self.raw, &mut rayhit);
+        intersect1(self.raw, &mut rayhit, coherence);
         (rayhit.hit.geomID != INVALID_ID).then_some(Hit {
             t: rayhit.ray.tfar,
             shape: rayhit.hit.geomID,
@@ -402,21 +460,39 @@ impl Accel for CommittedScene {
         CommittedScene::intersect(self, ray)
     }
 
+    fn intersect_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        CommittedScene::intersect_coherent(self, rays, hits)
+    }
+
     fn occluded(&self, ray: &Ray) -> bool {
         CommittedScene::occluded(self, ray)
     }
 }
 
-// The two functions where Embree 3 and 4 differ: Embree 3 passes an RTCIntersectContext
-// (initialised by the header-inline rtcInitIntersectContext, written here in Rust), Embree 4 an
-// optional RTCIntersectArguments / RTCOccludedArguments after the ray.
+/// Rays in one of the packets [`CommittedScene::intersect_coherent`] traces.
+pub const PACKET: usize = 8;
+
+/// Embree's hint of how rays traced together relate: camera rays of one pixel are coherent,
+/// bounce and shadow rays are not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Coherence {
+    Coherent,
+    Incoherent,
+}
+
+// The functions where Embree 3 and 4 differ: Embree 3 passes an RTCIntersectContext (initialised
+// by the header-inline rtcInitIntersectContext, written here in Rust), Embree 4 an optional
+// RTCIntersectArguments / RTCOccludedArguments after the ray.
 
 #[cfg(not(embree4))]
 // Embree 3 headers built with more instance levels add fields; default those.
 #[allow(clippy::needless_update)]
-fn context() -> sys::RTCIntersectContext {
+fn context(coherence: Coherence) -> sys::RTCIntersectContext {
     sys::RTCIntersectContext {
-        flags: sys::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+        flags: match coherence {
+            Coherence::Coherent => sys::RTC_INTERSECT_CONTEXT_FLAG_COHERENT,
+            Coherence::Incoherent => sys::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+        },
         filter: None,
         instID: [INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
         ..Default::default()
@@ -424,32 +500,56 @@ fn context() -> sys::RTCIntersectContext {
 }
 
 #[cfg(not(embree4))]
-fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
-    let mut ctx = context();
+fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit, coherence: Coherence) {
+    let mut ctx = context(coherence);
     // SAFETY: `scene` is a live committed scene; `ctx` and `rayhit` are valid for the call and
     // `rayhit` is 16-byte aligned (RTCRayHit carries align(16)).
     unsafe { sys::rtcIntersect1(scene, &mut ctx, rayhit) }
 }
 
 #[cfg(not(embree4))]
+fn intersect8(scene: sys::RTCScene, valid: &[i32; PACKET], packet: &mut sys::RTCRayHit8) {
+    let mut ctx = context(Coherence::Coherent);
+    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints, `packet` is an 8-ray
+    // packet aligned to 32 bytes (RTCRayHit8 carries align(32)), both valid for the call.
+    unsafe { sys::rtcIntersect8(valid.as_ptr(), scene, &mut ctx, packet) }
+}
+
+#[cfg(not(embree4))]
 fn occluded1(scene: sys::RTCScene, ray: &mut sys::RTCRay) {
-    let mut ctx = context();
+    let mut ctx = context(Coherence::Incoherent);
     // SAFETY: `scene` is a live committed scene; `ctx` and `ray` are valid for the call and `ray`
     // is 16-byte aligned.
     unsafe { sys::rtcOccluded1(scene, &mut ctx, ray) }
 }
 
 #[cfg(embree4)]
-fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
+fn arguments(coherence: Coherence) -> sys::RTCIntersectArguments {
     // rtcInitIntersectArguments, which is header-inline.
-    let mut args = sys::RTCIntersectArguments {
-        flags: sys::RTC_RAY_QUERY_FLAG_INCOHERENT,
+    sys::RTCIntersectArguments {
+        flags: match coherence {
+            Coherence::Coherent => sys::RTC_RAY_QUERY_FLAG_COHERENT,
+            Coherence::Incoherent => sys::RTC_RAY_QUERY_FLAG_INCOHERENT,
+        },
         feature_mask: sys::RTC_FEATURE_FLAG_ALL,
         ..Default::default()
-    };
+    }
+}
+
+#[cfg(embree4)]
+fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit, coherence: Coherence) {
+    let mut args = arguments(coherence);
     // SAFETY: `scene` is a live committed scene; `rayhit` and `args` are valid for the call and
     // `rayhit` is 16-byte aligned.
     unsafe { sys::rtcIntersect1(scene, rayhit, &mut args) }
+}
+
+#[cfg(embree4)]
+fn intersect8(scene: sys::RTCScene, valid: &[i32; PACKET], packet: &mut sys::RTCRayHit8) {
+    let mut args = arguments(Coherence::Coherent);
+    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints, `packet` is an 8-ray
+    // packet aligned to 32 bytes (RTCRayHit8 carries align(32)); all are valid for the call.
+    unsafe { sys::rtcIntersect8(valid.as_ptr(), scene, packet, &mut args) }
 }
 
 #[cfg(embree4)]

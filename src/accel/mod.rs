@@ -45,6 +45,14 @@ pub trait Accel: Send + Sync {
     fn intersect(&self, ray: &Ray) -> Option<Hit>;
     /// Whether anything lies along `ray` within `[0, ray.t_max]` (a shadow ray: any hit stops it).
     fn occluded(&self, ray: &Ray) -> bool;
+    /// The closest hits of coherent `rays` (starting together, pointing nearly the same way: a
+    /// pixel's camera rays), `hits[i]` for `rays[i]`; the same hits as [`Accel::intersect`] up
+    /// to float rounding. A backend may trace them as packets; by default, one by one.
+    fn intersect_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            *hit = self.intersect(ray);
+        }
+    }
 }
 
 /// A failure to set up ray tracing: a backend that cannot build, or worker threads that cannot
@@ -92,6 +100,23 @@ pub fn build_embree(
     build_embree_with(scene, threads, embree::SceneSettings::default())
 }
 
+/// The environment variable whose value is appended to Embree's device configuration, e.g.
+/// `verbose=1` to print the ISA and the BVH and intersector Embree picked, or
+/// `frequency_level=simd128`.
+pub const EMBREE_CONFIG_VAR: &str = "LIGHTSPLIT_EMBREE_CONFIG";
+
+/// Embree's device configuration: the build threads, then what [`EMBREE_CONFIG_VAR`] adds.
+fn device_config(threads: Option<usize>) -> String {
+    let mut config = threads.map(|n| format!("threads={n}")).unwrap_or_default();
+    if let Some(extra) = std::env::var_os(EMBREE_CONFIG_VAR) {
+        if !config.is_empty() {
+            config.push(',');
+        }
+        config.push_str(&extra.to_string_lossy());
+    }
+    config
+}
+
 /// [`build_embree`] with these scene flags and build quality.
 pub fn build_embree_with(
     scene: &crate::scene::Scene,
@@ -99,7 +124,7 @@ pub fn build_embree_with(
     settings: embree::SceneSettings,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
     use crate::scene::Geometry;
-    let config = threads.map(|n| format!("threads={n}")).unwrap_or_default();
+    let config = device_config(threads);
     let device = embree::Device::with_config(&config)?;
     let mut builder = device.scene_with(settings)?;
     for (id, shape) in scene.shapes.iter().enumerate() {

@@ -15,7 +15,7 @@ use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
 use super::surface::{surface, Surface};
-use crate::accel::{Accel, Ray};
+use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::scene::{Scene, Shape};
 
@@ -230,10 +230,35 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         self.sample_recorded(ray, sampler, rays, &mut ())
     }
 
+    /// [`Integrator::sample`] of a camera ray already traced: `hit` is its closest hit (from a
+    /// packet of camera rays).
+    pub fn sample_from(
+        &self,
+        ray: Ray,
+        hit: Option<Hit>,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+    ) -> PathSample {
+        self.trace(ray, Some(hit), sampler, rays, &mut ())
+    }
+
     /// [`Integrator::sample`], reporting each vertex to `record` (nothing, for `()`).
     pub fn sample_recorded<R: Record>(
         &self,
+        ray: Ray,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+        record: &mut R,
+    ) -> PathSample {
+        self.trace(ray, None, sampler, rays, record)
+    }
+
+    /// The path from `ray`, whose closest hit is `first` when already traced.
+    #[inline(always)]
+    fn trace<R: Record>(
+        &self,
         mut ray: Ray,
+        mut first: Option<Option<Hit>>,
         sampler: &mut Sampler,
         rays: &mut u64,
         record: &mut R,
@@ -250,7 +275,11 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         };
         for depth in 0.. {
             *rays += 1;
-            let Some(hit) = self.accel.intersect(&ray) else {
+            let hit = match first.take() {
+                Some(hit) => hit,
+                None => self.accel.intersect(&ray),
+            };
+            let Some(hit) = hit else {
                 record.escaped(depth, ray.dir, path.beta);
                 self.escaped(&mut out, &path, ray.dir);
                 break;

@@ -16,14 +16,15 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::embree::SceneSettings;
-use crate::accel::{self, Accel, Backend};
+use crate::accel::embree::PACKET;
+use crate::accel::{self, Accel, Backend, Ray};
 use crate::component::Split;
 use crate::film::Film;
 use crate::scene::analysis::Analysis;
 use crate::scene::Scene;
 use camera::PinholeCamera;
 pub use features::{Features, Outputs};
-use integrator::Integrator;
+use integrator::{Integrator, PathSample};
 use lights::Lights;
 use sampler::Sampler;
 
@@ -201,6 +202,39 @@ impl Tile {
             + self.converged.capacity()) as u64
     }
 
+    /// Adds sample `k` of pixel `i`; false when it was dropped as non-finite (it counts as a
+    /// zero sample).
+    #[inline(always)]
+    fn add(&mut self, i: usize, k: u32, s: &PathSample, split: bool) -> bool {
+        if let Some(g) = self.guides.get_mut(i) {
+            if k == 0 {
+                g.object = s.object;
+            }
+            g.same += (s.object == g.object) as u32;
+        }
+        if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
+            self.nonfinite += 1;
+            return false;
+        }
+        self.beauty[i] += s.beauty;
+        if let Some(m) = self.moments.get_mut(i) {
+            let l = crate::math::luminance(s.beauty) as f64;
+            m[0] += l;
+            m[1] += l * l;
+        }
+        if let Some(c) = self.components.get_mut(i) {
+            for (a, c) in c.iter_mut().zip(s.components) {
+                *a += c;
+            }
+        }
+        if let Some(g) = self.guides.get_mut(i) {
+            g.albedo += s.albedo;
+            g.normal += s.normal;
+            g.depth += s.depth;
+        }
+        true
+    }
+
     fn done(&self) -> bool {
         !self.converged.is_empty() && self.converged.iter().all(|&c| c)
     }
@@ -284,6 +318,23 @@ fn render_features<A: Accel, const F: u8>(
         })
         .collect();
 
+    // `--debug-nonfinite`: the sampler is a pure function of (seed, pixel, sample), so the
+    // dropped sample's path is traced again, recorded (its camera ray alone, not as a packet).
+    let report_nonfinite = |x: u32, y: u32, k: u32| {
+        if !options.debug_nonfinite || reported.fetch_add(1, Ordering::Relaxed) >= MAX_REPORTS {
+            return;
+        }
+        let mut sampler = Sampler::new(options.seed, y as u64 * width as u64 + x as u64, k as u64);
+        let ray = camera.ray(x, y, sampler.next_2d());
+        let mut path = Vec::new();
+        let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
+        eprintln!(
+            "non-finite sample dropped at pixel ({x}, {y}), sample {k}: radiance {}\n{}",
+            again.beauty,
+            path.join("\n")
+        );
+    };
+
     // Samples [from, to) of every pixel not yet converged, tile by tile; the pixel's sample i
     // always draws from the same stream, so passes change no sample.
     let mut from = 0;
@@ -296,49 +347,25 @@ fn render_features<A: Accel, const F: u8>(
                 }
                 let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
                 let pixel = y as u64 * width as u64 + x as u64;
-                for k in from..to {
-                    let mut sampler = Sampler::new(options.seed, pixel, k as u64);
-                    let ray = camera.ray(x, y, sampler.next_2d());
-                    let s = integrator.sample(ray, &mut sampler, &mut tile.rays);
-                    if let Some(g) = tile.guides.get_mut(i) {
-                        if k == 0 {
-                            g.object = s.object;
-                        }
-                        g.same += (s.object == g.object) as u32;
+                // The pixel's camera rays, a packet at a time, then each path from its hit.
+                let mut k = from;
+                while k < to {
+                    let n = (to - k).min(PACKET as u32) as usize;
+                    let mut samplers: [Sampler; PACKET] =
+                        std::array::from_fn(|j| Sampler::new(options.seed, pixel, (k + j as u32) as u64));
+                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+                    for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
+                        *ray = camera.ray(x, y, sampler.next_2d());
                     }
-                    if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
-                        tile.nonfinite += 1;
-                        if options.debug_nonfinite && reported.fetch_add(1, Ordering::Relaxed) < MAX_REPORTS {
-                            // The sampler is a pure function of (seed, pixel, sample): the same
-                            // path again, recorded.
-                            let mut sampler = Sampler::new(options.seed, pixel, k as u64);
-                            let ray = camera.ray(x, y, sampler.next_2d());
-                            let mut path = Vec::new();
-                            let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
-                            eprintln!(
-                                "non-finite sample dropped at pixel ({x}, {y}), sample {k}: radiance {}\n{}",
-                                again.beauty,
-                                path.join("\n")
-                            );
-                        }
-                        continue; // dropped: counts as a zero sample
-                    }
-                    tile.beauty[i] += s.beauty;
-                    if let Some(m) = tile.moments.get_mut(i) {
-                        let l = crate::math::luminance(s.beauty) as f64;
-                        m[0] += l;
-                        m[1] += l * l;
-                    }
-                    if let Some(c) = tile.components.get_mut(i) {
-                        for (a, c) in c.iter_mut().zip(s.components) {
-                            *a += c;
+                    let mut hits = [None; PACKET];
+                    accel.intersect_coherent(&rays[..n], &mut hits[..n]);
+                    for j in 0..n {
+                        let s = integrator.sample_from(rays[j], hits[j], &mut samplers[j], &mut tile.rays);
+                        if !tile.add(i, k + j as u32, &s, split) {
+                            report_nonfinite(x, y, k + j as u32);
                         }
                     }
-                    if let Some(g) = tile.guides.get_mut(i) {
-                        g.albedo += s.albedo;
-                        g.normal += s.normal;
-                        g.depth += s.depth;
-                    }
+                    k += n as u32;
                 }
                 tile.n[i] = to;
                 taken += (to - from) as u64;
