@@ -259,7 +259,7 @@ impl OutputArgs {
     }
 
     /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
-    pub fn write(&self, film: &Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
+    pub fn write(&self, film: Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
         output::write(film, setting, path, self.layer, self.exposure)
     }
 }

@@ -210,7 +210,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let filter_seconds = args.out.write(&out.film, &setting, &output)?;
+    let filter_seconds = args.out.write(out.film, &setting, &output)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -327,7 +327,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
-    args.out.write(&film, &setting, &args.output)?;
+    args.out.write(film, &setting, &args.output)?;
     Ok(())
 }
 

@@ -95,19 +95,26 @@ impl Layer {
 /// Filters `film` as `setting` says and writes it to `path`: every layer to an EXR, or `layer`
 /// alone to a PNG or HDR at `exposure` stops. Returns the seconds the filter took.
 pub fn write(
-    film: &Film,
+    film: Film,
     setting: &Setting,
     path: &Path,
     layer: Layer,
     exposure: f32,
 ) -> Result<f64, OutputError> {
     let start = Instant::now();
-    let (final_image, filtered) = composite(film, setting.kernel.as_ref(), setting.target, &setting.stops);
+    let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();
     if layer == Layer::Final {
-        film::write_film(film, &final_image, filtered.as_ref(), path, exposure)?;
+        // An EXR keeps the beauty twice (the final image and `raw`); a PNG or HDR only reads it.
+        match film::Format::from_path(path)? {
+            film::Format::Exr => {
+                let final_image = final_image.into_owned();
+                film::write_film(film, final_image, filtered, path, exposure)?
+            }
+            _ => film::write(&final_image, path, exposure)?,
+        }
     } else {
-        film::write(layer.image(film, &final_image, filtered.as_ref())?, path, exposure)?;
+        film::write(layer.image(&film, &final_image, filtered.as_ref())?, path, exposure)?;
     }
     Ok(seconds)
 }

@@ -351,7 +351,7 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
     let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     let image = out.film.raw.clone();
-    film::write_film(&out.film, &image, None, &cache, 0.0)
+    film::write_film(out.film, image.clone(), None, &cache, 0.0)
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     Ok(image)
 }

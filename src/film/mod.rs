@@ -208,10 +208,14 @@ fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
 /// The channels of a film for a multi-layer EXR: the final image as `R`, `G`, `B`, then
 /// `raw`, the four components, `indirect_filtered` (when given), `albedo`, `normal` (X, Y, Z),
 /// `depth` (Z) and `objectid` (ID); the split and the guides only when the film holds them.
-pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option<&Image>) -> Channels {
+/// Consumes the film: each buffer is freed as soon as its channels exist, so the channels never
+/// sit beside a second copy of the film.
+pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<Image>) -> Channels {
+    let has_guides = film.has_guides();
+    let Film { raw, components, albedo, normal, depth, object, coverage, .. } = film;
     let mut out: Channels = Vec::new();
     // A buffer the render did not fill (empty) has no layer.
-    let mut rgb = |prefix: &str, img: &Image, names: [&str; 3]| {
+    let mut rgb = |prefix: &str, img: Image, names: [&str; 3]| {
         if img.pixels.is_empty() {
             return;
         }
@@ -221,37 +225,39 @@ pub fn film_channels(film: &Film, final_image: &Image, indirect_filtered: Option
         }
     };
     rgb("", final_image, ["R", "G", "B"]);
-    rgb("raw", &film.raw, ["R", "G", "B"]);
-    for (c, layer) in film.components.named() {
+    rgb("raw", raw, ["R", "G", "B"]);
+    for (c, layer) in Component::ALL.into_iter().zip(components) {
         rgb(c.name(), layer, ["R", "G", "B"]);
     }
     if let Some(f) = indirect_filtered {
         rgb("indirect_filtered", f, ["R", "G", "B"]);
     }
-    rgb("albedo", &film.albedo, ["R", "G", "B"]);
-    rgb("normal", &film.normal, ["X", "Y", "Z"]);
-    if film.has_guides() {
-        out.push(("depth.Z".into(), film.depth.clone()));
-        out.push(("objectid.ID".into(), film.object.clone()));
-        out.push(("objectid.coverage".into(), film.coverage.clone()));
+    rgb("albedo", albedo, ["R", "G", "B"]);
+    rgb("normal", normal, ["X", "Y", "Z"]);
+    if has_guides {
+        out.push(("depth.Z".into(), depth));
+        out.push(("objectid.ID".into(), object));
+        out.push(("objectid.coverage".into(), coverage));
     }
     out
 }
 
-/// Writes a film: every layer into an EXR, or the final image alone into PNG or HDR.
+/// Writes a film: every layer into an EXR, or the final image alone into PNG or HDR. Consumes
+/// the film and the images, so an EXR's channels replace them rather than copy them.
 pub fn write_film(
-    film: &Film,
-    final_image: &Image,
-    indirect_filtered: Option<&Image>,
+    film: Film,
+    final_image: Image,
+    indirect_filtered: Option<Image>,
     path: &Path,
     exposure: f32,
 ) -> Result<(), WriteError> {
     match Format::from_path(path)? {
         Format::Exr => {
+            let (width, height) = (film.width, film.height);
             let channels = film_channels(film, final_image, indirect_filtered);
-            atomically(path, |tmp| write_exr_channels(&channels, film.width, film.height, tmp))
+            atomically(path, |tmp| write_exr_channels(channels, width, height, tmp))
         }
-        _ => write(final_image, path, exposure),
+        _ => write(&final_image, path, exposure),
     }
 }
 
@@ -283,11 +289,11 @@ fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> R
 }
 
 /// Writes named float channels as one single-part EXR (32-bit float, lossless).
-pub fn write_exr_channels(channels: &Channels, width: u32, height: u32, path: &Path) -> Result<(), String> {
+pub fn write_exr_channels(channels: Channels, width: u32, height: u32, path: &Path) -> Result<(), String> {
     use exr::prelude::*;
     let list: Vec<AnyChannel<FlatSamples>> = channels
-        .iter()
-        .map(|(name, data)| AnyChannel::new(name.as_str(), FlatSamples::F32(data.clone())))
+        .into_iter()
+        .map(|(name, data)| AnyChannel::new(name.as_str(), FlatSamples::F32(data)))
         .collect();
     let layer = Layer::new(
         (width as usize, height as usize),
@@ -420,10 +426,10 @@ mod tests {
         let filtered = film.components[Component::Indirect].clone();
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("film.exr");
-        write_film(&film, &final_image, Some(&filtered), &path, 0.0).expect("write");
+        write_film(film.clone(), final_image.clone(), Some(filtered.clone()), &path, 0.0).expect("write");
         let (w, h, read) = read_exr_channels(&path).expect("read");
         assert_eq!((w, h), (5, 3));
-        let written = film_channels(&film, &final_image, Some(&filtered));
+        let written = film_channels(film, final_image, Some(filtered));
         assert_eq!(read.len(), written.len());
         for (name, data) in &written {
             let back = read.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("{name} missing"));

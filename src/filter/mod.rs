@@ -6,6 +6,8 @@
 
 mod section;
 
+use std::borrow::Cow;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -434,13 +436,15 @@ fn median(values: &mut [Vec3]) -> Vec3 {
     Vec3::from(out)
 }
 
-/// The final image of a film: the components with `kernel` applied to `target`.
-pub fn composite(
-    film: &Film,
+/// The final image of a film: the components with `kernel` applied to `target`; without a
+/// kernel, the film's own beauty (borrowed, not copied). With it, the filtered indirect
+/// component when the target is `indirect`.
+pub fn composite<'a>(
+    film: &'a Film,
     kernel: Option<&Kernel>,
     target: Target,
     stops: &EdgeStops,
-) -> (Image, Option<Image>) {
+) -> (Cow<'a, Image>, Option<Image>) {
     match (kernel, target) {
         (Some(k), Target::Indirect) => {
             let filtered = filter(film.indirect(), k, film, stops);
@@ -449,10 +453,10 @@ pub fn composite(
                 let unfiltered = |c: Component| film.components[c].pixels[i];
                 *px = unfiltered(Emitted) + unfiltered(Direct) + unfiltered(Caustic) + filtered.pixels[i];
             }
-            (out, Some(filtered))
+            (Cow::Owned(out), Some(filtered))
         }
-        (Some(k), Target::Image) => (filter(&film.raw, k, film, stops), None),
-        _ => (film.raw.clone(), None),
+        (Some(k), Target::Image) => (Cow::Owned(filter(&film.raw, k, film, stops)), None),
+        _ => (Cow::Borrowed(&film.raw), None),
     }
 }
 

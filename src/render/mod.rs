@@ -10,6 +10,7 @@ pub mod sampler;
 pub mod surface;
 
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -142,8 +143,8 @@ pub fn render(
     })
 }
 
-/// One pixel's guide values: means over its samples, and the object of sample 0 (never
-/// averaged) with how many samples saw it.
+/// One pixel's guide sums over its samples, and the object of sample 0 (never averaged) with
+/// how many samples saw it.
 #[derive(Clone, Copy, Default)]
 struct Guides {
     albedo: Vec3,
@@ -153,20 +154,18 @@ struct Guides {
     same: u32,
 }
 
-/// One tile's sums and counts; the split, the guides and the moments are empty when not
-/// computed.
+/// A tile of the image and what it keeps between passes: the samples each pixel has taken and,
+/// for adaptive sampling, each pixel's moments and whether it has converged. Its sums live in
+/// the film, so no second image-sized copy of them exists.
 struct Tile {
     x0: u32,
     y0: u32,
     w: u32,
     h: u32,
-    /// Samples taken per pixel.
+    /// Adaptive sampling: the samples each pixel has taken, the sums of its sample luminances
+    /// and of their squares, and whether it has converged (empty otherwise: every pixel takes
+    /// the spp).
     n: Vec<u32>,
-    beauty: Vec<Vec3>,
-    components: Vec<Split<Vec3>>,
-    guides: Vec<Guides>,
-    /// Adaptive sampling: the sums of each pixel's sample luminances and of their squares, and
-    /// whether the pixel has converged.
     moments: Vec<[f64; 2]>,
     converged: Vec<bool>,
     rays: u64,
@@ -174,20 +173,17 @@ struct Tile {
 }
 
 impl Tile {
-    fn new(x0: u32, y0: u32, w: u32, h: u32, split: bool, guides: bool, adaptive: bool) -> Tile {
+    fn new(x0: u32, y0: u32, w: u32, h: u32, adaptive: bool) -> Tile {
         let n = (w * h) as usize;
-        let some = |on: bool| if on { n } else { 0 };
+        let some = if adaptive { n } else { 0 };
         Tile {
             x0,
             y0,
             w,
             h,
-            n: vec![0; n],
-            beauty: vec![Vec3::ZERO; n],
-            components: vec![Split::default(); some(split)],
-            guides: vec![Guides::default(); some(guides)],
-            moments: vec![[0.0; 2]; some(adaptive)],
-            converged: vec![false; some(adaptive)],
+            n: vec![0; some],
+            moments: vec![[0.0; 2]; some],
+            converged: vec![false; some],
             rays: 0,
             nonfinite: 0,
         }
@@ -195,17 +191,86 @@ impl Tile {
 
     fn bytes(&self) -> u64 {
         (self.n.capacity() * size_of::<u32>()
-            + self.beauty.capacity() * size_of::<Vec3>()
-            + self.components.capacity() * size_of::<Split<Vec3>>()
-            + self.guides.capacity() * size_of::<Guides>()
             + self.moments.capacity() * size_of::<[f64; 2]>()
             + self.converged.capacity()) as u64
+    }
+
+    fn done(&self) -> bool {
+        !self.converged.is_empty() && self.converged.iter().all(|&c| c)
+    }
+
+    /// The film index of the tile's pixel `i`, and its coordinates.
+    fn pixel(&self, i: usize, width: u32) -> (usize, u32, u32) {
+        let (x, y) = (self.x0 + i as u32 % self.w, self.y0 + i as u32 / self.w);
+        (y as usize * width as usize + x as usize, x, y)
+    }
+}
+
+/// A tile's sums while a pass renders it: loaded from the film before, stored back after, so
+/// every pixel's sums add up in the order of its samples, pass after pass. The split and the
+/// guides are empty when not computed.
+struct Sums {
+    beauty: Vec<Vec3>,
+    components: Vec<Split<Vec3>>,
+    guides: Vec<Guides>,
+}
+
+impl Sums {
+    /// The sums of `tile`'s pixels so far, from `film` (which holds sums until the render ends).
+    fn load(tile: &Tile, film: &Film) -> Sums {
+        let n = (tile.w * tile.h) as usize;
+        let at = |i: usize| tile.pixel(i, film.width).0;
+        Sums {
+            beauty: (0..n).map(|i| film.raw.pixels[at(i)]).collect(),
+            components: if film.has_split() {
+                (0..n).map(|i| Split::from_fn(|c| film.components[c].pixels[at(i)])).collect()
+            } else {
+                Vec::new()
+            },
+            guides: if film.has_guides() {
+                (0..n)
+                    .map(|i| {
+                        let at = at(i);
+                        let object = film.object[at];
+                        Guides {
+                            albedo: film.albedo.pixels[at],
+                            normal: film.normal.pixels[at],
+                            depth: film.depth[at],
+                            object: (object >= 0.0).then_some(object as u32),
+                            same: film.coverage[at] as u32,
+                        }
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// Writes the sums back into `film`.
+    fn store(&self, tile: &Tile, film: &mut Film) {
+        for (i, &beauty) in self.beauty.iter().enumerate() {
+            let (at, ..) = tile.pixel(i, film.width);
+            film.raw.pixels[at] = beauty;
+            if let Some(c) = self.components.get(i) {
+                for (layer, &c) in film.components.iter_mut().zip(c) {
+                    layer.pixels[at] = c;
+                }
+            }
+            if let Some(g) = self.guides.get(i) {
+                film.albedo.pixels[at] = g.albedo;
+                film.normal.pixels[at] = g.normal;
+                film.depth[at] = g.depth;
+                film.object[at] = g.object.map_or(-1.0, |o| o as f32);
+                film.coverage[at] = g.same as f32;
+            }
+        }
     }
 
     /// Adds sample `k` of pixel `i`; false when it was dropped as non-finite (it counts as a
     /// zero sample).
     #[inline(always)]
-    fn add(&mut self, i: usize, k: u32, s: &PathSample, split: bool) -> bool {
+    fn add(&mut self, i: usize, k: u32, s: &PathSample, split: bool, moments: Option<&mut [f64; 2]>) -> bool {
         if let Some(g) = self.guides.get_mut(i) {
             if k == 0 {
                 g.object = s.object;
@@ -213,11 +278,10 @@ impl Tile {
             g.same += (s.object == g.object) as u32;
         }
         if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
-            self.nonfinite += 1;
             return false;
         }
         self.beauty[i] += s.beauty;
-        if let Some(m) = self.moments.get_mut(i) {
+        if let Some(m) = moments {
             let l = crate::math::luminance(s.beauty) as f64;
             m[0] += l;
             m[1] += l * l;
@@ -233,10 +297,6 @@ impl Tile {
             g.depth += s.depth;
         }
         true
-    }
-
-    fn done(&self) -> bool {
-        !self.converged.is_empty() && self.converged.iter().all(|&c| c)
     }
 }
 
@@ -314,9 +374,15 @@ fn render_features<A: Accel, const F: u8>(
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            Tile::new(x0, y0, w, h, split, guides, adaptive.is_some())
+            Tile::new(x0, y0, w, h, adaptive.is_some())
         })
         .collect();
+    // The film holds each pixel's sums (the coverage: how many samples saw the object) until
+    // every pass is done, then their means.
+    let mut film = Film::with_buffers(width, height, split, guides);
+    film.coverage.fill(0.0);
+    let shared = Mutex::new(film);
+    let lock = || shared.lock().unwrap_or_else(|e| e.into_inner());
 
     // `--debug-nonfinite`: the sampler is a pure function of (seed, pixel, sample), so the
     // dropped sample's path is traced again, recorded (its camera ray alone, not as a packet).
@@ -340,19 +406,19 @@ fn render_features<A: Accel, const F: u8>(
     let mut from = 0;
     for to in pass_ends(spp, adaptive.is_some()) {
         tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
+            let mut sums = Sums::load(tile, &lock());
             let mut taken = 0u64;
             for i in 0..(tile.w * tile.h) as usize {
                 if tile.converged.get(i) == Some(&true) {
                     continue;
                 }
-                let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
-                let pixel = y as u64 * width as u64 + x as u64;
+                let (at, x, y) = tile.pixel(i, width);
                 // The pixel's camera rays, a packet at a time, then each path from its hit.
                 let mut k = from;
                 while k < to {
                     let n = (to - k).min(PACKET as u32) as usize;
                     let mut samplers: [Sampler; PACKET] =
-                        std::array::from_fn(|j| Sampler::new(options.seed, pixel, (k + j as u32) as u64));
+                        std::array::from_fn(|j| Sampler::new(options.seed, at as u64, (k + j as u32) as u64));
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
                     for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
                         *ray = camera.ray(x, y, sampler.next_2d());
@@ -361,13 +427,16 @@ fn render_features<A: Accel, const F: u8>(
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);
                     for j in 0..n {
                         let s = integrator.sample_from(rays[j], hits[j], &mut samplers[j], &mut tile.rays);
-                        if !tile.add(i, k + j as u32, &s, split) {
+                        if !sums.add(i, k + j as u32, &s, split, tile.moments.get_mut(i)) {
+                            tile.nonfinite += 1;
                             report_nonfinite(x, y, k + j as u32);
                         }
                     }
                     k += n as u32;
                 }
-                tile.n[i] = to;
+                if let Some(n) = tile.n.get_mut(i) {
+                    *n = to;
+                }
                 taken += (to - from) as u64;
                 if let (Some(threshold), Some(m)) = (adaptive, tile.moments.get(i)) {
                     if to == spp || relative_error(to, m[0], m[1]) <= threshold as f64 {
@@ -376,33 +445,32 @@ fn render_features<A: Accel, const F: u8>(
                     }
                 }
             }
+            sums.store(tile, &mut lock());
             progress(taken);
         });
         from = to;
     }
 
-    let mut film = Film::with_buffers(width, height, split, guides);
+    // Sums to means.
+    let mut film = shared.into_inner().unwrap_or_else(|e| e.into_inner());
     let mut stats = RenderStats {
         buffer_bytes: film.bytes() + tiles.iter().map(Tile::bytes).sum::<u64>(),
         ..Default::default()
     };
     for tile in &tiles {
-        for (i, &n) in tile.n.iter().enumerate() {
-            let (x, y) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
+        for i in 0..(tile.w * tile.h) as usize {
+            let n = tile.n.get(i).copied().unwrap_or(spp);
+            let (at, ..) = tile.pixel(i, width);
             let inv = 1.0 / n as f32;
-            film.raw.set(x, y, tile.beauty[i] * inv);
-            if let Some(c) = tile.components.get(i) {
-                for (layer, &c) in film.components.iter_mut().zip(c) {
-                    layer.set(x, y, c * inv);
-                }
+            film.raw.pixels[at] *= inv;
+            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
+                layer.pixels[at] *= inv;
             }
-            if let Some(g) = tile.guides.get(i) {
-                film.albedo.set(x, y, g.albedo * inv);
-                film.normal.set(x, y, g.normal.normalize_or_zero());
-                let at = (y * width + x) as usize;
-                film.depth[at] = g.depth * inv;
-                film.object[at] = g.object.map_or(-1.0, |o| o as f32);
-                film.coverage[at] = g.same as f32 / n as f32;
+            if film.has_guides() {
+                film.albedo.pixels[at] *= inv;
+                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
+                film.depth[at] *= inv;
+                film.coverage[at] /= n as f32;
             }
             stats.samples += n as u64;
             stats.stopped_early += (n < spp) as u64;
