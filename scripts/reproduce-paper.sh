@@ -162,5 +162,13 @@ scaled by the image's brightness, confirmed over two passes, is the next thing t
 ADAPTIVE
     fi
 } > "$tmp"
+# The section scripts/bench-peers.sh writes between its markers is not redone here: kept as it is.
+if [ -f docs/RESULTS.md ]; then
+    sed -n '/^<!-- bench-peers:begin -->$/,/^<!-- bench-peers:end -->$/p' docs/RESULTS.md > "$tmp.peers"
+    if [ -s "$tmp.peers" ]; then
+        { echo; cat "$tmp.peers"; } >> "$tmp"
+    fi
+    rm -f "$tmp.peers"
+fi
 mv "$tmp" docs/RESULTS.md
 echo "wrote docs/RESULTS.md in ${seconds} s" >&2
