@@ -217,7 +217,9 @@ mitsuba_depth=$(sed -n 's/.*name="max_depth" value="\([0-9]*\)".*/\1/p' "$tmp/mi
 
 lightsplit_cmd=("$lightsplit" render "$scene" --width "$size" --height "$size" --spp "$spp"
     --threads "$threads" -o lightsplit.exr)
-mitsuba_cmd=("$venv/bin/mitsuba" -m scalar_rgb -t "$threads" -o mitsuba.pfm mitsuba/scene.xml)
+# Mitsuba's -t counts its main thread, which only waits: -t 2 renders on one core (measured:
+# CPU time equal to wall time), so N rendering threads are -t N+1.
+mitsuba_cmd=("$venv/bin/mitsuba" -m scalar_rgb -t "$((threads + 1))" -o mitsuba.pfm mitsuba/scene.xml)
 tutorial_cmd=("$pathtracer" -c "$ecs" --size "$size" "$size" --spp "$spp"
     --max-path-length "$max_depth" --threads "$threads" -o tutorial.ppm)
 declare -A output=([lightsplit]=lightsplit.exr [mitsuba]=mitsuba.pfm [tutorial]=tutorial.ppm)
@@ -388,7 +390,9 @@ TEXT
 The scene \`$scene_rel\`: the Cornell box as the tutorial renders \`cornell_box.ecs\`,
 ${size}x${size} pixels, $spp samples per pixel, at most $max_depth scattering vertices each with
 next-event estimation (lightsplit's \`max_depth\` $max_depth, the tutorial's \`--max-path-length\`
-$max_depth, Mitsuba's \`path\` \`max_depth\` $mitsuba_depth, which counts the camera segment), $threads threads each.
+$max_depth, Mitsuba's \`path\` \`max_depth\` $mitsuba_depth, which counts the camera segment), $threads rendering threads each
+(Mitsuba's \`-t $((threads + 1))\`: its \`-t\` counts a main thread that only waits, and \`-t $threads\` renders on
+$((threads - 1)) core(s), its CPU time equal to its wall time).
 Each program is timed as a whole process (loading the scene and writing the image included),
 $rounds_text in alternating order (A B C, B C A, C A B, ...); wall and CPU seconds (user + sys
 of the process and its children) are medians, and each ratio is the median of the per-round
