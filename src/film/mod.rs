@@ -88,12 +88,14 @@ pub enum Format {
     Exr,
     Png,
     Hdr,
+    /// Portable float map: 32-bit float RGB, the beauty only (what Mitsuba and pbrt write).
+    Pfm,
 }
 
 /// A failure to write an image.
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
-    #[error("{0}: unknown image extension (use .exr, .png or .hdr)")]
+    #[error("{0}: unknown image extension (use .exr, .png, .hdr or .pfm)")]
     Extension(PathBuf),
     #[error("{0}: {1}")]
     Io(PathBuf, String),
@@ -107,6 +109,7 @@ impl Format {
             Some("exr") => Ok(Format::Exr),
             Some("png") => Ok(Format::Png),
             Some("hdr") => Ok(Format::Hdr),
+            Some("pfm") => Ok(Format::Pfm),
             _ => Err(WriteError::Extension(path.to_path_buf())),
         }
     }
@@ -150,6 +153,7 @@ pub fn write(image: &Image, path: &Path, exposure: f32) -> Result<(), WriteError
         Format::Exr => atomically(path, |tmp| write_exr(image, tmp)),
         Format::Png => atomically(path, |tmp| write_png(image, tmp, exposure)),
         Format::Hdr => atomically(path, |tmp| write_hdr(image, tmp)),
+        Format::Pfm => atomically(path, |tmp| write_pfm(image, tmp)),
     }
 }
 
@@ -202,6 +206,20 @@ fn write_hdr(image: &Image, path: &Path) -> Result<(), String> {
     image::codecs::hdr::HdrEncoder::new(&mut out)
         .encode(&pixels, image.width as usize, image.height as usize)
         .map_err(|e| e.to_string())?;
+    io::Write::flush(&mut out).map_err(|e| e.to_string())
+}
+
+/// A portable float map: the header `PF`, the size and a negative scale (little-endian), then
+/// the rows bottom to top, three 32-bit floats a pixel.
+fn write_pfm(image: &Image, path: &Path) -> Result<(), String> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let mut out = BufWriter::new(fs::File::create(path).map_err(|e| e.to_string())?);
+    let mut write = |bytes: &[u8]| io::Write::write_all(&mut out, bytes).map_err(|e| e.to_string());
+    write(format!("PF\n{w} {h}\n-1.0\n").as_bytes())?;
+    for row in image.pixels.chunks_exact(w.max(1)).rev().take(h) {
+        let bytes: Vec<u8> = row.iter().flat_map(|c| c.to_array()).flat_map(f32::to_le_bytes).collect();
+        write(&bytes)?;
+    }
     io::Write::flush(&mut out).map_err(|e| e.to_string())
 }
 
@@ -343,12 +361,12 @@ impl Film {
     }
 }
 
-/// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), or a
-/// Radiance HDR.
+/// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), a
+/// Radiance HDR or a portable float map.
 pub fn read_image(path: &Path) -> Result<Image, String> {
     match Format::from_path(path).map_err(|e| e.to_string())? {
-        Format::Exr | Format::Hdr => crate::scene::image::read(path),
-        Format::Png => Err(format!("{}: compare needs linear values: use .exr or .hdr", path.display())),
+        Format::Exr | Format::Hdr | Format::Pfm => crate::scene::image::read(path),
+        Format::Png => Err(format!("{}: compare needs linear values: use .exr, .hdr or .pfm", path.display())),
     }
 }
 
@@ -375,6 +393,27 @@ mod tests {
         assert_eq!(read_image(&path).expect("read"), img);
         // Only the final file is left behind.
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    #[test]
+    fn pfm_round_trips_exactly_and_is_written_bottom_row_first() {
+        let img = gradient();
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("a.pfm");
+        write(&img, &path, 0.0).expect("write");
+        let bytes = fs::read(&path).expect("read");
+        let header = b"PF\n5 3\n-1.0\n";
+        assert_eq!(&bytes[..header.len()], header);
+        assert_eq!(bytes.len(), header.len() + 5 * 3 * 12);
+        // The first pixel in the file is the bottom-left one.
+        let first = f32::from_le_bytes(bytes[header.len()..header.len() + 4].try_into().expect("4 bytes"));
+        assert_eq!(first, img.pixels[2 * 5].x);
+        assert_eq!(read_image(&path).expect("read back"), img);
+        // A truncated file is an error, not a panic.
+        fs::write(&path, &bytes[..bytes.len() - 1]).expect("truncate");
+        assert!(read_image(&path).is_err());
+        fs::write(&path, b"PF\n5 3\n").expect("short");
+        assert!(read_image(&path).is_err());
     }
 
     #[test]

@@ -31,11 +31,12 @@ impl Surface {
 }
 
 pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
-    let fallback = -ray.dir.normalize_or_zero();
+    // Only for a degenerate primitive, so computed only then.
+    let fallback = || -ray.dir.normalize_or_zero();
     match &scene.shapes[hit.shape as usize].geometry {
         Geometry::Sphere { center, radius } => {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
-            let n = (ray.at(hit.t) - *center).normalize_or(fallback);
+            let n = (ray.at(hit.t) - *center).try_normalize().unwrap_or_else(fallback);
             let uv = Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI);
             Surface {
                 p: *center + n * *radius,
@@ -51,7 +52,7 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
             // Barycentric interpolation keeps the point's error small relative to its magnitude,
             // which the ray-origin offset relies on.
             let p = a * (1.0 - u - v) + b * u + c * v;
-            let ng = (b - a).cross(c - a).normalize_or(fallback);
+            let ng = (b - a).cross(c - a).try_normalize().unwrap_or_else(fallback);
             let [ia, ib, ic] = mesh.indices[hit.prim as usize].map(|i| i as usize);
             let ns = match &mesh.normals {
                 Some(normals) => {

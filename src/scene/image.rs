@@ -73,8 +73,60 @@ pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Channels), String> {
     Ok((size.width() as u32, size.height() as u32, channels))
 }
 
-/// Reads an image as linear RGB: the `R`, `G`, `B` channels of an EXR, a Radiance HDR as it is,
-/// any other file (PNG) decoded from 8-bit sRGB.
+/// A portable float map (`PF`, RGB; `Pf`, grey): a negative scale means little-endian floats;
+/// rows run bottom to top.
+fn read_pfm(path: &Path) -> Result<Image, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let bad = |what: &str| format!("{}: not a portable float map ({what})", path.display());
+    // Three whitespace-separated header lines: the kind, the size, the scale; one byte after.
+    let mut fields = Vec::new();
+    let mut at = 0;
+    while fields.len() < 4 {
+        while bytes.get(at).is_some_and(u8::is_ascii_whitespace) {
+            at += 1;
+        }
+        let start = at;
+        while bytes.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
+            at += 1;
+        }
+        if start == at {
+            return Err(bad("short header"));
+        }
+        fields.push(std::str::from_utf8(&bytes[start..at]).map_err(|_| bad("header"))?);
+    }
+    let channels = match fields[0] {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err(bad("no PF or Pf")),
+    };
+    let size = |s: &str| s.parse::<u32>().ok().filter(|&n| n > 0 && n <= 1 << 16);
+    let (width, height) = size(fields[1]).zip(size(fields[2])).ok_or_else(|| bad("size"))?;
+    let scale: f32 = fields[3].parse().map_err(|_| bad("scale"))?;
+    let data = bytes.get(at + 1..).unwrap_or_default();
+    let n = width as usize * height as usize;
+    if data.len() < n * channels * 4 {
+        return Err(bad("fewer pixels than its size"));
+    }
+    let value = |i: usize| {
+        let b = [data[4 * i], data[4 * i + 1], data[4 * i + 2], data[4 * i + 3]];
+        if scale < 0.0 {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    };
+    let mut pixels = Vec::with_capacity(n);
+    for y in (0..height as usize).rev() {
+        for x in 0..width as usize {
+            let i = (y * width as usize + x) * channels;
+            pixels.push(if channels == 3 { Vec3::new(value(i), value(i + 1), value(i + 2)) } else { Vec3::splat(value(i)) });
+        }
+    }
+    Ok(Image { width, height, pixels })
+}
+
+/// Reads an image as linear RGB: the `R`, `G`, `B` channels of an EXR, a Radiance HDR or a
+/// portable float map as it is, any other file (PNG) decoded from 8-bit sRGB.
 pub fn read(path: &Path) -> Result<Image, String> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
@@ -90,6 +142,7 @@ pub fn read(path: &Path) -> Result<Image, String> {
             let (r, g, b) = (get("R")?, get("G")?, get("B")?);
             Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
         }
+        Some("pfm") => read_pfm(path),
         Some("hdr") => {
             let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb32f();
             Ok(Image {
