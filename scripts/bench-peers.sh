@@ -216,13 +216,13 @@ with open(sys.argv[1], "rb") as f:
 mitsuba_depth=$(sed -n 's/.*name="max_depth" value="\([0-9]*\)".*/\1/p' "$tmp/mitsuba/scene.xml")
 
 lightsplit_cmd=("$lightsplit" render "$scene" --width "$size" --height "$size" --spp "$spp"
-    --threads "$threads" -o lightsplit.exr)
+    --threads "$threads" -o lightsplit.pfm)
 # Mitsuba's -t counts its main thread, which only waits: -t 2 renders on one core (measured:
 # CPU time equal to wall time), so N rendering threads are -t N+1.
 mitsuba_cmd=("$venv/bin/mitsuba" -m scalar_rgb -t "$((threads + 1))" -o mitsuba.pfm mitsuba/scene.xml)
 tutorial_cmd=("$pathtracer" -c "$ecs" --size "$size" "$size" --spp "$spp"
     --max-path-length "$max_depth" --threads "$threads" -o tutorial.ppm)
-declare -A output=([lightsplit]=lightsplit.exr [mitsuba]=mitsuba.pfm [tutorial]=tutorial.ppm)
+declare -A output=([lightsplit]=lightsplit.pfm [mitsuba]=mitsuba.pfm [tutorial]=tutorial.ppm)
 peers=(lightsplit mitsuba tutorial)
 
 # A command as a reader can run it: relative to the checkout or the working directory.
@@ -274,8 +274,8 @@ note "checking the images (one untimed run each)"
 for peer in "${peers[@]}"; do
     run "$peer"
 done
-m_lightsplit=$(mean "$tmp/lightsplit.exr")
-m_lightsplit8=$(mean "$tmp/lightsplit.exr" --as-tutorial-ppm)
+m_lightsplit=$(mean "$tmp/lightsplit.pfm")
+m_lightsplit8=$(mean "$tmp/lightsplit.pfm" --as-tutorial-ppm)
 m_mitsuba=$(mean "$tmp/mitsuba.pfm")
 m_tutorial=$(mean "$tmp/tutorial.ppm")
 # Mitsuba against lightsplit, both linear: within 1%.
@@ -302,13 +302,13 @@ noise_of() { # peer's image, lightsplit's image, lightsplit's mean, [--as-tutori
 status=0
 if [ "$mitsuba_ok" != 1 ]; then
     echo "bench-peers: FAIL: Mitsuba's image mean differs from lightsplit's by $d_mitsuba% (more than 1%;" \
-        "noise alone makes about ±$(noise_of "$tmp/mitsuba.pfm" "$tmp/lightsplit.exr" "$m_lightsplit")% at this size and spp)" >&2
+        "noise alone makes about ±$(noise_of "$tmp/mitsuba.pfm" "$tmp/lightsplit.pfm" "$m_lightsplit")% at this size and spp)" >&2
     status=1
 fi
 if [ "$tutorial_ok" != 1 ]; then
     echo "bench-peers: FAIL: the tutorial's image mean differs from lightsplit's (quantised the same way) by" \
         "$d_tutorial% (more than $limit_tutorial%; noise alone makes about" \
-        "±$(noise_of "$tmp/tutorial.ppm" "$tmp/lightsplit.exr" "$m_lightsplit8" --as-tutorial-ppm)% at this size and spp)" >&2
+        "±$(noise_of "$tmp/tutorial.ppm" "$tmp/lightsplit.pfm" "$m_lightsplit8" --as-tutorial-ppm)% at this size and spp)" >&2
     status=1
 fi
 [ "$status" = 0 ] || exit 1
@@ -415,7 +415,9 @@ TEXT
     echo '```'
     echo
     paragraph <<TEXT
-The images are checked before timing. Mitsuba's mean is compared with lightsplit's EXR in
+The images are checked before timing. Each program writes the beauty alone (lightsplit a PFM, so
+it computes no component split or guide buffers, as the peers compute none). Mitsuba's mean is
+compared with lightsplit's in
 linear RGB (limit 1%). The tutorial writes its PPM linearly, with no gamma: each pixel's mean
 clamped to [0, 1] and stored as trunc(255.01 x); lightsplit's linear image is quantised
 the same way before comparing (limit 1% plus half an 8-bit step). Mitsuba writes PFM, not

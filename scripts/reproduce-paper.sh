@@ -162,13 +162,16 @@ scaled by the image's brightness, confirmed over two passes, is the next thing t
 ADAPTIVE
     fi
 } > "$tmp"
-# The section scripts/bench-peers.sh writes between its markers is not redone here: kept as it is.
+# The sections written elsewhere, between their markers, are not redone here but kept as they
+# are: the speed levers measured by hand (issue notes) and the table of scripts/bench-peers.sh.
 if [ -f docs/RESULTS.md ]; then
-    sed -n '/^<!-- bench-peers:begin -->$/,/^<!-- bench-peers:end -->$/p' docs/RESULTS.md > "$tmp.peers"
-    if [ -s "$tmp.peers" ]; then
-        { echo; cat "$tmp.peers"; } >> "$tmp"
-    fi
-    rm -f "$tmp.peers"
+    for section in speed-levers bench-peers; do
+        sed -n "/^<!-- $section:begin -->\$/,/^<!-- $section:end -->\$/p" docs/RESULTS.md > "$tmp.kept"
+        if [ -s "$tmp.kept" ]; then
+            { echo; cat "$tmp.kept"; } >> "$tmp"
+        fi
+    done
+    rm -f "$tmp.kept"
 fi
 mv "$tmp" docs/RESULTS.md
 echo "wrote docs/RESULTS.md in ${seconds} s" >&2
