@@ -9,6 +9,7 @@ use lightsplit::render::camera::PinholeCamera;
 use lightsplit::render::integrator::Integrator;
 use lightsplit::render::lights::Lights;
 use lightsplit::render::sampler::Sampler;
+use lightsplit::render::surface::FaceNormals;
 use lightsplit::scene;
 
 fn bench(c: &mut Criterion) {
@@ -20,9 +21,15 @@ fn bench(c: &mut Criterion) {
         let scene = scene::load(&path).expect("scene loads");
         let accel = build_embree(&scene, None).expect("embree builds");
         let lights = Lights::new(&scene);
+        let faces = FaceNormals::new(&scene);
         // The general integrator (every feature); `bench-features` measures the specialised ones.
-        let integrator: Integrator<'_, _> =
-            Integrator { scene: &scene, accel: &accel, lights: &lights, max_depth: scene.render.max_depth };
+        let integrator: Integrator<'_, _> = Integrator {
+            scene: &scene,
+            accel: &accel,
+            lights: &lights,
+            faces: &faces,
+            max_depth: scene.render.max_depth,
+        };
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);
         group.bench_function(BenchmarkId::new(name, SAMPLES), |b| {

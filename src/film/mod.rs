@@ -366,7 +366,9 @@ impl Film {
 pub fn read_image(path: &Path) -> Result<Image, String> {
     match Format::from_path(path).map_err(|e| e.to_string())? {
         Format::Exr | Format::Hdr | Format::Pfm => crate::scene::image::read(path),
-        Format::Png => Err(format!("{}: compare needs linear values: use .exr, .hdr or .pfm", path.display())),
+        Format::Png => {
+            Err(format!("{}: compare needs linear values: use .exr, .hdr or .pfm", path.display()))
+        }
     }
 }
 

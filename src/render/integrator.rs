@@ -14,7 +14,7 @@ use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::Sampler;
-use super::surface::{surface, Surface};
+use super::surface::{surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::scene::{Scene, Shape};
@@ -25,6 +25,8 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     pub scene: &'a Scene,
     pub accel: &'a A,
     pub lights: &'a Lights,
+    /// The scene's triangle normals, made once (`FaceNormals::new`).
+    pub faces: &'a FaceNormals,
     pub max_depth: u32,
 }
 
@@ -284,7 +286,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 self.escaped(&mut out, &path, ray.dir);
                 break;
             };
-            let s = surface(scene, &ray, &hit);
+            let s = surface_with(scene, self.faces, &ray, &hit);
             let shape = &scene.shapes[hit.shape as usize];
             record.vertex(depth, &shape.name, s.p, path.beta, out.beauty);
             let wo = -ray.dir;

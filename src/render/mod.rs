@@ -364,8 +364,9 @@ fn render_features<A: Accel, const F: u8>(
     let (width, height) = (options.width, options.height);
     let camera = PinholeCamera::new(&scene.camera, width, height);
     let lights = Lights::new(scene);
+    let faces = surface::FaceNormals::new(scene);
     let integrator: Integrator<'_, A, F> =
-        Integrator { scene, accel, lights: &lights, max_depth: options.max_depth };
+        Integrator { scene, accel, lights: &lights, faces: &faces, max_depth: options.max_depth };
     let spp = options.spp.max(1);
     let reported = AtomicU32::new(0);
 

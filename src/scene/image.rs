@@ -119,7 +119,11 @@ fn read_pfm(path: &Path) -> Result<Image, String> {
     for y in (0..height as usize).rev() {
         for x in 0..width as usize {
             let i = (y * width as usize + x) * channels;
-            pixels.push(if channels == 3 { Vec3::new(value(i), value(i + 1), value(i + 2)) } else { Vec3::splat(value(i)) });
+            pixels.push(if channels == 3 {
+                Vec3::new(value(i), value(i + 1), value(i + 2))
+            } else {
+                Vec3::splat(value(i))
+            });
         }
     }
     Ok(Image { width, height, pixels })
