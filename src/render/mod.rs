@@ -418,16 +418,20 @@ fn render_features<A: Accel, const F: u8>(
                 let mut k = from;
                 while k < to {
                     let n = (to - k).min(PACKET as u32) as usize;
+                    // Streams only for the samples this packet takes (a partial one at low spp);
+                    // the slots past them hold a copy, never used.
+                    let stream = |j: usize| Sampler::new(options.seed, at as u64, (k + j as u32) as u64);
+                    let first = stream(0);
                     let mut samplers: [Sampler; PACKET] =
-                        std::array::from_fn(|j| Sampler::new(options.seed, at as u64, (k + j as u32) as u64));
+                        std::array::from_fn(|j| if j == 0 || j >= n { first.clone() } else { stream(j) });
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
                     for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
                         *ray = camera.ray(x, y, sampler.next_2d());
                     }
                     let mut hits = [None; PACKET];
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);
-                    for j in 0..n {
-                        let s = integrator.sample_from(rays[j], hits[j], &mut samplers[j], &mut tile.rays);
+                    for (j, sampler) in samplers.iter_mut().take(n).enumerate() {
+                        let s = integrator.sample_from(rays[j], hits[j], sampler, &mut tile.rays);
                         if !sums.add(i, k + j as u32, &s, split, tile.moments.get_mut(i)) {
                             tile.nonfinite += 1;
                             report_nonfinite(x, y, k + j as u32);
