@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Reproduces the paper's Figures 5 and 6: runs `lightsplit converge` on the paper's two test
-# scenes and the Cornell box, then writes docs/RESULTS.md with the plots, the tables and each
-# claim of the paper checked against the numbers (small PNGs go to docs/results/); then
-# adaptive against uniform sampling at equal time, and `bench-features` over every scene.
+# scenes and the Cornell box, with independent sampling as the paper rendered, then writes
+# docs/RESULTS.md with the plots, the tables and each claim of the paper checked against the
+# numbers (small PNGs go to docs/results/); then adaptive against uniform sampling at equal
+# time, and `bench-features` over every scene. The samplers' comparison is
+# scripts/bench-samplers.sh's.
 #
 #   scripts/reproduce-paper.sh            # about 12 minutes on a 2-core machine
 #   OUT=somewhere scripts/reproduce-paper.sh
@@ -24,7 +26,7 @@ start=$(date +%s)
 
 for scene in $SCENES; do
     echo "== $scene" >&2
-    "$BIN" converge "scenes/$scene.toml" --spp "$SPP" --reference-spp "$REFERENCE_SPP" --seeds "$SEEDS" \
+    "$BIN" converge "scenes/$scene.toml" --sampler independent --spp "$SPP" --reference-spp "$REFERENCE_SPP" --seeds "$SEEDS" \
         --filters none,box3,weighted3,median3 --targets indirect,image --edge-aware off,on,pure \
         --diff-spp 64 --out "$OUT/$scene" > /dev/null
 done
@@ -33,7 +35,7 @@ done
 reference=$(ls "$OUT"/paper-sky/reference-*.exr 2>/dev/null | head -1)
 if [ -n "$reference" ]; then
     echo "== adaptive sampling" >&2
-    "$BIN" converge scenes/paper-sky.toml --spp 16,32,64,128,256 --reference "$reference" --seeds "$SEEDS" \
+    "$BIN" converge scenes/paper-sky.toml --sampler independent --spp 16,32,64,128,256 --reference "$reference" --seeds "$SEEDS" \
         --filters none --adaptive "${ADAPTIVE:-0.05}" --out "$OUT/adaptive-paper-sky" > /dev/null
 fi
 # What skipping what a scene does not need is worth, over every scene.
@@ -165,7 +167,7 @@ ADAPTIVE
 # The sections written elsewhere, between their markers, are not redone here but kept as they
 # are: the speed levers measured by hand (issue notes) and the table of scripts/bench-peers.sh.
 if [ -f docs/RESULTS.md ]; then
-    for section in speed-levers bench-peers; do
+    for section in speed-levers bench-peers samplers; do
         sed -n "/^<!-- $section:begin -->\$/,/^<!-- $section:end -->\$/p" docs/RESULTS.md > "$tmp.kept"
         if [ -s "$tmp.kept" ]; then
             { echo; cat "$tmp.kept"; } >> "$tmp"

@@ -15,6 +15,7 @@ use lightsplit::converge::Edge;
 use lightsplit::film::{Film, Format};
 use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
+use lightsplit::render::sampler::SamplerKind;
 
 use crate::Failure;
 
@@ -160,6 +161,10 @@ pub struct ConvergeArgs {
     /// Renders per spp, each with its own seed: the summary gives their mean and spread.
     #[arg(long, default_value_t = 1, value_parser = count::<u32>)]
     pub seeds: u32,
+    /// The samplers to measure: sobol, independent, or both (independent,sobol), which the
+    /// summary compares: what sobol is worth in samples, and what each filter gains under each.
+    #[arg(long, value_delimiter = ',', default_value = "sobol", value_parser = choice::<SamplerName, SamplerKind>())]
+    pub sampler: Vec<SamplerKind>,
     /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
     /// then is the most a pixel takes), compared with uniform sampling at equal time.
     #[arg(long, value_name = "THRESHOLD", value_parser = relative_error)]
@@ -345,6 +350,10 @@ pub struct RenderArgs {
     /// Most scattering events per path (default: the scene file's).
     #[arg(long, value_parser = count::<u32>)]
     pub max_depth: Option<u32>,
+    /// The random numbers: sobol (Owen-scrambled Sobol points, the default) or independent
+    /// (PCG streams). Default: the scene file's.
+    #[arg(long, value_parser = choice::<SamplerName, SamplerKind>())]
+    pub sampler: Option<SamplerKind>,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
@@ -424,6 +433,24 @@ impl From<Accel> for Backend {
         match a {
             Accel::Embree => Backend::Embree,
             Accel::Bvh => Backend::Bvh,
+        }
+    }
+}
+
+/// `--sampler`'s spellings.
+#[derive(Clone, Copy, ValueEnum)]
+enum SamplerName {
+    /// Independent uniform numbers (PCG32 streams).
+    Independent,
+    /// Owen-scrambled Sobol points, per pixel and seed (the default).
+    Sobol,
+}
+
+impl From<SamplerName> for SamplerKind {
+    fn from(s: SamplerName) -> SamplerKind {
+        match s {
+            SamplerName::Independent => SamplerKind::Independent,
+            SamplerName::Sobol => SamplerKind::Sobol,
         }
     }
 }
@@ -525,6 +552,9 @@ mod tests {
         }
         for accel in Accel::value_variants() {
             assert_eq!(spelled(accel), Backend::from(*accel).to_string());
+        }
+        for sampler in SamplerName::value_variants() {
+            assert_eq!(spelled(sampler), SamplerKind::from(*sampler).name());
         }
         for edge in EdgeAware::value_variants() {
             assert_eq!(Edge::parse(&spelled(edge)), Some(Edge::from(*edge)));

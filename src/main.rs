@@ -17,6 +17,7 @@ use cli::{
 use lightsplit::film;
 use lightsplit::filter::{Kernel, Setting};
 use lightsplit::output::OutputError;
+use lightsplit::render::sampler::SamplerKind;
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
 use lightsplit::scene;
 
@@ -196,6 +197,9 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(v) = args.max_depth {
         options.max_depth = v;
     }
+    if let Some(v) = args.sampler {
+        options.sampler = v;
+    }
     let setting = args.out.check(&scene_filter, format)?;
     options.adaptive = args.adaptive;
     if args.all_features {
@@ -224,6 +228,8 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "width": options.width,
             "height": options.height,
             "accel": options.accel,
+            "sampler": options.sampler.name(),
+            "seed": options.seed,
             "threads": rayon_threads(options.threads),
             "samples": s.samples,
             "rays": s.rays,
@@ -253,6 +259,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             ),
             None => format!("{} spp", options.spp),
         };
+        let spp = format!("{spp} ({})", options.sampler);
         eprintln!(
             "{}: {}x{} at {spp} in {:.2} s ({:.3} s build): {:.3} M samples/s, {:.2} M rays/s{}; wrote {}",
             args.scene.display(),
@@ -345,6 +352,14 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
+    let mut samplers = Vec::new();
+    for s in &args.sampler {
+        if !samplers.contains(s) {
+            samplers.push(*s);
+        }
+    }
+    // Compared against independent sampling, the base of the comparison: it goes first.
+    samplers.sort_by_key(|s| *s != SamplerKind::Independent);
     let mut spps = args.spp.clone();
     spps.sort_unstable();
     spps.dedup();
@@ -354,6 +369,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
         options,
         spps,
         seeds: args.seeds,
+        samplers,
         choices,
         reference: args.reference.clone(),
         reference_spp: args.reference_spp,

@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use lightsplit::render::sampler::SamplerKind;
 use lightsplit::render::{relative_error, render, RenderOptions, RenderOutput};
 use lightsplit::scene::{self, Scene};
 
@@ -13,7 +14,18 @@ fn paper_sky() -> Scene {
 }
 
 fn render_at(scene: &Scene, spp: u32, adaptive: Option<f32>, seed: u64) -> RenderOutput {
+    render_with(scene, spp, adaptive, seed, SamplerKind::default())
+}
+
+fn render_with(
+    scene: &Scene,
+    spp: u32,
+    adaptive: Option<f32>,
+    seed: u64,
+    sampler: SamplerKind,
+) -> RenderOutput {
     let mut options = RenderOptions::from_scene(scene);
+    options.sampler = sampler;
     options.width = 48;
     options.height = 48;
     options.spp = spp;
@@ -34,15 +46,18 @@ fn the_relative_error_of_known_samples() {
 #[test]
 fn a_threshold_no_pixel_reaches_gives_the_uniform_image() {
     let scene = paper_sky();
-    let uniform = render_at(&scene, 40, None, 3);
-    let adaptive = render_at(&scene, 40, Some(1e-30), 3);
     let bits = |o: &RenderOutput| -> Vec<u32> {
         o.film.raw.pixels.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect()
     };
-    assert_eq!(bits(&adaptive), bits(&uniform), "passes of 16, 32, 40 samples: the same sums");
-    assert_eq!(adaptive.film.components, uniform.film.components);
-    assert_eq!(adaptive.stats.samples, uniform.stats.samples);
-    assert_eq!(adaptive.stats.stopped_early, 0);
+    // With either sampler a pixel's sample k draws the same numbers whatever the passes.
+    for sampler in SamplerKind::ALL {
+        let uniform = render_with(&scene, 40, None, 3, sampler);
+        let adaptive = render_with(&scene, 40, Some(1e-30), 3, sampler);
+        assert_eq!(bits(&adaptive), bits(&uniform), "{sampler}: passes of 16, 32, 40 samples: the same sums");
+        assert_eq!(adaptive.film.components, uniform.film.components);
+        assert_eq!(adaptive.stats.samples, uniform.stats.samples);
+        assert_eq!(adaptive.stats.stopped_early, 0);
+    }
 }
 
 #[test]

@@ -111,8 +111,10 @@ fn missing_scene_file_and_bad_arguments_are_status_2() {
 /// the flag and the rule, status 2, before any scene is read.
 #[test]
 fn out_of_range_flags_are_usage_errors_naming_the_flag() {
-    let cases: [&[&str]; 12] = [
+    let cases: [&[&str]; 14] = [
         &["render", "s.toml", "--width", "0"],
+        &["render", "s.toml", "--sampler", "halton"],
+        &["converge", "s.toml", "--out", "d", "--sampler", "independent,random"],
         &["render", "s.toml", "--max-depth", "0"],
         &["render", "s.toml", "--exposure", "nan"],
         &["render", "s.toml", "--adaptive", "0"],
@@ -177,6 +179,10 @@ fn json_summary_has_the_documented_keys() {
         "24",
         "--height",
         "16",
+        "--sampler",
+        "independent",
+        "--seed",
+        "5",
         "--json",
     ]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
@@ -197,6 +203,7 @@ fn json_summary_has_the_documented_keys() {
     assert_eq!(v["spp"], 2);
     assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(24), Some(16)));
     assert_eq!(v["accel"], "embree");
+    assert_eq!((v["sampler"].as_str(), v["seed"].as_u64()), (Some("independent"), Some(5)));
     assert!(v["rays_per_second"].as_f64().unwrap_or(0.0) > 0.0);
     assert!(out.exists());
     // Nothing but the output is left in the directory (no temporary files).

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use common::lightsplit;
 use lightsplit::converge::{read_rows, Edge, Row, HEADER};
+use lightsplit::render::sampler::SamplerKind;
 
 fn scene() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml").to_string_lossy().into_owned()
@@ -133,4 +134,68 @@ fn a_killed_run_continues_where_it_stopped() {
     assert_eq!(after.len(), 12 * 3, "every row once");
     assert_eq!(keys(&after).len(), after.len(), "no row twice");
     assert_eq!(&after[..before.len()], &before[..], "the rows of the killed run are kept");
+}
+
+#[test]
+fn two_samplers_are_measured_and_compared_in_one_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("run");
+    let out_s = out.to_string_lossy().into_owned();
+    let scene = scene();
+    let args = [
+        "converge",
+        &scene,
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "4,16",
+        "--reference-spp",
+        "256",
+        "--filters",
+        "none,weighted3",
+        "--sampler",
+        "sobol,independent",
+        "--seeds",
+        "2",
+        "--out",
+        &out_s,
+    ];
+    let o = lightsplit(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = read_rows(&out.join("results.csv"));
+    // 2 samplers x 2 spp x 2 seeds x 2 settings, each its own row.
+    assert_eq!(rows.len(), 16);
+    for sampler in SamplerKind::ALL {
+        let mine: Vec<&Row> = rows.iter().filter(|r| r.sampler == sampler).collect();
+        assert_eq!(mine.len(), 8, "{sampler}");
+    }
+    // The same seed index renders different numbers under each sampler.
+    let unfiltered = |s: SamplerKind| {
+        rows.iter()
+            .find(|r| r.sampler == s && r.spp == 4 && r.seed == 0 && r.filter == "none")
+            .map(|r| r.rmse)
+    };
+    assert_ne!(unfiltered(SamplerKind::Sobol), unfiltered(SamplerKind::Independent));
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary");
+    for want in ["sobol is worth", "## Sampler independent", "## Sampler sobol", "sobol weighted3 indirect"] {
+        assert!(summary.contains(want), "no {want:?} in {summary}");
+    }
+    assert!(out.join("diff-16spp-sobol-unfiltered.png").exists());
+    // A second run finds every row done.
+    let o = lightsplit(&args);
+    assert!(o.status.success());
+    assert_eq!(read_rows(&out.join("results.csv")), rows);
+}
+
+#[test]
+fn rows_written_before_the_sampler_column_read_as_independent() {
+    let old = "cornell.toml,embree,16,0,none,none,false,0.5,0,1.0e0,2.0e-2,3.0e-3,4.0e-2";
+    let row = Row::parse(old).expect("a 13-column row parses");
+    assert_eq!((row.sampler, row.spp, row.rmse), (SamplerKind::Independent, 16, 2.0e-2));
+    let new = row.csv();
+    assert_eq!(new.split(',').nth(2), Some("independent"));
+    assert_eq!(Row::parse(&new), Some(row));
+    assert_eq!(Row::parse("cornell.toml,embree,halton,16,0,none,none,false,0.5,0,1,2,3,4"), None);
 }

@@ -221,6 +221,7 @@ mod tests {
                 rows.push(Row {
                     scene: "s".into(),
                     accel: "embree".into(),
+                    sampler: crate::render::sampler::SamplerKind::Independent,
                     spp,
                     seed: 0,
                     filter: filter.into(),

@@ -19,6 +19,7 @@ use crate::accel::Backend;
 use crate::film::{self, Image};
 use crate::filter::{composite, EdgeStops, Kernel, Target};
 use crate::metrics;
+use crate::render::sampler::SamplerKind;
 use crate::render::{self, RenderOptions};
 use crate::scene::Scene;
 
@@ -155,6 +156,9 @@ pub struct Plan {
     pub options: RenderOptions,
     pub spps: Vec<u32>,
     pub seeds: u32,
+    /// The samplers to measure, each with every setting (the options' own is not used),
+    /// independent first: the base of the comparison.
+    pub samplers: Vec<SamplerKind>,
     pub choices: Vec<Choice>,
     /// A reference image, or `None` to render (and cache) one at `reference_spp`.
     pub reference: Option<PathBuf>,
@@ -171,6 +175,7 @@ pub struct Plan {
 pub struct Row {
     pub scene: String,
     pub accel: String,
+    pub sampler: SamplerKind,
     pub spp: u32,
     pub seed: u32,
     pub filter: String,
@@ -186,14 +191,15 @@ pub struct Row {
 }
 
 pub const HEADER: &str =
-    "scene,accel,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border";
+    "scene,accel,sampler,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border";
 
 impl Row {
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e},{:.9e}",
+            "{},{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e},{:.9e}",
             self.scene.replace(',', ";"),
             self.accel,
+            self.sampler,
             self.spp,
             self.seed,
             self.filter.replace(',', " "),
@@ -209,14 +215,19 @@ impl Row {
     }
 
     /// A row from a line of `results.csv`; `None` for a line a stopped run left half written.
+    /// A line without the sampler column (written before there was a choice) was rendered
+    /// with independent sampling.
     pub fn parse(line: &str) -> Option<Row> {
-        let f: Vec<&str> = line.trim_end().split(',').collect();
-        if f.len() != 13 {
-            return None;
-        }
+        let mut f: Vec<&str> = line.trim_end().split(',').collect();
+        let sampler = match f.len() {
+            14 => SamplerKind::parse(f.remove(2))?,
+            13 => SamplerKind::Independent,
+            _ => return None,
+        };
         Some(Row {
             scene: f[0].to_string(),
             accel: f[1].to_string(),
+            sampler,
             spp: f[2].parse().ok()?,
             seed: f[3].parse().ok()?,
             filter: f[4].to_string(),
@@ -236,6 +247,9 @@ impl Row {
         (self.filter.clone(), self.target.clone(), self.edge_aware)
     }
 }
+
+/// What identifies a row of a run: its sampler, spp, seed index and setting.
+type RowId = (SamplerKind, u32, u32, (String, String, Edge));
 
 /// What a run reports as it goes.
 pub enum Event<'a> {
@@ -269,7 +283,7 @@ impl Plan {
             (None, Ok(text)) if !self.reference_cache(&text).exists() => self.reference_spp as u64,
             _ => 0,
         };
-        let renders = 1 + self.adaptive.is_some() as u64;
+        let renders = (1 + self.adaptive.is_some() as u64) * self.samplers.len() as u64;
         pixels * (self.spps.iter().map(|&s| s as u64).sum::<u64>() * self.seeds as u64 * renders + reference)
     }
 
@@ -282,11 +296,18 @@ impl Plan {
         self.options.seed.wrapping_add(1 + k as u64)
     }
 
+    /// The sampler of a rendered reference: sobol when the run measures it (the least error for
+    /// the samples), else the one the run measures (`samplers` lists independent first).
+    pub fn reference_sampler(&self) -> SamplerKind {
+        self.samplers.last().copied().unwrap_or_default()
+    }
+
     /// The cache file of the rendered reference: named by a hash of the scene file and every
     /// setting that changes the image.
     pub fn reference_cache(&self, scene_text: &[u8]) -> PathBuf {
         let mut h = Fnv::default();
         h.write(scene_text);
+        h.write(self.reference_sampler().name().as_bytes());
         let o = &self.options;
         for v in [o.width as u64, o.height as u64, o.max_depth as u64, o.seed, self.reference_spp as u64] {
             h.write(&v.to_le_bytes());
@@ -347,6 +368,7 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
     let mut options = plan.options.clone();
     options.spp = plan.reference_spp;
     options.seed = plan.options.seed.wrapping_add(0x5eed_0000_0000);
+    options.sampler = plan.reference_sampler();
     options.adaptive = None;
     let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
@@ -366,8 +388,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
     let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
     let mut rows: Vec<Row> =
         read_rows(&csv_path).into_iter().filter(|r| r.scene == scene_name && r.accel == accel).collect();
-    let done: HashSet<(u32, u32, (String, String, Edge))> =
-        rows.iter().map(|r| (r.spp, r.seed, r.key())).collect();
+    let done: HashSet<RowId> = rows.iter().map(|r| (r.sampler, r.spp, r.seed, r.key())).collect();
     let fresh = !csv_path.exists();
     let mut csv = fs::OpenOptions::new()
         .create(true)
@@ -393,10 +414,20 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
         .into_iter()
         .filter(|c: &Vec<&Choice>| !c.is_empty())
         .collect();
+    // Sample count by sample count, so a run stopped half way has every sampler at low spp.
+    let runs: Vec<(SamplerKind, u32, &Vec<&Choice>)> = plan
+        .samplers
+        .iter()
+        .flat_map(|&s| {
+            let renders = &renders;
+            (0..plan.seeds).flat_map(move |k| renders.iter().map(move |c| (s, k, c)))
+        })
+        .collect();
+    let mut scales = std::collections::HashMap::new();
     for &spp in &plan.spps {
-        for (k, choices) in (0..plan.seeds).flat_map(|k| renders.iter().map(move |c| (k, c))) {
+        for &(sampler, k, choices) in &runs {
             let todo: Vec<&Choice> =
-                choices.iter().copied().filter(|c| !done.contains(&(spp, k, c.key()))).collect();
+                choices.iter().copied().filter(|c| !done.contains(&(sampler, spp, k, c.key()))).collect();
             if todo.is_empty() {
                 report(Event::Samples(pixels * spp as u64));
                 continue;
@@ -404,12 +435,15 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
             let mut options = plan.options.clone();
             options.spp = spp;
             options.seed = plan.seed(k);
+            options.sampler = sampler;
             options.adaptive = choices[0].adaptive;
             let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
                 .map_err(|e| ConvergeError::Failed(e.to_string()))?;
             let borders = metrics::object_borders(&out.film.object, out.film.width, out.film.height);
-            // Every difference image of this render at the unfiltered one's scale, so they compare.
-            let diff_scale = metrics::difference_scale(&out.film.raw, &reference);
+            // Every difference image at this spp at the scale of the first sampler's unfiltered
+            // render, so they compare across settings and samplers.
+            let diff_scale =
+                *scales.entry(spp).or_insert_with(|| metrics::difference_scale(&out.film.raw, &reference));
             for choice in todo {
                 let start = Instant::now();
                 let (image, _) = composite(&out.film, choice.kernel.as_ref(), choice.target, &stops(choice));
@@ -418,7 +452,8 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                 let e = metrics::compare(&image, &reference).map_err(ConvergeError::Failed)?;
                 if k == 0 && plan.diff_spp == Some(spp) {
                     let name = choice.label().replace(' ', "-");
-                    let path = plan.out.join(format!("diff-{spp}spp-{name}.png"));
+                    let prefix = if plan.samplers.len() > 1 { format!("{sampler}-") } else { String::new() };
+                    let path = plan.out.join(format!("diff-{spp}spp-{prefix}{name}.png"));
                     film::write(
                         &metrics::difference_image_scaled(&image, &reference, diff_scale),
                         &path,
@@ -429,6 +464,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                 let row = Row {
                     scene: scene_name.clone(),
                     accel: accel.clone(),
+                    sampler,
                     spp,
                     seed: k,
                     filter: choice.filter.clone(),
@@ -457,26 +493,51 @@ fn stops(c: &Choice) -> EdgeStops {
 pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
     let mut choices = plan.choices.clone();
     choices.extend(plan.adaptive.map(Choice::adaptive));
-    let table = summary::Table::new(rows, &choices, &plan.spps);
+    let several = plan.samplers.len() > 1;
+    let tables: Vec<(SamplerKind, summary::Table)> = plan
+        .samplers
+        .iter()
+        .map(|&k| {
+            let mine: Vec<Row> = rows.iter().filter(|r| r.sampler == k).cloned().collect();
+            let table = summary::Table::new(&mine, &choices, &plan.spps);
+            (k, if several { table.labelled(k) } else { table })
+        })
+        .collect();
     let mut md = String::new();
     let _ = writeln!(md, "# converge: {}\n", plan.scene_name());
+    let samplers: Vec<&str> = plan.samplers.iter().map(|s| s.name()).collect();
     let _ = writeln!(
         md,
-        "{}x{}, {} seed(s) a point, accelerator {}, reference {}.\n",
+        "{}x{}, {} seed(s) a point, accelerator {}, sampler {}, reference {}.\n",
         plan.options.width,
         plan.options.height,
         plan.seeds,
         accel_name(plan.options.accel),
+        samplers.join(" and "),
         match &plan.reference {
             Some(p) => p.display().to_string(),
-            None => format!("rendered at {} spp", plan.reference_spp),
+            None => format!("rendered at {} spp ({})", plan.reference_spp, plan.reference_sampler()),
         }
     );
-    md.push_str(&table.markdown());
-    md.push_str("\n## The paper's claims, checked\n\n");
-    md.push_str(&claims::check(&table));
+    if several {
+        md.push_str("## The samplers compared\n\n");
+        md.push_str(&summary::samplers_markdown(&tables));
+    }
+    for (kind, table) in &tables {
+        if several {
+            let _ = writeln!(md, "\n## Sampler {kind}\n");
+        }
+        md.push_str(&table.markdown());
+        md.push_str(if several {
+            "\n### The paper's claims, checked\n\n"
+        } else {
+            "\n## The paper's claims, checked\n\n"
+        });
+        md.push_str(&claims::check(table));
+    }
     film::write_text(&plan.out.join("summary.md"), &md).map_err(|e| ConvergeError::Failed(e.to_string()))?;
-    plot::error_plot(&table, false, &plan.out.join("error-vs-spp.png")).map_err(ConvergeError::Failed)?;
-    plot::error_plot(&table, true, &plan.out.join("error-vs-time.png")).map_err(ConvergeError::Failed)?;
+    let all = summary::Table { series: tables.into_iter().flat_map(|(_, t)| t.series).collect() };
+    plot::error_plot(&all, false, &plan.out.join("error-vs-spp.png")).map_err(ConvergeError::Failed)?;
+    plot::error_plot(&all, true, &plan.out.join("error-vs-time.png")).map_err(ConvergeError::Failed)?;
     Ok(md)
 }

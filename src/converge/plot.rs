@@ -78,7 +78,7 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(e)?;
             let y = 50 + 20 * i as i32;
             legend.draw(&PathElement::new(vec![(4, y), (30, y)], color.stroke_width(2))).map_err(e)?;
-            legend.draw(&Text::new(s.choice.label(), (38, y - 8), ("sans-serif", 14))).map_err(e)?;
+            legend.draw(&Text::new(s.label(), (38, y - 8), ("sans-serif", 14))).map_err(e)?;
         }
         root.present().map_err(e)?;
     }

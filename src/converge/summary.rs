@@ -5,6 +5,7 @@
 use std::fmt::Write as _;
 
 use super::{Choice, Row};
+use crate::render::sampler::SamplerKind;
 
 /// Mean and sample standard deviation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -45,7 +46,19 @@ pub struct Point {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
     pub choice: Choice,
+    /// The sampler, where a run compares several (it then prefixes the label).
+    pub sampler: Option<SamplerKind>,
     pub points: Vec<Point>,
+}
+
+impl Series {
+    /// The setting's label, after its sampler's name where a run compares samplers.
+    pub fn label(&self) -> String {
+        match self.sampler {
+            Some(s) => format!("{s} {}", self.choice.label()),
+            None => self.choice.label(),
+        }
+    }
 }
 
 /// Every setting's curve.
@@ -115,7 +128,7 @@ impl Table {
                         })
                     })
                     .collect();
-                Series { choice: c.clone(), points }
+                Series { choice: c.clone(), sampler: None, points }
             })
             .collect();
         // The unfiltered curves: RMSE and render seconds against spp.
@@ -132,6 +145,19 @@ impl Table {
             }
         }
         Table { series }
+    }
+
+    /// The table with every series labelled by `sampler`.
+    pub fn labelled(mut self, sampler: SamplerKind) -> Table {
+        for s in &mut self.series {
+            s.sampler = Some(sampler);
+        }
+        self
+    }
+
+    /// The uniform unfiltered curve.
+    fn base(&self) -> Option<&Series> {
+        self.series.iter().find(|s| s.choice.is_base())
     }
 
     /// The table as Markdown.
@@ -153,7 +179,7 @@ impl Table {
                 let _ = writeln!(
                     md,
                     "| {} | {} | {:.4e} ± {:.1e} | {:.3e} | {:.3} | {:.4} | {eq} | {worth} | {secs} |",
-                    s.choice.label(),
+                    s.label(),
                     p.spp,
                     p.rmse.mean,
                     p.rmse.std,
@@ -165,6 +191,124 @@ impl Table {
         }
         md
     }
+}
+
+/// How `test` compares with `against` at one spp, from their means and spreads over seeds:
+/// "better" or "worse" when the means differ by more than twice the standard error of their
+/// difference, else "same".
+fn verdict(test: &Stat, against: &Stat) -> &'static str {
+    let se = (test.std.powi(2) / test.n.max(1) as f64 + against.std.powi(2) / against.n.max(1) as f64).sqrt();
+    if test.mean + 2.0 * se < against.mean {
+        "better"
+    } else if test.mean - 2.0 * se > against.mean {
+        "worse"
+    } else {
+        "same"
+    }
+}
+
+/// What one sampler is worth against another at each spp of their unfiltered curves: the
+/// samples `base` needs for `test`'s RMSE, over `test`'s spp (read off `base`'s log-log curve).
+pub struct Worth {
+    pub spp: u32,
+    pub base: Stat,
+    pub test: Stat,
+    /// The samples factor, and its range for `test`'s mean RMSE +- twice its standard error.
+    pub worth: Option<f64>,
+    pub range: Option<(f64, f64)>,
+    pub verdict: &'static str,
+}
+
+/// [`Worth`] of `test`'s unfiltered curve against `base`'s, at each spp both measured.
+pub fn worth(base: &Table, test: &Table) -> Vec<Worth> {
+    let (Some(b), Some(t)) = (base.base(), test.base()) else { return Vec::new() };
+    let curve: Vec<(f64, f64)> = b.points.iter().map(|p| (p.spp as f64, p.rmse.mean)).collect();
+    t.points
+        .iter()
+        .filter_map(|p| {
+            let q = b.points.iter().find(|q| q.spp == p.spp)?;
+            let spp = p.spp as f64;
+            let at = |rmse: f64| inverse_loglog(&curve, rmse).map(|n| n / spp);
+            let se = p.rmse.std / (p.rmse.n.max(1) as f64).sqrt();
+            let range = at(p.rmse.mean + 2.0 * se).zip(at((p.rmse.mean - 2.0 * se).max(f64::MIN_POSITIVE)));
+            Some(Worth {
+                spp: p.spp,
+                base: q.rmse,
+                test: p.rmse,
+                worth: at(p.rmse.mean),
+                range,
+                verdict: verdict(&p.rmse, &q.rmse),
+            })
+        })
+        .collect()
+}
+
+/// The Markdown comparison of the samplers in `tables` (the first is the base): what each is
+/// worth in samples unfiltered, then what each filter gains under each.
+pub fn samplers_markdown(tables: &[(SamplerKind, Table)]) -> String {
+    let mut md = String::new();
+    let Some((base_kind, base)) = tables.first() else { return md };
+    for (kind, table) in &tables[1..] {
+        let _ = writeln!(
+            md,
+            "**{kind} against {base_kind}, unfiltered.** \"worth\" is the samples {base_kind} sampling \
+             needs for {kind}'s RMSE, over {kind}'s samples (read off {base_kind}'s log-log curve); \
+             its range is for {kind}'s mean RMSE +- twice its standard error over seeds; the verdict \
+             compares the means against twice the standard error of their difference.\n"
+        );
+        md.push_str(&format!(
+            "| spp | {base_kind} RMSE | {kind} RMSE | {kind} is worth | range | verdict |\n| --- | --- | --- | --- | --- | --- |\n"
+        ));
+        for w in worth(base, table) {
+            let _ = writeln!(
+                md,
+                "| {} | {:.4e} ± {:.1e} | {:.4e} ± {:.1e} | {} | {} | {} |",
+                w.spp,
+                w.base.mean,
+                w.base.std,
+                w.test.mean,
+                w.test.std,
+                w.worth.map_or("-".into(), |x| format!("{x:.2}x")),
+                w.range.map_or("-".into(), |(a, b)| format!("{a:.2}x-{b:.2}x")),
+                w.verdict
+            );
+        }
+        md.push('\n');
+    }
+    // The filters' gain (filtered RMSE over unfiltered) under each sampler.
+    let filtered: Vec<&Series> =
+        base.series.iter().filter(|s| s.choice.kernel.is_some() && s.choice.adaptive.is_none()).collect();
+    if filtered.is_empty() {
+        return md;
+    }
+    let names: Vec<String> = tables.iter().map(|(k, _)| k.to_string()).collect();
+    let _ = writeln!(
+        md,
+        "**Each filter's RMSE over the unfiltered RMSE of the same renders, under each sampler** \
+         (below 1: the filter helps; the paper's filters assume noise uncorrelated between pixels).\n"
+    );
+    let _ = writeln!(md, "| setting | spp | {} |", names.join(" | "));
+    let _ = writeln!(md, "| --- | --- |{}", " --- |".repeat(names.len()));
+    for s in filtered {
+        for p in &s.points {
+            let gains: Vec<String> = tables
+                .iter()
+                .map(|(_, t)| {
+                    let of = |choice: &Choice| {
+                        t.series.iter().find(|x| &x.choice == choice)?.points.iter().find(|q| q.spp == p.spp)
+                    };
+                    match (of(&s.choice), t.base().and_then(|b| b.points.iter().find(|q| q.spp == p.spp))) {
+                        (Some(f), Some(b)) if b.rmse.mean > 0.0 => {
+                            format!("{:.3}", f.rmse.mean / b.rmse.mean)
+                        }
+                        _ => "-".into(),
+                    }
+                })
+                .collect();
+            let _ = writeln!(md, "| {} | {} | {} |", s.choice.label(), p.spp, gains.join(" | "));
+        }
+    }
+    md
 }
 
 #[cfg(test)]
@@ -191,6 +335,7 @@ mod tests {
         let row = |filter: &str, spp: u32, rmse: f64| Row {
             scene: "s".into(),
             accel: "embree".into(),
+            sampler: crate::render::sampler::SamplerKind::Independent,
             spp,
             seed: 0,
             filter: filter.into(),

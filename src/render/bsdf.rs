@@ -18,7 +18,7 @@ use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 use glam::{Vec2, Vec3};
 
-use super::sampler::Sampler;
+use super::sampler::{Dim, Sampler};
 use crate::math::{cosine_hemisphere, luminance, Frame};
 
 /// The smallest GGX alpha: below it the lobe is a mirror for every practical purpose and its
@@ -147,7 +147,7 @@ impl Bsdf for Diffuse {
     }
 
     fn sample(&self, _wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
-        let local = cosine_hemisphere(u.next_2d());
+        let local = cosine_hemisphere(u.get_2d(Dim::Direction));
         let wi = Frame::new(self.n).to_world(local);
         // f cos / pdf of a Lambertian lobe is its albedo.
         Some(BsdfSample { wi, weight: self.albedo, pdf: local.z * FRAC_1_PI, lobe: Lobe::Diffuse })
@@ -207,7 +207,7 @@ impl Bsdf for Glass {
         let eta = if self.entering { self.ior } else { 1.0 / self.ior };
         let cos_i = self.n.dot(wo).clamp(0.0, 1.0);
         let reflectance = fresnel_dielectric(cos_i, eta);
-        let (wi, weight) = if u.next_1d() < reflectance {
+        let (wi, weight) = if u.get_1d(Dim::Lobe) < reflectance {
             (reflect(wo, self.n), self.color)
         } else {
             // Radiance is squeezed into the denser medium's smaller solid angle.
@@ -246,7 +246,7 @@ impl Bsdf for Glossy {
         let g = &self.lobes;
         let wo_l = self.frame.to_local(wo);
         let p_spec = g.specular_probability(wo_l);
-        let (wi_l, lobe) = g.sample(wo_l, u.next_1d(), u.next_2d());
+        let (wi_l, lobe) = g.sample(wo_l, u.get_1d(Dim::Lobe), u.get_2d(Dim::Direction));
         if wi_l.z <= 0.0 {
             return None;
         }

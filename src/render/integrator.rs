@@ -13,7 +13,7 @@ use glam::Vec3;
 use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
-use super::sampler::Sampler;
+use super::sampler::{Dim, Sampler};
 use super::surface::{surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
@@ -186,7 +186,7 @@ impl PathState {
     fn survives(&mut self, sampler: &mut Sampler) -> bool {
         let survive = self.beta.max_element();
         if survive < 1.0 {
-            if sampler.next_1d() >= survive {
+            if sampler.get_1d(Dim::Roulette) >= survive {
                 return false;
             }
             self.beta /= survive;
@@ -276,6 +276,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             travelled: 0.0,
         };
         for depth in 0.. {
+            sampler.start_bounce(depth);
             *rays += 1;
             let hit = match first.take() {
                 Some(hit) => hit,
@@ -468,11 +469,13 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let (scene, lights) = (self.scene, self.lights);
         if lights.sample_all() {
             for i in 0..lights.emitters.len() {
-                if let Some(ls) = lights.sample_one(scene, i, at.p, sampler.next_2d()) {
+                if let Some(ls) = lights.sample_one(scene, i, at.p, sampler.get_2d(Dim::Light(i as u32))) {
                     self.gather(out, path, before, bsdf, at, &ls, rays);
                 }
             }
-        } else if let Some(ls) = lights.sample(scene, at.p, sampler.next_1d(), sampler.next_2d()) {
+        } else if let Some(ls) =
+            lights.sample(scene, at.p, sampler.get_1d(Dim::Select), sampler.get_2d(Dim::Light(0)))
+        {
             self.gather(out, path, before, bsdf, at, &ls, rays);
         }
     }

@@ -27,7 +27,7 @@ use camera::PinholeCamera;
 pub use features::{Features, Outputs};
 use integrator::{Integrator, PathSample};
 use lights::Lights;
-use sampler::Sampler;
+use sampler::{Sampler, SamplerKind};
 
 /// How many non-finite samples `debug_nonfinite` prints.
 const MAX_REPORTS: u32 = 20;
@@ -43,6 +43,8 @@ pub struct RenderOptions {
     pub spp: u32,
     pub max_depth: u32,
     pub seed: u64,
+    /// Which numbers the paths draw: Owen-scrambled Sobol points or independent streams.
+    pub sampler: SamplerKind,
     /// Worker threads; `None` for one per core.
     pub threads: Option<usize>,
     pub accel: Backend,
@@ -68,6 +70,7 @@ impl RenderOptions {
             spp: scene.film.spp,
             max_depth: scene.render.max_depth,
             seed: scene.render.seed,
+            sampler: scene.render.sampler,
             threads: None,
             accel: Backend::Embree,
             debug_nonfinite: false,
@@ -391,8 +394,9 @@ fn render_features<A: Accel, const F: u8>(
         if !options.debug_nonfinite || reported.fetch_add(1, Ordering::Relaxed) >= MAX_REPORTS {
             return;
         }
-        let mut sampler = Sampler::new(options.seed, y as u64 * width as u64 + x as u64, k as u64);
-        let ray = camera.ray(x, y, sampler.next_2d());
+        let mut sampler =
+            Sampler::of(options.sampler, options.seed, y as u64 * width as u64 + x as u64, k as u64);
+        let ray = camera.ray(x, y, sampler.pixel_2d());
         let mut path = Vec::new();
         let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
         eprintln!(
@@ -420,13 +424,15 @@ fn render_features<A: Accel, const F: u8>(
                     let n = (to - k).min(PACKET as u32) as usize;
                     // Streams only for the samples this packet takes (a partial one at low spp);
                     // the slots past them hold a copy, never used.
-                    let stream = |j: usize| Sampler::new(options.seed, at as u64, (k + j as u32) as u64);
+                    let stream = |j: usize| {
+                        Sampler::of(options.sampler, options.seed, at as u64, (k + j as u32) as u64)
+                    };
                     let first = stream(0);
                     let mut samplers: [Sampler; PACKET] =
                         std::array::from_fn(|j| if j == 0 || j >= n { first.clone() } else { stream(j) });
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
                     for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
-                        *ray = camera.ray(x, y, sampler.next_2d());
+                        *ray = camera.ray(x, y, sampler.pixel_2d());
                     }
                     let mut hits = [None; PACKET];
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);

@@ -69,6 +69,8 @@ pub struct RenderSettings {
     /// The most scattering events a path may have (1 = direct light only).
     pub max_depth: u32,
     pub seed: u64,
+    /// Which numbers the paths draw.
+    pub sampler: crate::render::sampler::SamplerKind,
 }
 
 /// How a surface scatters light.

@@ -5,6 +5,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{v3, Ctx, F, V3};
+use crate::render::sampler::SamplerKind;
 use crate::scene::{Camera, FilmSettings, RenderSettings, SceneError};
 
 /// `[camera]` as written.
@@ -32,6 +33,7 @@ pub(super) struct FileFilm {
 pub(super) struct FileRender {
     max_depth: Option<Spanned<u32>>,
     seed: Option<u64>,
+    sampler: Option<Spanned<String>>,
 }
 
 /// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient.
@@ -76,7 +78,7 @@ pub(super) fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, Scen
     })
 }
 
-/// The render settings, with their defaults (8 bounces, seed 0).
+/// The render settings, with their defaults (8 bounces, seed 0, the Sobol sampler).
 pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings, SceneError> {
     Ok(RenderSettings {
         max_depth: match r.and_then(|r| r.max_depth.as_ref()) {
@@ -85,11 +87,24 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
             None => 8,
         },
         seed: r.and_then(|r| r.seed).unwrap_or(0),
+        sampler: match r.and_then(|r| r.sampler.as_ref()) {
+            Some(s) => match SamplerKind::parse(s.get_ref()) {
+                Some(kind) => kind,
+                None => {
+                    return ctx.err(
+                        s.span(),
+                        format!("unknown sampler `{}`: use independent or sobol", s.get_ref()),
+                    )
+                }
+            },
+            None => SamplerKind::default(),
+        },
     })
 }
 
 #[cfg(test)]
 mod tests {
+    use crate::render::sampler::SamplerKind;
     use crate::scene::file::tests::{error_line, parse_str, MINIMAL};
 
     #[test]
@@ -98,6 +113,16 @@ mod tests {
         assert_eq!((s.film.width, s.film.height, s.film.spp), (256, 256, 16));
         assert_eq!(s.render.max_depth, 8);
         assert_eq!(s.camera.fov, 40.0);
+        assert_eq!(s.render.sampler, SamplerKind::Sobol);
+    }
+
+    #[test]
+    fn the_sampler_is_read_and_an_unknown_one_names_its_line() {
+        let s = parse_str(&format!("{MINIMAL}[render]\nsampler = \"independent\"\n")).expect("parses");
+        assert_eq!(s.render.sampler, SamplerKind::Independent);
+        let (line, msg) = error_line(&format!("{MINIMAL}[render]\nseed = 3\nsampler = \"halton\"\n"));
+        assert_eq!(line, Some(6), "{msg}");
+        assert!(msg.contains("halton") && msg.contains("sobol"), "{msg}");
     }
 
     #[test]
