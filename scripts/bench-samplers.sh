@@ -54,6 +54,7 @@ done
 if [ -z "${SCENES:-}" ]; then
     SCENES=$(for f in scenes/*.toml; do basename "$f" .toml; done)
 fi
+SCENES=$(echo $SCENES) # one line, one space apart
 for s in $SCENES; do
     [ -f "scenes/$s.toml" ] || bad_usage "no scenes/$s.toml"
 done

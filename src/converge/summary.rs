@@ -219,18 +219,24 @@ pub struct Worth {
     pub verdict: &'static str,
 }
 
-/// [`Worth`] of `test`'s unfiltered curve against `base`'s, at each spp both measured.
+/// [`Worth`] of `test`'s unfiltered curve against `base`'s, at each spp both measured; no
+/// factor where `base`'s error does not fall with the samples, and no range where `test`'s
+/// spread reaches zero.
 pub fn worth(base: &Table, test: &Table) -> Vec<Worth> {
     let (Some(b), Some(t)) = (base.base(), test.base()) else { return Vec::new() };
     let curve: Vec<(f64, f64)> = b.points.iter().map(|p| (p.spp as f64, p.rmse.mean)).collect();
+    // A base whose error does not fall with the samples (fireflies dominating it) has no
+    // samples to read off: the verdict alone is given.
+    let falls = curve.windows(2).all(|w| w[1].1 < w[0].1);
     t.points
         .iter()
         .filter_map(|p| {
             let q = b.points.iter().find(|q| q.spp == p.spp)?;
             let spp = p.spp as f64;
-            let at = |rmse: f64| inverse_loglog(&curve, rmse).map(|n| n / spp);
+            let at =
+                |rmse: f64| inverse_loglog(&curve, rmse).filter(|_| falls && rmse > 0.0).map(|n| n / spp);
             let se = p.rmse.std / (p.rmse.n.max(1) as f64).sqrt();
-            let range = at(p.rmse.mean + 2.0 * se).zip(at((p.rmse.mean - 2.0 * se).max(f64::MIN_POSITIVE)));
+            let range = at(p.rmse.mean + 2.0 * se).zip(at(p.rmse.mean - 2.0 * se));
             Some(Worth {
                 spp: p.spp,
                 base: q.rmse,
@@ -366,5 +372,56 @@ mod tests {
             assert!((p.equal_seconds.expect("seconds") - n * 0.01).abs() < 1e-9);
         }
         assert!(t.markdown().contains("4.0x"));
+    }
+
+    #[test]
+    fn a_sampler_at_half_the_error_is_worth_four_times_the_samples() {
+        use crate::render::sampler::SamplerKind;
+        let row = |sampler: SamplerKind, spp: u32, seed: u32, rmse: f64| Row {
+            scene: "s".into(),
+            accel: "embree".into(),
+            sampler,
+            spp,
+            seed,
+            filter: "none".into(),
+            target: "none".into(),
+            edge_aware: super::super::Edge::Off,
+            render_seconds: 1.0,
+            filter_seconds: 0.0,
+            sse: 0.0,
+            rmse,
+            relmse: 0.0,
+            rmse_border: 0.0,
+        };
+        let spps = [4u32, 16, 64];
+        let choices = [Choice::none()];
+        // Two seeds a point, 1% apart.
+        let table = |sampler, scale: f64| {
+            let rows: Vec<Row> = spps
+                .iter()
+                .flat_map(|&s| {
+                    (0..2)
+                        .map(move |k| row(sampler, s, k, scale * (1.0 + 0.01 * k as f64) / (s as f64).sqrt()))
+                })
+                .collect();
+            Table::new(&rows, &choices, &spps)
+        };
+        let independent = table(SamplerKind::Independent, 0.4);
+        let sobol = table(SamplerKind::Sobol, 0.2);
+        for w in worth(&independent, &sobol) {
+            let n = w.worth.expect("a factor");
+            assert!((n - 4.0).abs() < 1e-9, "{}: {n}", w.spp);
+            let (lo, hi) = w.range.expect("a range");
+            assert!(lo < n && n < hi, "{lo} {n} {hi}");
+            assert_eq!(w.verdict, "better");
+        }
+        // Against itself: the same, worth 1x.
+        assert!(worth(&independent, &independent).iter().all(|w| w.verdict == "same"));
+        // A base whose error does not fall with the samples has no factor to give.
+        let flat: Vec<Row> = spps.iter().map(|&s| row(SamplerKind::Independent, s, 0, 0.3)).collect();
+        let flat = Table::new(&flat, &choices, &spps);
+        assert!(worth(&flat, &sobol).iter().all(|w| w.worth.is_none() && w.verdict == "better"));
+        let md = samplers_markdown(&[(SamplerKind::Independent, independent), (SamplerKind::Sobol, sobol)]);
+        assert!(md.contains("| 16 |") && md.contains("4.00x"), "{md}");
     }
 }

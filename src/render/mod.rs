@@ -27,7 +27,7 @@ use camera::PinholeCamera;
 pub use features::{Features, Outputs};
 use integrator::{Integrator, PathSample};
 use lights::Lights;
-use sampler::{Sampler, SamplerKind};
+use sampler::{PixelSampler, Sampler, SamplerKind};
 
 /// How many non-finite samples `debug_nonfinite` prints.
 const MAX_REPORTS: u32 = 20;
@@ -419,14 +419,13 @@ fn render_features<A: Accel, const F: u8>(
                 }
                 let (at, x, y) = tile.pixel(i, width);
                 // The pixel's camera rays, a packet at a time, then each path from its hit.
+                let streams = PixelSampler::new(options.sampler, options.seed, at as u64);
                 let mut k = from;
                 while k < to {
                     let n = (to - k).min(PACKET as u32) as usize;
                     // Streams only for the samples this packet takes (a partial one at low spp);
                     // the slots past them hold a copy, never used.
-                    let stream = |j: usize| {
-                        Sampler::of(options.sampler, options.seed, at as u64, (k + j as u32) as u64)
-                    };
+                    let stream = |j: usize| streams.sample((k + j as u32) as u64);
                     let first = stream(0);
                     let mut samplers: [Sampler; PACKET] =
                         std::array::from_fn(|j| if j == 0 || j >= n { first.clone() } else { stream(j) });

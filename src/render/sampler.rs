@@ -125,6 +125,28 @@ impl Pcg {
     }
 }
 
+/// A sequence's shuffle and its two dimensions' scrambles, from its 64-bit seed.
+#[derive(Clone, Copy, Debug)]
+struct Scrambles {
+    shuffle: u32,
+    x: u32,
+    y: u32,
+}
+
+impl Scrambles {
+    #[inline(always)]
+    fn of(seed: u64) -> Self {
+        let hi = (seed >> 32) as u32;
+        Scrambles { shuffle: seed as u32, x: hi, y: sobol_burley::parts::hash(hi) }
+    }
+}
+
+/// The purposes at the camera ray's hit whose scrambles a pixel makes once for all its samples
+/// (the others are made when drawn): the pixel position, the light selection, the lobe, the
+/// direction, the first light.
+const CACHED: [Option<Dim>; 5] =
+    [None, Some(Dim::Select), Some(Dim::Lobe), Some(Dim::Direction), Some(Dim::Light(0))];
+
 /// The Sobol state of one sample.
 #[derive(Clone, Debug)]
 struct Sobol {
@@ -134,6 +156,8 @@ struct Sobol {
     index_rev: u32,
     /// The bounce numbers are drawn for.
     bounce: u32,
+    /// The scrambles of [`CACHED`], at bounce 0.
+    first: [Scrambles; 5],
 }
 
 /// The first 16 digits of a Sobol point's first two dimensions, bit-reversed (the first digit
@@ -152,36 +176,45 @@ fn sobol_01_rev(i: u32) -> (u32, u32) {
     (x, y)
 }
 
-/// The shuffled index of point `index_rev` (bit-reversed) in the sequence seeded `seed`: a nested uniform
-/// scramble of the index, which keeps every power-of-two prefix of the sequence a net.
+/// The 16 low bits of the shuffled index of point `index_rev` (bit-reversed) in the sequence
+/// shuffled by `shuffle`: a nested uniform scramble of the index, which keeps every
+/// power-of-two prefix of the sequence a net.
 #[inline(always)]
-fn shuffled(index_rev: u32, seed: u64) -> u32 {
-    sobol_burley::parts::owen_scramble_rev(index_rev, seed as u32).reverse_bits()
+fn shuffled(index_rev: u32, shuffle: u32) -> u32 {
+    let rev = sobol_burley::parts::owen_scramble_rev(index_rev, shuffle);
+    // The reversed value's low 16 bits: its high 16, reversed.
+    ((rev >> 16) as u16).reverse_bits() as u32
 }
 
-/// Digits `rev` (bit-reversed) Owen-scrambled with `scramble`, as a number in [0, 1).
+/// Point `index_rev` (bit-reversed) of the shuffled, Owen-scrambled Sobol sequence `s`: its
+/// first two dimensions.
 #[inline(always)]
-fn scrambled(rev: u32, scramble: u32) -> f32 {
+fn sobol_2d(index_rev: u32, s: Scrambles) -> Vec2 {
     use sobol_burley::parts::{owen_scramble_rev, u32_to_f32_norm};
-    u32_to_f32_norm(owen_scramble_rev(rev, scramble).reverse_bits())
-}
-
-/// Point `index_rev` (bit-reversed) of the shuffled, Owen-scrambled Sobol sequence seeded
-/// `seed`: its first two dimensions, each scrambled with its own part of the seed.
-#[inline(always)]
-fn sobol_2d(index_rev: u32, seed: u64) -> Vec2 {
-    let (x, y) = sobol_01_rev(shuffled(index_rev, seed));
-    let hi = (seed >> 32) as u32;
-    Vec2::new(scrambled(x, hi), scrambled(y, sobol_burley::parts::hash(hi)))
+    let (x, y) = sobol_01_rev(shuffled(index_rev, s.shuffle));
+    let (x, y) = (owen_scramble_rev(x, s.x), owen_scramble_rev(y, s.y));
+    // Both digit strings reversed at once: x's lands in the high half.
+    let both = ((y as u64) << 32 | x as u64).reverse_bits();
+    Vec2::new(u32_to_f32_norm((both >> 32) as u32), u32_to_f32_norm(both as u32))
 }
 
 /// The first dimension of [`sobol_2d`].
 #[inline(always)]
-fn sobol_1d(index_rev: u32, seed: u64) -> f32 {
-    scrambled(shuffled(index_rev, seed) & 0xffff, (seed >> 32) as u32)
+fn sobol_1d(index_rev: u32, s: Scrambles) -> f32 {
+    use sobol_burley::parts::{owen_scramble_rev, u32_to_f32_norm};
+    u32_to_f32_norm(owen_scramble_rev(shuffled(index_rev, s.shuffle), s.x).reverse_bits())
 }
 
 impl Sobol {
+    /// The state of pixel `pixel` under `seed`, for its samples in sequence block `block`
+    /// (index 0).
+    fn new(seed: u64, pixel: u64, block: u64) -> Self {
+        let key = mix(mix(mix(seed ^ 0x2545_f491_4f6c_dd1d) ^ pixel) ^ block);
+        let mut s = Sobol { key, index_rev: 0, bounce: 0, first: [Scrambles { shuffle: 0, x: 0, y: 0 }; 5] };
+        s.first = CACHED.map(|dim| Scrambles::of(s.seed(dim)));
+        s
+    }
+
     /// The seed of the sequence `dim` draws from at the current bounce (the pixel position's
     /// for `None`).
     #[inline(always)]
@@ -196,6 +229,50 @@ impl Sobol {
         };
         let at = purpose | (self.bounce as u64) << 32;
         mix(self.key ^ at.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+    }
+
+    /// The scrambles of `dim` at the current bounce.
+    #[inline(always)]
+    fn scrambles(&self, dim: Option<Dim>) -> Scrambles {
+        if self.bounce == 0 {
+            match dim {
+                None => return self.first[0],
+                Some(Dim::Select) => return self.first[1],
+                Some(Dim::Lobe) => return self.first[2],
+                Some(Dim::Direction) => return self.first[3],
+                Some(Dim::Light(0)) => return self.first[4],
+                _ => {}
+            }
+        }
+        Scrambles::of(self.seed(dim))
+    }
+}
+
+/// What every sample of one pixel under one seed shares, made once a pixel: [`Sampler`]s come
+/// from it.
+#[derive(Clone, Debug)]
+pub struct PixelSampler {
+    seed: u64,
+    pixel: u64,
+    /// The Sobol state at index 0 of the first sequence block (`None`: independent).
+    sobol: Option<Sobol>,
+}
+
+impl PixelSampler {
+    pub fn new(kind: SamplerKind, seed: u64, pixel: u64) -> Self {
+        let sobol = (kind == SamplerKind::Sobol).then(|| Sobol::new(seed, pixel, 0));
+        PixelSampler { seed, pixel, sobol }
+    }
+
+    /// The numbers of the pixel's sample `sample`.
+    #[inline]
+    pub fn sample(&self, sample: u64) -> Sampler {
+        let Some(first) = &self.sobol else { return Sampler::new(self.seed, self.pixel, sample) };
+        let block = sample / SEQUENCE as u64;
+        let mut sobol = if block == 0 { first.clone() } else { Sobol::new(self.seed, self.pixel, block) };
+        sobol.index_rev = ((sample % SEQUENCE as u64) as u32).reverse_bits();
+        // The independent stream, for bounces past the Sobol ones, is made when first used.
+        Sampler { pcg: Pcg { state: 0, inc: 0 }, sobol: Some(sobol) }
     }
 }
 
@@ -212,21 +289,10 @@ impl Sampler {
         Sampler { pcg: Pcg::new(seed, pixel, sample), sobol: None }
     }
 
-    /// The numbers of sample `sample` of pixel `pixel` under `seed`, from `kind`.
+    /// The numbers of sample `sample` of pixel `pixel` under `seed`, from `kind` (a render
+    /// makes a [`PixelSampler`] once a pixel instead).
     pub fn of(kind: SamplerKind, seed: u64, pixel: u64, sample: u64) -> Self {
-        if kind == SamplerKind::Independent {
-            return Sampler::new(seed, pixel, sample);
-        }
-        let mut s = Sampler { pcg: Pcg { state: 0, inc: 0 }, sobol: None };
-        {
-            let block = sample / SEQUENCE as u64;
-            let key = mix(mix(mix(seed ^ 0x2545_f491_4f6c_dd1d) ^ pixel) ^ block);
-            let index = (sample % SEQUENCE as u64) as u32;
-            // The independent stream, for bounces past the Sobol ones, is made when first used.
-            s.pcg = Pcg { state: 0, inc: 0 };
-            s.sobol = Some(Sobol { key, index_rev: index.reverse_bits(), bounce: 0 });
-        }
-        s
+        PixelSampler::new(kind, seed, pixel).sample(sample)
     }
 
     /// The next independent 32-bit number.
@@ -252,7 +318,7 @@ impl Sampler {
     #[inline]
     pub fn pixel_2d(&mut self) -> Vec2 {
         match &mut self.sobol {
-            Some(s) => sobol_2d(s.index_rev, s.seed(None)),
+            Some(s) => sobol_2d(s.index_rev, s.scrambles(None)),
             None => self.next_2d(),
         }
     }
@@ -275,7 +341,7 @@ impl Sampler {
     #[inline]
     pub fn get_1d(&mut self, dim: Dim) -> f32 {
         match self.sobol() {
-            Some(s) => sobol_1d(s.index_rev, s.seed(Some(dim))),
+            Some(s) => sobol_1d(s.index_rev, s.scrambles(Some(dim))),
             None => self.next_1d(),
         }
     }
@@ -284,7 +350,7 @@ impl Sampler {
     #[inline]
     pub fn get_2d(&mut self, dim: Dim) -> Vec2 {
         match self.sobol() {
-            Some(s) => sobol_2d(s.index_rev, s.seed(Some(dim))),
+            Some(s) => sobol_2d(s.index_rev, s.scrambles(Some(dim))),
             None => self.next_2d(),
         }
     }
@@ -383,6 +449,39 @@ mod tests {
             let rev = i.reverse_bits();
             assert_eq!(x, sobol_burley::parts::sobol_rev(rev, 0), "dimension 0 of {i}");
             assert_eq!(y, sobol_burley::parts::sobol_rev(rev, 1), "dimension 1 of {i}");
+        }
+    }
+
+    #[test]
+    fn points_match_sobol_burleys_own_with_its_scrambles() {
+        // With the crate's shuffle and scrambles for a seed, a 2D draw is the crate's sample
+        // in dimensions 0 and 1, bit for bit, and a 1D draw its dimension 0.
+        use sobol_burley::parts::hash;
+        for seed in [0u32, 1, 7, 0xdead_beef] {
+            let mul = seed.wrapping_mul(0x9c8f_2d3b);
+            let s = Scrambles {
+                shuffle: hash(seed ^ 0x79c6_8e4a),
+                x: hash(mul ^ 0x912f_69ba),
+                y: hash(mul ^ 0x174f_18ab),
+            };
+            for i in (0..4096).chain([65_535]) {
+                let p = sobol_2d(u32::reverse_bits(i), s);
+                let want = Vec2::new(sobol_burley::sample(i, 0, seed), sobol_burley::sample(i, 1, seed));
+                assert_eq!(p, want, "point {i}, seed {seed}");
+                assert_eq!(sobol_1d(u32::reverse_bits(i), s), want.x);
+            }
+        }
+    }
+
+    #[test]
+    fn scrambles_made_once_a_pixel_are_those_made_when_drawn() {
+        for (seed, pixel, block) in [(0, 0, 0), (3, 99, 0), (3, 99, 2)] {
+            let s = Sobol::new(seed, pixel, block);
+            for (i, dim) in CACHED.into_iter().enumerate() {
+                let made = Scrambles::of(s.seed(dim));
+                let cached = s.first[i];
+                assert_eq!((cached.shuffle, cached.x, cached.y), (made.shuffle, made.x, made.y), "{dim:?}");
+            }
         }
     }
 
