@@ -31,6 +31,24 @@ pub struct Film {
     /// The fraction of the pixel's samples that saw that object: below 1 on an antialiased
     /// border, where the pixel mixes two surfaces.
     pub coverage: Vec<f32>,
+    /// The variance of each pixel's mean luminance, of the beauty, estimated from its samples
+    /// ([`variance_of_mean`]); empty without the split. While a render runs: the sum of the
+    /// squared sample luminances.
+    pub variance: Vec<f32>,
+    /// The same for each component.
+    pub component_variance: Split<Vec<f32>>,
+}
+
+/// The variance of the mean of `n` samples from their sum and sum of squares: the unbiased
+/// sample variance over `n`, never negative. One sample says nothing of its spread: its
+/// square, an upper bound, is returned.
+pub fn variance_of_mean(n: u32, sum: f64, sum_sq: f64) -> f64 {
+    if n < 2 {
+        return sum_sq;
+    }
+    let n = n as f64;
+    let mean = sum / n;
+    ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0) / n
 }
 
 impl Film {
@@ -55,6 +73,8 @@ impl Film {
             depth: floats(guides, 0.0),
             object: floats(guides, -1.0),
             coverage: floats(guides, 1.0),
+            variance: floats(split, 0.0),
+            component_variance: Split::from_fn(|_| floats(split, 0.0)),
         }
     }
 
@@ -72,7 +92,12 @@ impl Film {
     pub fn bytes(&self) -> u64 {
         let images = [&self.raw, &self.albedo, &self.normal].into_iter().chain(&self.components);
         let rgb: usize = images.map(|i| i.pixels.capacity() * size_of::<Vec3>()).sum();
-        let scalars = self.depth.capacity() + self.object.capacity() + self.coverage.capacity();
+        let variance: usize = self.component_variance.iter().map(Vec::capacity).sum();
+        let scalars = self.depth.capacity()
+            + self.object.capacity()
+            + self.coverage.capacity()
+            + self.variance.capacity()
+            + variance;
         (rgb + scalars * size_of::<f32>()) as u64
     }
 
@@ -230,7 +255,9 @@ fn write_pfm(image: &Image, path: &Path) -> Result<(), String> {
 /// sit beside a second copy of the film.
 pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<Image>) -> Channels {
     let has_guides = film.has_guides();
-    let Film { raw, components, albedo, normal, depth, object, coverage, .. } = film;
+    let Film {
+        raw, components, albedo, normal, depth, object, coverage, variance, component_variance, ..
+    } = film;
     let mut out: Channels = Vec::new();
     // A buffer the render did not fill (empty) has no layer.
     let mut rgb = |prefix: &str, img: Image, names: [&str; 3]| {
@@ -256,6 +283,12 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
         out.push(("depth.Z".into(), depth));
         out.push(("objectid.ID".into(), object));
         out.push(("objectid.coverage".into(), coverage));
+    }
+    if !variance.is_empty() {
+        out.push(("raw_variance.Y".into(), variance));
+        for (c, v) in Component::ALL.into_iter().zip(component_variance) {
+            out.push((format!("{}_variance.Y", c.name()), v));
+        }
     }
     out
 }
@@ -353,6 +386,19 @@ impl Film {
         if let Ok(coverage) = find("objectid.coverage") {
             film.coverage = coverage.clone();
         }
+        // Files written before the variance layers existed have none.
+        match find("raw_variance.Y") {
+            Ok(v) => {
+                film.variance = v.clone();
+                for (c, layer) in Component::ALL.into_iter().zip(film.component_variance.iter_mut()) {
+                    *layer = find(&format!("{}_variance.Y", c.name()))?.clone();
+                }
+            }
+            Err(_) => {
+                film.variance = Vec::new();
+                film.component_variance = Split::from_fn(|_| Vec::new());
+            }
+        }
         let n = width as usize * height as usize;
         if film.depth.len() != n || film.raw.pixels.len() != n {
             return Err("channel sizes do not match the image".into());
@@ -384,6 +430,53 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn the_variance_of_the_mean_matches_a_known_stream() {
+        // Uniform numbers in [0, 1) have variance 1/12, so the mean of n has 1/(12 n). Over
+        // 2,000 streams of 64, the estimates average to it within their own standard error,
+        // and the means' spread across streams agrees with it.
+        let (n, streams) = (64u32, 2000);
+        let mut estimates = Vec::new();
+        let mut means = Vec::new();
+        for k in 0..streams {
+            let mut s = crate::render::sampler::Sampler::new(5, k, 0);
+            let x: Vec<f64> = (0..n).map(|_| s.next_1d() as f64).collect();
+            let (sum, sum_sq) = (x.iter().sum::<f64>(), x.iter().map(|v| v * v).sum::<f64>());
+            estimates.push(variance_of_mean(n, sum, sum_sq));
+            means.push(sum / n as f64);
+        }
+        let truth = 1.0 / (12.0 * n as f64);
+        let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let (mean_estimate, m) = (avg(&estimates), avg(&means));
+        let spread =
+            estimates.iter().map(|e| (e - mean_estimate).powi(2)).sum::<f64>() / (streams - 1) as f64;
+        let se = (spread / streams as f64).sqrt();
+        assert!((mean_estimate - truth).abs() < 4.0 * se, "{mean_estimate:e} vs {truth:e} (se {se:e})");
+        let empirical = means.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (streams - 1) as f64;
+        // The sample variance of 2,000 means is within 4 of its standard errors, sqrt(2/1999).
+        assert!((empirical / truth - 1.0).abs() < 4.0 * (2.0 / (streams - 1) as f64).sqrt(), "{empirical:e}");
+        // Never negative, and one sample gives its square.
+        assert_eq!(variance_of_mean(3, 3.0, 3.0), 0.0);
+        assert_eq!(variance_of_mean(1, 0.5, 0.25), 0.25);
+    }
+
+    #[test]
+    fn the_variance_layers_round_trip_through_an_exr() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("f.exr");
+        let mut film = Film::new(5, 3);
+        film.raw = gradient();
+        film.variance = (0..15).map(|i| i as f32 * 0.5).collect();
+        for (k, c) in Component::ALL.into_iter().enumerate() {
+            film.component_variance[c] = (0..15).map(|i| (i * 10 + k) as f32).collect();
+        }
+        let want = (film.variance.clone(), film.component_variance.clone());
+        write_film(film, gradient(), None, &path, 0.0).expect("write");
+        let (w, h, channels) = read_exr_channels(&path).expect("read");
+        let back = Film::from_channels(w, h, &channels).expect("a film");
+        assert_eq!((back.variance, back.component_variance), want);
     }
 
     #[test]

@@ -19,8 +19,9 @@ use rayon::prelude::*;
 use crate::accel::embree::SceneSettings;
 use crate::accel::embree::PACKET;
 use crate::accel::{self, Accel, Backend, Ray};
+use crate::component::Component;
 use crate::component::Split;
-use crate::film::Film;
+use crate::film::{self, Film};
 use crate::scene::analysis::Analysis;
 use crate::scene::Scene;
 use camera::PinholeCamera;
@@ -216,6 +217,9 @@ struct Sums {
     beauty: Vec<Vec3>,
     components: Vec<Split<Vec3>>,
     guides: Vec<Guides>,
+    /// The sums of the squared sample luminances, of the beauty then of each component (with
+    /// the split only), in f64 while a tile pass adds to them.
+    squares: Vec<(f64, Split<f64>)>,
 }
 
 impl Sums {
@@ -229,6 +233,16 @@ impl Sums {
                 (0..n).map(|i| Split::from_fn(|c| film.components[c].pixels[at(i)])).collect()
             } else {
                 Vec::new()
+            },
+            squares: if film.variance.is_empty() {
+                Vec::new()
+            } else {
+                (0..n)
+                    .map(|i| {
+                        let at = at(i);
+                        (film.variance[at] as f64, Split::from_fn(|c| film.component_variance[c][at] as f64))
+                    })
+                    .collect()
             },
             guides: if film.has_guides() {
                 (0..n)
@@ -258,6 +272,12 @@ impl Sums {
             if let Some(c) = self.components.get(i) {
                 for (layer, &c) in film.components.iter_mut().zip(c) {
                     layer.pixels[at] = c;
+                }
+            }
+            if let Some((beauty, components)) = self.squares.get(i) {
+                film.variance[at] = *beauty as f32;
+                for (layer, &c) in film.component_variance.iter_mut().zip(components) {
+                    layer[at] = c as f32;
                 }
             }
             if let Some(g) = self.guides.get(i) {
@@ -294,6 +314,13 @@ impl Sums {
                 *a += c;
             }
         }
+        if let Some((beauty, components)) = self.squares.get_mut(i) {
+            let sq = |v: Vec3| (crate::math::luminance(v) as f64).powi(2);
+            *beauty += sq(s.beauty);
+            for (a, c) in components.iter_mut().zip(s.components) {
+                *a += sq(c);
+            }
+        }
         if let Some(g) = self.guides.get_mut(i) {
             g.albedo += s.albedo;
             g.normal += s.normal;
@@ -326,13 +353,12 @@ pub fn relative_error(n: u32, sum: f64, sum_sq: f64) -> f64 {
     if n < 2 {
         return f64::INFINITY;
     }
-    let n = n as f64;
-    let mean = sum / n;
-    let var = ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0);
+    let var_mean = film::variance_of_mean(n, sum, sum_sq);
+    let mean = sum / n as f64;
     if mean <= 0.0 {
-        return if var == 0.0 { 0.0 } else { f64::INFINITY };
+        return if var_mean == 0.0 { 0.0 } else { f64::INFINITY };
     }
-    (var / n).sqrt() / mean
+    var_mean.sqrt() / mean
 }
 
 /// Renders with a given accelerator, on the current rayon pool, with the integrator
@@ -472,6 +498,18 @@ fn render_features<A: Accel, const F: u8>(
             let n = tile.n.get(i).copied().unwrap_or(spp);
             let (at, ..) = tile.pixel(i, width);
             let inv = 1.0 / n as f32;
+            if !film.variance.is_empty() {
+                // Sums of squares to the variance of the mean, from the sums before they become
+                // means.
+                let lum = |v: Vec3| crate::math::luminance(v) as f64;
+                film.variance[at] =
+                    film::variance_of_mean(n, lum(film.raw.pixels[at]), film.variance[at] as f64) as f32;
+                for c in Component::ALL {
+                    let sum = lum(film.components[c].pixels[at]);
+                    let v = &mut film.component_variance[c][at];
+                    *v = film::variance_of_mean(n, sum, *v as f64) as f32;
+                }
+            }
             film.raw.pixels[at] *= inv;
             for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
                 layer.pixels[at] *= inv;
