@@ -352,14 +352,10 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
-    let mut samplers = Vec::new();
-    for s in &args.sampler {
-        if !samplers.contains(s) {
-            samplers.push(*s);
-        }
-    }
     // Compared against independent sampling, the base of the comparison: it goes first.
+    let mut samplers = args.sampler.clone();
     samplers.sort_by_key(|s| *s != SamplerKind::Independent);
+    samplers.dedup();
     let mut spps = args.spp.clone();
     spps.sort_unstable();
     spps.dedup();

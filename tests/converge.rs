@@ -20,11 +20,17 @@ fn keys(rows: &[Row]) -> HashSet<(u32, u32, (String, String, Edge))> {
     rows.iter().map(|r| (r.spp, r.seed, r.key())).collect()
 }
 
-#[test]
-fn writes_results_summary_plots_and_difference_images() {
+/// A fresh output directory for a run (kept while the first value lives), and its path as text.
+fn run_dir() -> (tempfile::TempDir, std::path::PathBuf, String) {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("run");
     let out_s = out.to_string_lossy().into_owned();
+    (dir, out, out_s)
+}
+
+#[test]
+fn writes_results_summary_plots_and_difference_images() {
+    let (_dir, out, out_s) = run_dir();
     let args = [
         "converge",
         &scene(),
@@ -91,9 +97,7 @@ fn writes_results_summary_plots_and_difference_images() {
 
 #[test]
 fn a_killed_run_continues_where_it_stopped() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("run");
-    let out_s = out.to_string_lossy().into_owned();
+    let (_dir, out, out_s) = run_dir();
     let scene = scene();
     let args = [
         "converge",
@@ -138,9 +142,7 @@ fn a_killed_run_continues_where_it_stopped() {
 
 #[test]
 fn two_samplers_are_measured_and_compared_in_one_run() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let out = dir.path().join("run");
-    let out_s = out.to_string_lossy().into_owned();
+    let (_dir, out, out_s) = run_dir();
     let scene = scene();
     let args = [
         "converge",
