@@ -462,6 +462,8 @@ enum FilterTarget {
     Indirect,
     /// The whole image (the paper's Figure 3(c) baseline).
     Image,
+    /// Direct, caustic and indirect light, each filtered on its own; emitted light never.
+    Components,
     /// Nothing.
     None,
 }
@@ -471,6 +473,7 @@ impl From<FilterTarget> for Target {
         match t {
             FilterTarget::Indirect => Target::Indirect,
             FilterTarget::Image => Target::Image,
+            FilterTarget::Components => Target::Components,
             FilterTarget::None => Target::None,
         }
     }

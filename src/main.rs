@@ -15,7 +15,7 @@ use cli::{
     RenderArgs, StressArgs,
 };
 use lightsplit::film;
-use lightsplit::filter::{Kernel, Setting};
+use lightsplit::filter::{Kernel, Setting, Target};
 use lightsplit::output::OutputError;
 use lightsplit::render::sampler::SamplerKind;
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
@@ -334,6 +334,14 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
+    let atrous = matches!(setting.kernel, Some(Kernel::Atrous(_))) && setting.target != Target::None;
+    if atrous && film.variance.is_empty() {
+        return Err(Failure::input(format!(
+            "{}: atrous reads each pixel's variance, and this file has no `*_variance` layers \
+             (written before they existed): render it again",
+            args.input.display()
+        )));
+    }
     args.out.write(film, &setting, &args.output)?;
     Ok(())
 }

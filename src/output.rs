@@ -48,7 +48,13 @@ impl OutputError {
 
 /// Whether `setting` filters `indirect`, and so makes the filtered indirect layer.
 fn filters_indirect(setting: &Setting) -> bool {
-    setting.kernel.is_some() && setting.target == Target::Indirect
+    setting.kernel.is_some() && matches!(setting.target, Target::Indirect | Target::Components)
+}
+
+/// Whether `setting` is the à-trous filter, which reads the variance (kept with the split) and
+/// the guides.
+fn atrous(setting: &Setting) -> bool {
+    matches!(setting.kernel, Some(crate::filter::Kernel::Atrous(_))) && setting.target != Target::None
 }
 
 impl Layer {
@@ -70,8 +76,8 @@ impl Layer {
         let exr = format == Format::Exr;
         let component = matches!(self, Layer::Component(_) | Layer::IndirectFiltered);
         Outputs {
-            split: exr || filters_indirect(setting) || component,
-            guides: exr || setting.stops != EdgeStops::default() || self == Layer::Albedo,
+            split: exr || filters_indirect(setting) || component || atrous(setting),
+            guides: exr || setting.stops != EdgeStops::default() || self == Layer::Albedo || atrous(setting),
         }
     }
 

@@ -270,6 +270,55 @@ fn render_filter_and_compare_work_together() {
     assert!(!Path::new(&p("h.exr")).exists());
 }
 
+/// The à-trous filter and the `components` target from the command line: they run on a render's
+/// EXR; a bad setting, or a file written before the variance layers existed, is status 2.
+#[test]
+fn atrous_and_the_components_target_work_and_check_their_input() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sky-sphere.toml");
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let scene = scene.to_string_lossy().into_owned();
+    let run = |args: &[&str]| {
+        let out = lightsplit(args);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        (out, stderr)
+    };
+    let (out, err) =
+        run(&["render", &scene, "-o", &p("f.exr"), "--width", "32", "--height", "24", "--spp", "4"]);
+    assert!(out.status.success(), "{err}");
+    for target in ["indirect", "components", "image"] {
+        let g = p(&format!("{target}.exr"));
+        let (out, err) =
+            run(&["filter", &p("f.exr"), "-o", &g, "--filter", "atrous:passes=3", "--filter-target", target]);
+        assert!(out.status.success(), "{target}: {err}");
+        let (out, _) = run(&["compare", &g, &p("f.exr"), "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        assert!(v["rmse"].as_f64().expect("rmse") > 0.0, "{target}: atrous changed nothing");
+    }
+    for (args, needle) in [
+        (vec!["--filter", "atrous:passes=0"], "passes"),
+        (vec!["--filter", "atrous:sigma_l=-1"], "sigma_l"),
+        (vec!["--filter", "atrous:taps=4"], "taps"),
+        (vec!["--filter", "atrous", "--filter-target", "everything"], "everything"),
+    ] {
+        let (out, err) = run(&[&["filter", &p("f.exr"), "-o", &p("bad.exr")][..], &args].concat());
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!Path::new(&p("bad.exr")).exists());
+    }
+    // A file without the variance layers: the paper's filters still run, atrous says why not.
+    let (w, h, channels) = lightsplit::film::read_exr_channels(Path::new(&p("f.exr"))).expect("reads");
+    let old: Vec<_> = channels.into_iter().filter(|(name, _)| !name.contains("_variance")).collect();
+    lightsplit::film::write_exr_channels(old, w, h, Path::new(&p("old.exr"))).expect("writes");
+    let (out, err) = run(&["filter", &p("old.exr"), "-o", &p("box.png"), "--filter", "box3"]);
+    assert!(out.status.success(), "{err}");
+    let (out, err) = run(&["filter", &p("old.exr"), "-o", &p("atrous.png"), "--filter", "atrous"]);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("variance") && err.lines().count() == 1, "{err}");
+    assert!(!Path::new(&p("atrous.png")).exists());
+}
+
 /// A scene file's `[filter]` applies unless the command line says otherwise: `--filter` replaces
 /// its kernel, `--filter-target none` turns it off.
 #[test]

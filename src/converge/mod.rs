@@ -127,7 +127,7 @@ pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<
         for &target in targets {
             if target == Target::None {
                 return Err(
-                    "--targets takes indirect and image (the unfiltered run is the filter `none`)".into()
+                    "--targets takes indirect, image and components (the unfiltered run is the filter `none`)".into()
                 );
             }
             for &edge_aware in edge {

@@ -3,7 +3,11 @@
 //! borders replicate the edge pixels, and in edge-aware mode (the paper's closing suggestion) a
 //! neighbour counts only if it shows the same object as the centre, optionally also a similar
 //! normal and depth. Linear in the pixel count and parallel over rows.
+//!
+//! Beyond the paper: the variance-guided à-trous filter ([`atrous`]), and the `components`
+//! target, which filters direct, caustic and indirect light each on its own.
 
+pub mod atrous;
 mod section;
 
 use std::borrow::Cow;
@@ -11,7 +15,9 @@ use std::borrow::Cow;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::component::Component::{self, Caustic, Direct, Emitted};
+pub use atrous::{Atrous, Layer};
+
+use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
 use crate::film::{Film, Image};
 
 /// A filter kernel.
@@ -21,13 +27,19 @@ pub enum Kernel {
     Convolution { size: usize, weights: Vec<f32> },
     /// Per-channel median over a 3x3 window (the paper's filter C).
     Median3,
+    /// Beyond the paper: the variance-guided edge-avoiding à-trous wavelet filter.
+    Atrous(Atrous),
 }
 
 impl Kernel {
-    /// A kernel by name: `box3`, `weighted3`, `median3`, `box5`, or a custom odd square kernel
-    /// written as comma-separated weights (`1,2,1,2,4,2,1,2,1`).
+    /// A kernel by name: `box3`, `weighted3`, `median3`, `box5`, `atrous` (with settings:
+    /// `atrous:passes=4:sigma_l=8`), or a custom odd square kernel written as comma-separated
+    /// weights (`1,2,1,2,4,2,1,2,1`).
     pub fn parse(name: &str) -> Result<Kernel, String> {
         match name {
+            atrous if atrous == "atrous" || atrous.starts_with("atrous:") => {
+                Ok(Kernel::Atrous(Atrous::parse(atrous)?))
+            }
             "box3" => Ok(Kernel::Convolution { size: 3, weights: vec![1.0; 9] }),
             "weighted3" => {
                 Ok(Kernel::Convolution { size: 3, weights: vec![1., 2., 1., 2., 4., 2., 1., 2., 1.] })
@@ -38,7 +50,9 @@ impl Kernel {
                 let weights: Result<Vec<f32>, _> =
                     custom.split(',').map(|w| w.trim().parse::<f32>()).collect();
                 let weights = weights.map_err(|_| {
-                    format!("unknown filter `{custom}` (box3, weighted3, median3, box5, or comma-separated weights)")
+                    format!(
+                        "unknown filter `{custom}` (box3, weighted3, median3, box5, atrous, or comma-separated weights)"
+                    )
                 })?;
                 Kernel::custom(weights)
             }
@@ -57,6 +71,7 @@ impl Kernel {
                 weights.iter().map(|w| w.to_string()).collect::<Vec<_>>().join(",")
             }
             Kernel::Median3 => "median3".to_string(),
+            Kernel::Atrous(a) => a.name(),
         }
     }
 
@@ -97,6 +112,9 @@ pub enum Target {
     Indirect,
     /// The whole image (the paper's Figure 3(c) baseline).
     Image,
+    /// Beyond the paper: direct, caustic and indirect light, each filtered on its own (with
+    /// the strength its own variance calls for, under `atrous`); emitted light never.
+    Components,
     /// Nothing.
     None,
 }
@@ -107,13 +125,16 @@ impl Target {
         match self {
             Target::Indirect => "indirect",
             Target::Image => "image",
+            Target::Components => "components",
             Target::None => "none",
         }
     }
 
     /// The target of a name, as [`Target::name`] writes it.
     pub fn from_name(name: &str) -> Option<Target> {
-        [Target::Indirect, Target::Image, Target::None].into_iter().find(|t| t.name() == name)
+        [Target::Indirect, Target::Image, Target::Components, Target::None]
+            .into_iter()
+            .find(|t| t.name() == name)
     }
 }
 
@@ -159,7 +180,14 @@ impl EdgeStops {
 /// pass over the row per kernel tap, or one median network over nine shifted rows, loops the
 /// compiler vectorises. The border columns, and the edge-aware median, go pixel by pixel through
 /// [`Filter::pixel`], the plain definition that tests compare the fast paths with.
+///
+/// `atrous` needs each pixel's variance: use [`filter_layers`]; here it sees none, and leaves
+/// the image as it is.
 pub fn filter(image: &Image, kernel: &Kernel, film: &Film, stops: &EdgeStops) -> Image {
+    if let Kernel::Atrous(_) = kernel {
+        let mut out = filter_layers(&[Layer { image, variance: None }], kernel, film, stops);
+        return out.pop().unwrap_or_else(|| image.clone());
+    }
     let f = Filter::new(image, kernel, film, stops);
     let w = image.width as usize;
     let mut out = Image::new(image.width, image.height);
@@ -172,6 +200,15 @@ pub fn filter(image: &Image, kernel: &Kernel, film: &Film, stops: &EdgeStops) ->
         |(scratch, count), (y, row)| f.row(y, row, scratch, count),
     );
     out
+}
+
+/// Filters each layer: the paper's kernels one by one, `atrous` with each layer's variance and
+/// the guides' geometry shared (its object stop is always on; `stops.pure` also applies).
+pub fn filter_layers(layers: &[Layer], kernel: &Kernel, film: &Film, stops: &EdgeStops) -> Vec<Image> {
+    match kernel {
+        Kernel::Atrous(a) => atrous::filter(layers, film, a, stops.pure),
+        _ => layers.iter().map(|l| filter(l.image, kernel, film, stops)).collect(),
+    }
 }
 
 /// One filter pass, ready to run row by row.
@@ -190,7 +227,7 @@ impl<'a> Filter<'a> {
     fn new(image: &'a Image, kernel: &'a Kernel, film: &'a Film, stops: &EdgeStops) -> Self {
         let radius = match kernel {
             Kernel::Convolution { size, .. } => *size / 2,
-            Kernel::Median3 => 1,
+            Kernel::Median3 | Kernel::Atrous(_) => 1,
         };
         Filter {
             image,
@@ -294,7 +331,7 @@ impl<'a> Filter<'a> {
             // Divided by the weights actually used, so energy is kept at edges.
             Kernel::Convolution { .. } if weight_sum > 0.0 => acc / weight_sum,
             Kernel::Convolution { .. } => self.image.pixels[centre],
-            Kernel::Median3 => median(&mut window[..used]),
+            Kernel::Median3 | Kernel::Atrous(_) => median(&mut window[..used]),
         }
     }
 
@@ -335,7 +372,8 @@ impl<'a> Filter<'a> {
                 let sum: f32 = weights.iter().sum();
                 dst.iter_mut().for_each(|o| *o /= sum);
             }
-            Kernel::Median3 => {
+            // (`filter` hands atrous elsewhere: this arm is the median's.)
+            Kernel::Median3 | Kernel::Atrous(_) => {
                 let len = dst.len();
                 let s: [&[f32]; 9] = std::array::from_fn(|i| &rows[i / 3][3 * (i % 3)..3 * (i % 3) + len]);
                 let [s0, s1, s2, s3, s4, s5, s6, s7, s8] = s.map(|s| &s[..len]);
@@ -437,27 +475,47 @@ fn median(values: &mut [Vec3]) -> Vec3 {
 }
 
 /// The final image of a film: the components with `kernel` applied to `target`; without a
-/// kernel, the film's own beauty (borrowed, not copied). With it, the filtered indirect
-/// component when the target is `indirect`.
+/// kernel, the film's own beauty (borrowed, not copied). With it, also the filtered indirect
+/// component when the target filters it (`indirect` or `components`).
+///
+/// - `indirect`: emitted + direct + caustic + filtered indirect (the paper's method);
+/// - `components`: emitted + the filtered direct, caustic and indirect;
+/// - `image`: the beauty filtered whole.
+///
+/// A film without the split filters its beauty whatever the target. Each layer is filtered
+/// with its own variance, when the film has it.
 pub fn composite<'a>(
     film: &'a Film,
     kernel: Option<&Kernel>,
     target: Target,
     stops: &EdgeStops,
 ) -> (Cow<'a, Image>, Option<Image>) {
-    match (kernel, target) {
-        (Some(k), Target::Indirect) => {
-            let filtered = filter(film.indirect(), k, film, stops);
-            let mut out = Image::new(film.width, film.height);
-            for (i, px) in out.pixels.iter_mut().enumerate() {
-                let unfiltered = |c: Component| film.components[c].pixels[i];
-                *px = unfiltered(Emitted) + unfiltered(Direct) + unfiltered(Caustic) + filtered.pixels[i];
-            }
-            (Cow::Owned(out), Some(filtered))
-        }
-        (Some(k), Target::Image) => (Cow::Owned(filter(&film.raw, k, film, stops)), None),
-        _ => (Cow::Borrowed(&film.raw), None),
+    let Some(kernel) = kernel else { return (Cow::Borrowed(&film.raw), None) };
+    let layer = |c: Component| Layer {
+        image: &film.components[c],
+        variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
+    };
+    let filtered: &[Component] = match target {
+        Target::None => return (Cow::Borrowed(&film.raw), None),
+        _ if !film.has_split() => &[],
+        Target::Image => &[],
+        Target::Indirect => &[Indirect],
+        Target::Components => &[Direct, Caustic, Indirect],
+    };
+    if filtered.is_empty() {
+        let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
+        let mut out = filter_layers(&[Layer { image: &film.raw, variance }], kernel, film, stops);
+        return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
     }
+    let layers: Vec<Layer> = filtered.iter().map(|&c| layer(c)).collect();
+    let images = filter_layers(&layers, kernel, film, stops);
+    let mut out = film.components[Emitted].clone();
+    for c in [Direct, Caustic, Indirect] {
+        let image = filtered.iter().position(|&f| f == c).map_or(&film.components[c], |i| &images[i]);
+        out.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
+    }
+    let indirect = filtered.iter().position(|&f| f == Indirect).map(|i| images[i].clone());
+    (Cow::Owned(out), indirect)
 }
 
 #[cfg(test)]
@@ -636,6 +694,60 @@ mod tests {
         let pure = filter(&img, &k, &film, &EdgeStops { object: true, pure: true, ..Default::default() });
         assert_eq!(pure.get(3, 1).x, 3.0);
         assert_eq!(pure.get(2, 1).x, 1.0);
+    }
+
+    /// `components` filters direct, caustic and indirect light and never emitted light: with only
+    /// emitted light in the film the final image is it, bit for bit, whatever the kernel; and
+    /// each filtered component lands in the sum.
+    #[test]
+    fn components_leave_emitted_light_alone() {
+        let (w, h) = (21u32, 13u32);
+        let mut state = 99u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / 16_777_216.0
+        };
+        let mut film = Film::new(w, h);
+        for i in 0..(w * h) as usize {
+            film.object[i] = (i % 7 / 4) as f32;
+            film.normal.pixels[i] = Vec3::Z;
+            film.depth[i] = 1.0;
+            film.albedo.pixels[i] = Vec3::splat(0.5);
+            film.components[Emitted].pixels[i] = Vec3::new(next(), next(), next()) * 4.0;
+            for c in [Direct, Caustic, Indirect] {
+                film.component_variance[c][i] = 0.1;
+            }
+        }
+        film.raw = film.components[Emitted].clone();
+        for name in ["box3", "median3", "atrous", "atrous:taps=3"] {
+            let k = Kernel::parse(name).expect("kernel");
+            let (out, indirect) = composite(&film, Some(&k), Target::Components, &EdgeStops::default());
+            assert_eq!(*out, film.components[Emitted], "{name}");
+            assert!(indirect.is_some(), "{name}: the filtered indirect layer");
+        }
+        // Noisy direct and indirect light: filtered, and added to the untouched emitted light.
+        let mut noisy = film.clone();
+        for i in 0..(w * h) as usize {
+            noisy.components[Direct].pixels[i] = Vec3::splat(next());
+            noisy.components[Indirect].pixels[i] = Vec3::splat(next());
+        }
+        let k = Kernel::parse("atrous").expect("kernel");
+        let (out, indirect) = composite(&noisy, Some(&k), Target::Components, &EdgeStops::default());
+        let indirect = indirect.expect("filtered indirect");
+        let direct = filter_layers(
+            &[Layer { image: &noisy.components[Direct], variance: Some(&noisy.component_variance[Direct]) }],
+            &k,
+            &noisy,
+            &EdgeStops::default(),
+        );
+        assert_ne!(indirect, noisy.components[Indirect]);
+        assert_ne!(direct[0], noisy.components[Direct]);
+        for i in 0..(w * h) as usize {
+            let want = noisy.components[Emitted].pixels[i] + direct[0].pixels[i] + indirect.pixels[i];
+            assert!((out.pixels[i] - want).abs().max_element() < 1e-5, "{i}");
+        }
     }
 
     #[test]

@@ -14,8 +14,9 @@ impl Setting {
         }?;
         let target = match section.target.as_deref() {
             None => Target::Indirect,
-            Some(name) => Target::from_name(name)
-                .ok_or_else(|| format!("unknown filter target `{name}` (indirect, image or none)"))?,
+            Some(name) => Target::from_name(name).ok_or_else(|| {
+                format!("unknown filter target `{name}` (indirect, image, components or none)")
+            })?,
         };
         let stops = EdgeStops {
             object: section.edge_aware.unwrap_or(false),
@@ -59,12 +60,21 @@ mod tests {
                 .expect("parses");
         assert_eq!((s.target, s.stops.normal_degrees), (Target::Indirect, Some(30.0)));
         assert_eq!(setting(MINIMAL).expect("parses"), Setting::default());
+        let s =
+            setting(&format!("{MINIMAL}[filter]\nkernel = \"atrous:sigma_l=8\"\ntarget = \"components\"\n"))
+                .expect("parses");
+        assert_eq!(
+            s.kernel,
+            Some(Kernel::Atrous(crate::filter::Atrous { sigma_l: 8.0, ..Default::default() }))
+        );
+        assert_eq!(s.target, Target::Components);
         for (extra, needle) in [
             ("kernel = \"gauss\"\n", "gauss"),
             ("kernel = [1, 2, 3, 4]\n", "odd square"),
             ("kernel = \"box3\"\ntarget = \"all\"\n", "all"),
             ("kernel = \"box3\"\nedge_normal = 0\n", "normal"),
             ("kernel = \"box3\"\nradius = 2\n", "radius"),
+            ("kernel = \"atrous:passes=0\"\n", "passes"),
         ] {
             let (line, msg) = setting(&format!("{MINIMAL}[filter]\n{extra}")).expect_err("must fail");
             assert!(line.is_some_and(|l| l >= 4), "{extra}: {line:?} {msg}");

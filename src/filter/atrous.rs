@@ -1,0 +1,918 @@
+//! Beyond the paper's 3x3 filters: an edge-avoiding à-trous wavelet filter (Dammertz et al.
+//! 2010), guided by each pixel's variance as in SVGF (Schied et al. 2017).
+//!
+//! Several passes of one small kernel (B3-spline 5x5, or 3x3) with holes growing 1, 2, 4, ...
+//! Each neighbour's weight stops at the object ID (hard), the normal, the depth and the colour:
+//! the colour stop is the luminance difference in standard deviations of the pixel's own
+//! filtered variance, so noisy pixels are smoothed hard and clean ones kept. What is filtered is
+//! illumination, not texture: each layer is divided by the albedo first and multiplied back.
+//!
+//! One pass, for a centre `p` with taps `q = p + s (dx, dy)`, `s = 2^pass`, `h` the kernel:
+//! - `k_q = h(dx) h(dy) [key_p = key_q] 2^-(t_n + t_z + t_l)` with
+//!   `t_n = σ_n (1 - n_p·n_q)`, `t_z = |z_p - z_q| / (σ_z |∇z|_p s |(dx, dy)|)` and
+//!   `t_l = |l_p - l_q| / (σ_l sqrt(g3x3(V)_p))` (the exponents in units of log2 e);
+//! - `u'_p = u_p + Σ k_q (u_q - u_p) / W` with `W = h(0) + Σ k_q` (the centre counts with its
+//!   kernel weight alone), so a constant image is exact;
+//! - `V'_p = (h(0)² V_p + Σ k_q² V_q) / W²`, the variance of that weighted mean.
+//!
+//! Taps outside the image are left out (not replicated: at a hole of 16 pixels replication
+//! would pile weight onto the border). Every output pixel is computed on its own from the
+//! previous pass, so the result is the same for any number of threads.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::film::{Film, Image};
+use crate::math::luminance;
+
+/// The à-trous filter's settings; [`Atrous::default`] holds the measured defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Atrous {
+    /// Passes, with holes 1, 2, 4, ... 2^(passes - 1).
+    pub passes: u32,
+    /// The colour stop: a luminance difference of this many standard deviations of the
+    /// centre's (filtered, 3x3-blurred) variance weighs 1/e.
+    pub sigma_l: f32,
+    /// The normal stop: a neighbour weighs `exp(-sigma_n (1 - cos θ))`.
+    pub sigma_n: f32,
+    /// The depth stop: a depth difference of `sigma_z` times the centre's depth gradient
+    /// over the tap's distance weighs 1/e.
+    pub sigma_z: f32,
+    /// The kernel's width: 5 (B3 spline, 1 4 6 4 1) or 3 (1 2 1).
+    pub taps: u32,
+}
+
+impl Default for Atrous {
+    fn default() -> Self {
+        Atrous { passes: 5, sigma_l: 4.0, sigma_n: 128.0, sigma_z: 1.0, taps: 5 }
+    }
+}
+
+const MAX_PASSES: u32 = 12;
+
+impl Atrous {
+    /// `atrous`, optionally with settings: `atrous:passes=4:sigma_l=8`.
+    pub fn parse(spec: &str) -> Result<Atrous, String> {
+        let mut parts = spec.split(':');
+        if parts.next() != Some("atrous") {
+            return Err(format!("`{spec}` is not an atrous filter"));
+        }
+        let mut a = Atrous::default();
+        for part in parts {
+            let (key, value) = part
+                .split_once('=')
+                .ok_or_else(|| format!("atrous setting `{part}` is not key=value (e.g. atrous:passes=4)"))?;
+            let number = value
+                .trim()
+                .parse::<f32>()
+                .map_err(|_| format!("atrous setting {key}: `{value}` is not a number"))?;
+            match key.trim() {
+                "passes" => a.passes = whole(key, number)?,
+                "sigma_l" => a.sigma_l = number,
+                "sigma_n" => a.sigma_n = number,
+                "sigma_z" => a.sigma_z = number,
+                "taps" => a.taps = whole(key, number)?,
+                other => {
+                    return Err(format!(
+                        "unknown atrous setting `{other}` (passes, sigma_l, sigma_n, sigma_z, taps)"
+                    ))
+                }
+            }
+        }
+        a.check()?;
+        Ok(a)
+    }
+
+    /// Checks the ranges: 1 to 12 passes, positive finite sigmas, 3 or 5 taps.
+    pub fn check(&self) -> Result<(), String> {
+        if !(1..=MAX_PASSES).contains(&self.passes) {
+            return Err(format!("atrous passes must be 1 to {MAX_PASSES}, not {}", self.passes));
+        }
+        for (name, v) in [("sigma_l", self.sigma_l), ("sigma_n", self.sigma_n), ("sigma_z", self.sigma_z)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("atrous {name} must be a positive number, not {v}"));
+            }
+        }
+        if self.taps != 3 && self.taps != 5 {
+            return Err(format!("atrous taps must be 3 or 5, not {}", self.taps));
+        }
+        Ok(())
+    }
+
+    /// The name [`Atrous::parse`] reads back: `atrous` and the settings that differ from the
+    /// defaults.
+    pub fn name(&self) -> String {
+        let d = Atrous::default();
+        let mut out = "atrous".to_string();
+        let mut add = |key: &str, v: f32, default: f32| {
+            if v != default {
+                out.push_str(&format!(":{key}={v}"));
+            }
+        };
+        add("passes", self.passes as f32, d.passes as f32);
+        add("sigma_l", self.sigma_l, d.sigma_l);
+        add("sigma_n", self.sigma_n, d.sigma_n);
+        add("sigma_z", self.sigma_z, d.sigma_z);
+        add("taps", self.taps as f32, d.taps as f32);
+        out
+    }
+
+    /// The 1-D kernel, centre in the middle.
+    fn kernel(&self) -> &'static [f32] {
+        if self.taps == 3 {
+            &[0.25, 0.5, 0.25]
+        } else {
+            &[1.0 / 16.0, 0.25, 0.375, 0.25, 1.0 / 16.0]
+        }
+    }
+}
+
+fn whole(key: &str, v: f32) -> Result<u32, String> {
+    if v.fract() == 0.0 && (0.0..=1e6).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(format!("atrous setting {key} must be a whole number, not {v}"))
+    }
+}
+
+/// One layer to filter: an image of means and the variance of each pixel's mean luminance.
+#[derive(Clone, Copy)]
+pub struct Layer<'a> {
+    pub image: &'a Image,
+    /// Without it (an old film), the colour stop sees no noise and nothing is smoothed.
+    pub variance: Option<&'a [f32]>,
+}
+
+/// The smallest albedo divided by: darker channels are treated as black ([`demodulate`]).
+const MIN_ALBEDO: f32 = 1e-3;
+const LOG2_E: f32 = std::f32::consts::LOG2_E;
+/// Planes per layer in the working buffers: r, g, b (illumination), l (its luminance), v.
+const PLANES: usize = 5;
+
+/// Filters each layer with `a`, its colour stop scaled by its own variance, all sharing the
+/// guides of `film` (albedo, normal, depth, object; with `pure`, pixels whose samples saw more
+/// than one object are left alone and out of their neighbours' windows). The film's guides and
+/// the layers must have the film's size.
+pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+    let (w, h) = (film.width as usize, film.height as usize);
+    // Layers that are zero everywhere stay so.
+    let live: Vec<usize> =
+        (0..layers.len()).filter(|&i| layers[i].image.pixels.iter().any(|p| *p != Vec3::ZERO)).collect();
+    let mut out: Vec<Image> = layers.iter().map(|l| l.image.clone()).collect();
+    if live.is_empty() || w == 0 || h == 0 {
+        return out;
+    }
+    let guides = Guides::new(film, a, pure);
+    let k = live.len();
+    let albedo: Vec<Vec3> = film.albedo.pixels.iter().map(|p| p.max(Vec3::ZERO)).collect();
+    // Demodulated illumination, its luminance and its variance, row by row.
+    let mut cur = vec![0.0f32; h * k * PLANES * w];
+    cur.par_chunks_mut(k * PLANES * w).enumerate().for_each(|(y, row)| {
+        for (c, &li) in live.iter().enumerate() {
+            let layer = layers[li];
+            let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
+            for x in 0..w {
+                let i = y * w + x;
+                let (v, a) = (layer.image.pixels[i], albedo[i]);
+                let u = demodulate(v, a);
+                let (lu, lv) = (luminance(u), luminance(v));
+                let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
+                let var = layer.variance.map_or(0.0, |v| v[i].max(0.0)) * ratio * ratio;
+                for (p, value) in
+                    [u.x, u.y, u.z, lu, if var.is_finite() { var } else { 0.0 }].into_iter().enumerate()
+                {
+                    planes[p * w + x] = value;
+                }
+            }
+        }
+    });
+    let first = cur.clone();
+    let mut next = vec![0.0f32; cur.len()];
+    let mut inv_sigma = vec![0.0f32; h * k * w];
+    for pass in 0..a.passes {
+        if (1usize << pass) >= w.max(h) {
+            break; // every tap would fall outside the image
+        }
+        run_pass(a, &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
+        std::mem::swap(&mut cur, &mut next);
+    }
+    // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first).
+    for (c, &li) in live.iter().enumerate() {
+        let image = &mut out[li];
+        image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let base = (y * k + c) * PLANES * w;
+            for (x, px) in row.iter_mut().enumerate() {
+                let at = |buf: &[f32], p: usize| buf[base + p * w + x];
+                let du = Vec3::new(
+                    at(&cur, 0) - at(&first, 0),
+                    at(&cur, 1) - at(&first, 1),
+                    at(&cur, 2) - at(&first, 2),
+                );
+                *px += albedo[y * w + x] * du;
+            }
+        });
+    }
+    out
+}
+
+/// Pass `pass` (holes of `2^pass` pixels) over `cur`, rows of `k` layers of [`PLANES`] planes
+/// of width `w`, into `next`; `inv_sigma` (`h k w` floats) is scratch for the colour stops.
+fn run_pass(
+    a: &Atrous,
+    guides: &Guides,
+    (w, h, k): (usize, usize, usize),
+    pass: u32,
+    cur: &[f32],
+    next: &mut [f32],
+    inv_sigma: &mut [f32],
+) {
+    let step = 1usize << pass;
+    let pass = Pass { a, w, h, k, step, guides, cur, inv_sigma: &[] };
+    inv_sigma
+        .par_chunks_mut(k * w)
+        .enumerate()
+        .for_each_init(|| (Vec::new(), Vec::new()), |scratch, (y, row)| pass.colour_stops(y, row, scratch));
+    let pass = Pass { inv_sigma, ..pass };
+    next.par_chunks_mut(k * PLANES * w)
+        .enumerate()
+        .for_each_init(|| Scratch::new(w, k), |scratch, (y, row)| pass.row(y, row, scratch));
+}
+
+/// The illumination that albedo `a` turned into `v`: `v / a` per channel, and where a channel
+/// of the albedo is (nearly) black, so that its light cannot be seen, the grey light
+/// `lum(v) / lum(a)`. Multiplied back by `a`, that channel's change vanishes anyway; the
+/// estimate keeps the luminance of a red surface's light comparable with a grey one's.
+fn demodulate(v: Vec3, a: Vec3) -> Vec3 {
+    let grey = luminance(v) / luminance(a).max(MIN_ALBEDO);
+    Vec3::select(a.cmpge(Vec3::splat(MIN_ALBEDO)), v / a.max(Vec3::splat(MIN_ALBEDO)), Vec3::splat(grey))
+}
+
+/// The guide planes, made once: normal, depth, the object key (NaN where the pixel may not
+/// mix: no object, or with `pure` a mixed pixel) and the inverse depth gradient.
+struct Guides {
+    nx: Vec<f32>,
+    ny: Vec<f32>,
+    nz: Vec<f32>,
+    z: Vec<f32>,
+    key: Vec<f32>,
+    /// `log2 e / (σ_z |∇z|)` per pixel.
+    inv_dz: Vec<f32>,
+}
+
+impl Guides {
+    fn new(film: &Film, a: &Atrous, pure: bool) -> Guides {
+        let (w, h) = (film.width as usize, film.height as usize);
+        let n = w * h;
+        let key: Vec<f32> = (0..n)
+            .map(|i| {
+                let o = film.object[i];
+                if o < 0.0 || (pure && film.coverage[i] < 1.0) {
+                    f32::NAN
+                } else {
+                    o
+                }
+            })
+            .collect();
+        let z: Vec<f32> = film.depth.iter().map(|&z| if z.is_finite() { z } else { 0.0 }).collect();
+        let normal = |i: usize| {
+            let v = film.normal.pixels[i];
+            if v.is_finite() {
+                v
+            } else {
+                Vec3::ZERO
+            }
+        };
+        // The depth gradient: along each axis the smaller one-sided difference to a neighbour
+        // of the same object (so a silhouette does not count), then the larger of the axes.
+        let inv_dz = (0..n)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let side = |j: Option<usize>| {
+                    j.filter(|&j| key[j] == key[i]).map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY)
+                };
+                let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
+                let gx = axis(side(x.checked_sub(1).map(|x| y * w + x)), side((x + 1 < w).then(|| i + 1)));
+                let gy = axis(side(y.checked_sub(1).map(|y| y * w + x)), side((y + 1 < h).then(|| i + w)));
+                LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12)
+            })
+            .collect();
+        Guides {
+            nx: (0..n).map(|i| normal(i).x).collect(),
+            ny: (0..n).map(|i| normal(i).y).collect(),
+            nz: (0..n).map(|i| normal(i).z).collect(),
+            z,
+            key,
+            inv_dz,
+        }
+    }
+}
+
+/// One pass: reads `cur`, writes rows of the next buffer.
+struct Pass<'a> {
+    a: &'a Atrous,
+    w: usize,
+    h: usize,
+    /// Layers.
+    k: usize,
+    step: usize,
+    guides: &'a Guides,
+    cur: &'a [f32],
+    /// Per row and layer: `log2 e / (σ_l sqrt(g3x3(V)))`.
+    inv_sigma: &'a [f32],
+}
+
+/// Per-thread accumulators for one output row: per layer r, g, b, v and the weight sum; and the
+/// tap's geometric weight and exponent.
+struct Scratch {
+    acc: Vec<f32>,
+    geo: Vec<f32>,
+    exponent: Vec<f32>,
+}
+
+impl Scratch {
+    fn new(w: usize, k: usize) -> Scratch {
+        Scratch { acc: vec![0.0; k * PLANES * w], geo: vec![0.0; w], exponent: vec![0.0; w] }
+    }
+}
+
+impl Pass<'_> {
+    /// The plane `p` of layer `c` in row `y` of `cur`.
+    #[inline(always)]
+    fn plane(&self, y: usize, c: usize, p: usize) -> &[f32] {
+        let base = ((y * self.k + c) * PLANES + p) * self.w;
+        &self.cur[base..base + self.w]
+    }
+
+    /// Row `y` of the colour stops: each layer's variance blurred over the 3x3 Gaussian
+    /// (1/4 centre, 1/8 sides, 1/16 corners) among same-object neighbours, with `sum` and
+    /// `weight` as scratch.
+    fn colour_stops(&self, y: usize, out: &mut [f32], (sum, weight): &mut (Vec<f32>, Vec<f32>)) {
+        let (w, h) = (self.w, self.h);
+        let key = &self.guides.key;
+        let kc = &key[y * w..(y + 1) * w];
+        const K: [f32; 3] = [0.25, 0.5, 0.25];
+        for c in 0..self.k {
+            sum.clear();
+            sum.resize(w, 0.0);
+            weight.clear();
+            weight.resize(w, 0.0);
+            for dy in -1i64..=1 {
+                let yy = y as i64 + dy;
+                if yy < 0 || yy >= h as i64 {
+                    continue;
+                }
+                let yy = yy as usize;
+                let v = self.plane(yy, c, 4);
+                for dx in -1i64..=1 {
+                    let kw = K[(dx + 1) as usize] * K[(dy + 1) as usize];
+                    let x0 = (-dx).max(0) as usize;
+                    let x1 = (w as i64 - dx.max(0)).max(x0 as i64) as usize;
+                    let q0 = (x0 as i64 + dx) as usize;
+                    let n = x1 - x0;
+                    let (kc, kq, vq) = (&kc[x0..x1], &key[yy * w + q0..yy * w + q0 + n], &v[q0..q0 + n]);
+                    let (sm, wt) = (&mut sum[x0..x1], &mut weight[x0..x1]);
+                    let centre = dx == 0 && dy == 0;
+                    for j in 0..n {
+                        let kwj = if centre || kc[j] == kq[j] { kw } else { 0.0 };
+                        sm[j] += kwj * vq[j];
+                        wt[j] += kwj;
+                    }
+                }
+            }
+            let sigma_l = self.a.sigma_l;
+            for ((o, s), wt) in out[c * w..(c + 1) * w].iter_mut().zip(sum.iter()).zip(weight.iter()) {
+                *o = LOG2_E / (sigma_l * (s / wt).max(0.0).sqrt() + 1e-10);
+            }
+        }
+    }
+
+    /// Output row `y` (all layers, all planes) from the current buffer.
+    fn row(&self, y: usize, out: &mut [f32], s: &mut Scratch) {
+        let (w, k, step) = (self.w, self.k, self.step);
+        let kernel = self.a.kernel();
+        let r = kernel.len() / 2;
+        let h0 = kernel[r] * kernel[r];
+        let g = self.guides;
+        let sigma_n = self.a.sigma_n * LOG2_E;
+        s.acc.fill(0.0);
+        for (dyi, &ky) in kernel.iter().enumerate() {
+            let dy = dyi as i64 - r as i64;
+            let yy = y as i64 + dy * step as i64;
+            if yy < 0 || yy >= self.h as i64 {
+                continue;
+            }
+            let yy = yy as usize;
+            for (dxi, &kx) in kernel.iter().enumerate() {
+                let dx = dxi as i64 - r as i64;
+                if dx == 0 && dy == 0 {
+                    continue;
+                }
+                let off = dx * step as i64;
+                // Centres x0..x1 have their tap inside the row.
+                let x0 = (-off).max(0) as usize;
+                let x1 = (w as i64 - off.max(0)).max(x0 as i64) as usize;
+                if x0 >= x1 {
+                    continue;
+                }
+                let n = x1 - x0;
+                let (pc, pq) = (y * w + x0, (yy * w) as i64 + x0 as i64 + off);
+                let pq = pq as usize;
+                let inv_dist = 1.0 / (step as f32 * ((dx * dx + dy * dy) as f32).sqrt());
+                let hk = kx * ky;
+                // The geometric weight and exponent, shared by every layer.
+                geometry(
+                    hk,
+                    sigma_n,
+                    inv_dist,
+                    [&g.key[pc..pc + n], &g.key[pq..pq + n]],
+                    [&g.nx[pc..pc + n], &g.ny[pc..pc + n], &g.nz[pc..pc + n]],
+                    [&g.nx[pq..pq + n], &g.ny[pq..pq + n], &g.nz[pq..pq + n]],
+                    [&g.z[pc..pc + n], &g.z[pq..pq + n], &g.inv_dz[pc..pc + n]],
+                    &mut s.geo[..n],
+                    &mut s.exponent[..n],
+                );
+                let q0 = (x0 as i64 + off) as usize;
+                for c in 0..k {
+                    let centre = |p: usize| &self.plane(y, c, p)[x0..x1];
+                    let tap = |p: usize| &self.plane(yy, c, p)[q0..q0 + n];
+                    let base = (y * k + c) * w;
+                    let acc = &mut s.acc[c * PLANES * w..(c + 1) * PLANES * w];
+                    let (ar, rest) = acc.split_at_mut(w);
+                    let (ag, rest) = rest.split_at_mut(w);
+                    let (ab, rest) = rest.split_at_mut(w);
+                    let (av, aw) = rest.split_at_mut(w);
+                    accumulate(
+                        (&s.geo[..n], &s.exponent[..n], &self.inv_sigma[base + x0..base + x1]),
+                        [centre(0), centre(1), centre(2), centre(3)],
+                        [tap(0), tap(1), tap(2), tap(3), tap(4)],
+                        [&mut ar[x0..x1], &mut ag[x0..x1], &mut ab[x0..x1], &mut av[x0..x1], &mut aw[x0..x1]],
+                    );
+                }
+            }
+        }
+        // The weighted means, as changes to the centre.
+        for c in 0..k {
+            let acc = &s.acc[c * PLANES * w..(c + 1) * PLANES * w];
+            let dst = &mut out[c * PLANES * w..(c + 1) * PLANES * w];
+            for x in 0..w {
+                let sum_w = h0 + acc[4 * w + x];
+                let inv = 1.0 / sum_w;
+                let (r, g, b) = (
+                    self.plane(y, c, 0)[x] + acc[x] * inv,
+                    self.plane(y, c, 1)[x] + acc[w + x] * inv,
+                    self.plane(y, c, 2)[x] + acc[2 * w + x] * inv,
+                );
+                dst[x] = r;
+                dst[w + x] = g;
+                dst[2 * w + x] = b;
+                dst[3 * w + x] = luminance(Vec3::new(r, g, b));
+                dst[4 * w + x] = (h0 * h0 * self.plane(y, c, 4)[x] + acc[3 * w + x]) * inv * inv;
+            }
+        }
+    }
+}
+
+/// One tap's geometric weight (kernel weight, 0 across objects) and exponent (normal and depth
+/// stops) for a run of centres, from the centres' and the taps' guides: a flat loop over
+/// equal-length slices, which the compiler vectorises.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn geometry(
+    hk: f32,
+    sigma_n: f32,
+    inv_dist: f32,
+    [kc, kq]: [&[f32]; 2],
+    [nxc, nyc, nzc]: [&[f32]; 3],
+    [nxq, nyq, nzq]: [&[f32]; 3],
+    [zc, zq, idz]: [&[f32]; 3],
+    geo: &mut [f32],
+    e: &mut [f32],
+) {
+    let n = geo.len();
+    let (kc, kq, nxc, nyc, nzc) = (&kc[..n], &kq[..n], &nxc[..n], &nyc[..n], &nzc[..n]);
+    let (nxq, nyq, nzq, zc, zq, idz, e) =
+        (&nxq[..n], &nyq[..n], &nzq[..n], &zc[..n], &zq[..n], &idz[..n], &mut e[..n]);
+    for j in 0..n {
+        geo[j] = if kc[j] == kq[j] { hk } else { 0.0 };
+        let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
+        e[j] = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
+    }
+}
+
+/// One tap of one layer for a run of centres: the weight `k = geo 2^-(e + |Δl| inv_sigma)`,
+/// added to the sums of weighted differences (r, g, b), of squared weights times the tap's
+/// variance, and of weights.
+#[inline(never)]
+fn accumulate(
+    (geo, e, isg): (&[f32], &[f32], &[f32]),
+    [rc, gc, bc, lc]: [&[f32]; 4],
+    [rq, gq, bq, lq, vq]: [&[f32]; 5],
+    [ar, ag, ab, av, aw]: [&mut [f32]; 5],
+) {
+    let n = geo.len();
+    let (e, isg, rc, gc, bc, lc) = (&e[..n], &isg[..n], &rc[..n], &gc[..n], &bc[..n], &lc[..n]);
+    let (rq, gq, bq, lq, vq) = (&rq[..n], &gq[..n], &bq[..n], &lq[..n], &vq[..n]);
+    let (ar, ag, ab, av, aw) = (&mut ar[..n], &mut ag[..n], &mut ab[..n], &mut av[..n], &mut aw[..n]);
+    for j in 0..n {
+        let t = e[j] + (lc[j] - lq[j]).abs() * isg[j];
+        let k = geo[j] * exp2_neg(t);
+        ar[j] += k * (rq[j] - rc[j]);
+        ag[j] += k * (gq[j] - gc[j]);
+        ab[j] += k * (bq[j] - bc[j]);
+        av[j] += k * k * vq[j];
+        aw[j] += k;
+    }
+}
+
+/// `2^-t` for `t >= 0` (NaN and anything above 125 give about 2^-125), to a relative error
+/// below 2e-4: the nearest integer through the exponent bits, the rest by a cubic. Plain
+/// float and integer arithmetic, so a row loop of it vectorises.
+#[inline(always)]
+fn exp2_neg(t: f32) -> f32 {
+    // In this order a NaN becomes 125 (`clamp` would keep it).
+    #[allow(clippy::manual_clamp)]
+    let t = t.min(125.0).max(0.0);
+    // Rounded to the nearest integer by adding 1.5 2^23: its low mantissa bits are then `i`.
+    const MAGIC: f32 = 12_582_912.0;
+    let m = t + MAGIC;
+    let i = m.to_bits().wrapping_sub(MAGIC.to_bits());
+    let f = t - (m - MAGIC);
+    // 2^-f for f in [-1/2, 1/2].
+    let p = 1.0 + f * (-0.693_316_6 + f * (0.241_924_8 + f * -0.054_602_28));
+    p * f32::from_bits((127 - i) << 23)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A xorshift stream in [0, 1).
+    fn stream(seed: u32) -> impl FnMut() -> f32 {
+        let mut state = seed.max(1);
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / 16_777_216.0
+        }
+    }
+
+    /// One pass by the definition, pixel by pixel, as the module comment states it.
+    fn pass_by_definition(
+        a: &Atrous,
+        g: &Guides,
+        (w, h, k): (usize, usize, usize),
+        pass: u32,
+        cur: &[f32],
+    ) -> Vec<f32> {
+        let at = |y: usize, c: usize, p: usize, x: usize| cur[((y * k + c) * PLANES + p) * w + x];
+        let kernel = a.kernel();
+        let r = kernel.len() as i64 / 2;
+        let step = 1i64 << pass;
+        let h0 = kernel[r as usize] * kernel[r as usize];
+        let mut next = vec![0.0; cur.len()];
+        for y in 0..h {
+            for x in 0..w {
+                let p = y * w + x;
+                for c in 0..k {
+                    // The colour stop: the variance blurred among same-object neighbours.
+                    let (mut sum, mut weight) = (0.0f32, 0.0f32);
+                    for dy in -1i64..=1 {
+                        for dx in -1i64..=1 {
+                            let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                            if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                                continue;
+                            }
+                            let q = yy as usize * w + xx as usize;
+                            if q == p || g.key[q] == g.key[p] {
+                                let kw = [0.25f32, 0.5, 0.25][(dx + 1) as usize]
+                                    * [0.25f32, 0.5, 0.25][(dy + 1) as usize];
+                                sum += kw * at(yy as usize, c, 4, xx as usize);
+                                weight += kw;
+                            }
+                        }
+                    }
+                    let isg = LOG2_E / (a.sigma_l * (sum / weight).max(0.0).sqrt() + 1e-10);
+                    let mut acc = [0.0f32; 5];
+                    for dy in -r..=r {
+                        for dx in -r..=r {
+                            let (xx, yy) = (x as i64 + dx * step, y as i64 + dy * step);
+                            if (dx, dy) == (0, 0) || xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                                continue;
+                            }
+                            let (xx, yy) = (xx as usize, yy as usize);
+                            let q = yy * w + xx;
+                            let hk = kernel[(dx + r) as usize] * kernel[(dy + r) as usize];
+                            let geo = if g.key[p] == g.key[q] { hk } else { 0.0 };
+                            let dot = g.nx[p] * g.nx[q] + g.ny[p] * g.ny[q] + g.nz[p] * g.nz[q];
+                            let inv_dist = 1.0 / (step as f32 * ((dx * dx + dy * dy) as f32).sqrt());
+                            let e = a.sigma_n * LOG2_E * (1.0 - dot)
+                                + (g.z[p] - g.z[q]).abs() * g.inv_dz[p] * inv_dist;
+                            let t = e + (at(y, c, 3, x) - at(yy, c, 3, xx)).abs() * isg;
+                            let kq = geo * exp2_neg(t);
+                            for (ch, a) in acc.iter_mut().take(3).enumerate() {
+                                *a += kq * (at(yy, c, ch, xx) - at(y, c, ch, x));
+                            }
+                            acc[3] += kq * kq * at(yy, c, 4, xx);
+                            acc[4] += kq;
+                        }
+                    }
+                    let sum_w = h0 + acc[4];
+                    let rgb: [f32; 3] = std::array::from_fn(|ch| at(y, c, ch, x) + acc[ch] / sum_w);
+                    let base = (y * k + c) * PLANES * w + x;
+                    for (ch, v) in rgb.iter().enumerate() {
+                        next[base + ch * w] = *v;
+                    }
+                    next[base + 3 * w] = luminance(Vec3::from(rgb));
+                    next[base + 4 * w] = (h0 * h0 * at(y, c, 4, x) + acc[3]) / (sum_w * sum_w);
+                }
+            }
+        }
+        next
+    }
+
+    /// A film of random guides: a few objects, tilted normals, depths, some mixed pixels.
+    fn random_film(w: u32, h: u32, seed: u32) -> Film {
+        let mut next = stream(seed);
+        let mut film = Film::new(w, h);
+        for i in 0..(w * h) as usize {
+            film.object[i] = (next() * 3.0).floor() - if next() < 0.05 { 5.0 } else { 0.0 };
+            film.normal.pixels[i] = Vec3::new(next() - 0.5, next() - 0.5, 2.0).normalize();
+            film.depth[i] = 1.0 + next();
+            film.coverage[i] = if next() < 0.8 { 1.0 } else { 0.5 };
+            film.albedo.pixels[i] = Vec3::new(next(), next(), next());
+        }
+        film
+    }
+
+    /// The working buffer of `k` random layers.
+    fn random_planes(w: usize, h: usize, k: usize, seed: u32) -> Vec<f32> {
+        let mut next = stream(seed);
+        let mut cur = vec![0.0; h * k * PLANES * w];
+        for (i, v) in cur.iter_mut().enumerate() {
+            let plane = (i / w) % PLANES;
+            *v = if plane == 4 { 0.01 * next() } else { next() * 2.0 };
+        }
+        cur
+    }
+
+    #[test]
+    fn the_row_kernels_equal_the_definition() {
+        for (w, h) in [(1usize, 1usize), (2, 5), (37, 11), (130, 9)] {
+            for k in 1..=3 {
+                for (taps, pure) in [(5, false), (3, false), (5, true), (3, true)] {
+                    let a = Atrous { taps, sigma_l: 2.0, sigma_n: 16.0, ..Atrous::default() };
+                    let film = random_film(w as u32, h as u32, (w * 31 + h * 7 + k) as u32);
+                    let g = Guides::new(&film, &a, pure);
+                    let cur = random_planes(w, h, k, (w + h + k) as u32);
+                    for pass in 0..3 {
+                        let want = pass_by_definition(&a, &g, (w, h, k), pass, &cur);
+                        let mut got = vec![0.0; cur.len()];
+                        let mut scratch = vec![0.0; h * k * w];
+                        run_pass(&a, &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
+                        for (i, (x, y)) in got.iter().zip(&want).enumerate() {
+                            assert!(
+                                (x - y).abs() <= 1e-5 * y.abs().max(1e-3),
+                                "{w}x{h} k={k} taps={taps} pure={pure} pass {pass} at {i}: {x} vs {y}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// One object with flat guides and constant albedo: the film, and its image.
+    fn flat(w: u32, h: u32, mut value: impl FnMut(u32, u32) -> Vec3) -> (Film, Image) {
+        let mut film = Film::new(w, h);
+        let mut image = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                film.object[i] = 0.0;
+                film.normal.pixels[i] = Vec3::Z;
+                film.depth[i] = 2.0;
+                film.albedo.pixels[i] = Vec3::new(0.8, 0.5, 0.3);
+                image.pixels[i] = value(x, y);
+            }
+        }
+        (film, image)
+    }
+
+    #[test]
+    fn a_constant_image_is_exact() {
+        let (film, image) = flat(40, 23, |_, _| Vec3::new(0.3, 1.5, 7.0));
+        let variance = vec![0.5; 40 * 23];
+        for a in [Atrous::default(), Atrous { taps: 3, passes: 6, sigma_l: 0.5, ..Atrous::default() }] {
+            for pure in [false, true] {
+                let out = filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &a, pure);
+                assert_eq!(out[0], image, "{a:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_texture_under_constant_light_stays_sharp() {
+        // A checkerboard albedo (with a black channel) times constant light.
+        let (mut film, _) = flat(32, 32, |_, _| Vec3::ZERO);
+        let mut image = Image::new(32, 32);
+        for (i, px) in image.pixels.iter_mut().enumerate() {
+            let albedo =
+                if (i % 32 / 4 + i / 32 / 4) % 2 == 0 { Vec3::new(0.9, 0.0, 0.2) } else { Vec3::splat(0.05) };
+            film.albedo.pixels[i] = albedo;
+            *px = albedo * 3.0;
+        }
+        let variance = vec![1.0; 32 * 32];
+        let out =
+            filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &Atrous::default(), false);
+        for (a, b) in out[0].pixels.iter().zip(&image.pixels) {
+            assert!(a.is_finite() && (*a - *b).abs().max_element() <= 1e-5 * b.max_element(), "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn a_ramp_keeps_its_slope() {
+        let (w, h) = (160u32, 9u32);
+        let (film, image) = flat(w, h, |x, _| Vec3::splat(1.0 + 0.01 * x as f32));
+        let variance = vec![1e-4; (w * h) as usize];
+        for a in [Atrous::default(), Atrous { taps: 3, passes: 6, ..Atrous::default() }] {
+            let out = filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &a, false);
+            // Away from the left and right borders, farther than the filter reaches (62 pixels
+            // for five 5x5 passes, 63 for six 3x3), the symmetric taps cancel.
+            for y in 0..h {
+                for x in 64..w - 64 {
+                    let (got, want) = (out[0].get(x, y), image.get(x, y));
+                    assert!((got - want).abs().max_element() < 1e-5, "{a:?} ({x}, {y}): {got} vs {want}");
+                }
+            }
+            let slope = (out[0].get(w - 65, 4).x - out[0].get(64, 4).x) / (w - 129) as f32;
+            assert!((slope - 0.01).abs() < 1e-6, "{slope}");
+        }
+    }
+
+    #[test]
+    fn nothing_mixes_across_an_object_border() {
+        for seed in 1..20 {
+            let mut next = stream(seed);
+            let (w, h) = (24u32, 16u32);
+            let border = 4 + (next() * 16.0) as u32;
+            let (mut film, mut image) = flat(w, h, |_, _| Vec3::ZERO);
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) as usize;
+                    let a = x < border;
+                    film.object[i] = if a { 0.0 } else { 1.0 };
+                    image.pixels[i] = if a { Vec3::splat(0.5 + next()) } else { Vec3::splat(3.0) };
+                }
+            }
+            let variance = vec![0.3; (w * h) as usize];
+            let out = filter(
+                &[Layer { image: &image, variance: Some(&variance) }],
+                &film,
+                &Atrous::default(),
+                false,
+            );
+            for y in 0..h {
+                for x in 0..w {
+                    let (got, input) = (out[0].get(x, y), image.get(x, y));
+                    if x < border {
+                        // A weighted mean of A's own values: inside their range.
+                        assert!(got.x >= 0.5 - 1e-5 && got.x <= 1.5 + 1e-5, "seed {seed}: {got}");
+                    } else {
+                        assert_eq!(got, input, "seed {seed}: B changed at ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn mixed_pixels_are_left_alone_when_pure() {
+        let mut next = stream(7);
+        let (mut film, image) = flat(20, 20, |_, _| Vec3::splat(0.5 + next()));
+        film.coverage[210] = 0.5;
+        let variance = vec![0.3; 400];
+        let layer = [Layer { image: &image, variance: Some(&variance) }];
+        let pure = filter(&layer, &film, &Atrous::default(), true);
+        assert_eq!(pure[0].pixels[210], image.pixels[210]);
+        let not = filter(&layer, &film, &Atrous::default(), false);
+        assert_ne!(not[0].pixels[210], image.pixels[210]);
+    }
+
+    #[test]
+    fn one_pass_shrinks_a_uniform_variance_by_the_kernel() {
+        // No stops: one object, flat guides, equal values; then an interior pixel's variance
+        // is that of a weighted mean, (Σ h²)² V with the 1-D B3 weights.
+        let (w, h) = (16usize, 16usize);
+        let (film, _) = flat(w as u32, h as u32, |_, _| Vec3::ZERO);
+        let a = Atrous::default();
+        let g = Guides::new(&film, &a, false);
+        let mut cur = vec![0.0; h * PLANES * w];
+        for y in 0..h {
+            for x in 0..w {
+                cur[(y * PLANES + 4) * w + x] = 2.0;
+            }
+        }
+        let mut next = vec![0.0; cur.len()];
+        run_pass(&a, &g, (w, h, 1), 0, &cur, &mut next, &mut vec![0.0; h * w]);
+        let sum_h2: f32 = a.kernel().iter().map(|k| k * k).sum();
+        assert_eq!(sum_h2, 0.2734375);
+        let want = sum_h2 * sum_h2 * 2.0;
+        for y in 2..h - 2 {
+            for x in 2..w - 2 {
+                let v = next[(y * PLANES + 4) * w + x];
+                assert!((v - want).abs() < 1e-6, "({x}, {y}): {v} vs {want}");
+            }
+        }
+        // Nowhere does the variance grow.
+        assert!((0..h * w).all(|i| next[(i / w * PLANES + 4) * w + i % w] <= 2.0));
+    }
+
+    #[test]
+    fn the_mean_is_kept_within_the_noise() {
+        // Light c with Gaussian-like noise (sum of four uniforms) on one object: the filtered
+        // image's mean stays within 4 standard errors of c, the error from the noise itself.
+        let (w, h) = (64u32, 64u32);
+        let mut next = stream(11);
+        let sd = 0.2f32;
+        let (film, image) = flat(w, h, |_, _| {
+            let g = (next() + next() + next() + next() - 2.0) * (3.0f32).sqrt(); // unit variance
+            Vec3::splat(1.0 + sd * g)
+        });
+        let n = (w * h) as f32;
+        let variance = vec![sd * sd; n as usize];
+        let out =
+            filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &Atrous::default(), false);
+        let mean = |img: &Image| img.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n as f64;
+        let (m_in, m_out) = (mean(&image), mean(&out[0]));
+        let tolerance = 4.0 * sd as f64 / (n as f64).sqrt();
+        assert!((m_in - 1.0).abs() < tolerance, "the input: {m_in}");
+        assert!((m_out - 1.0).abs() < tolerance, "filtered: {m_out} vs 1 ± {tolerance}");
+        // And it did smooth: the spread fell.
+        let spread = |img: &Image, m: f64| {
+            (img.pixels.iter().map(|p| (p.x as f64 - m).powi(2)).sum::<f64>() / n as f64).sqrt()
+        };
+        assert!(spread(&out[0], m_out) < 0.5 * spread(&image, m_in));
+    }
+
+    #[test]
+    fn the_result_does_not_depend_on_the_thread_count() {
+        let film = random_film(57, 33, 3);
+        let mut next = stream(5);
+        let mut image = Image::new(57, 33);
+        image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
+        let variance: Vec<f32> = (0..57 * 33).map(|_| 0.1 * next()).collect();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
+            pool.install(|| {
+                filter(
+                    &[Layer { image: &image, variance: Some(&variance) }],
+                    &film,
+                    &Atrous::default(),
+                    false,
+                )
+            })
+        };
+        let one = run(1);
+        assert_ne!(one[0], image);
+        assert_eq!(one, run(2));
+        assert_eq!(one, run(3));
+    }
+
+    #[test]
+    fn settings_parse_and_name_round_trip() {
+        assert_eq!(Atrous::parse("atrous"), Ok(Atrous::default()));
+        let a = Atrous::parse("atrous:passes=4:sigma_l=8:taps=3").expect("parses");
+        assert_eq!((a.passes, a.sigma_l, a.taps), (4, 8.0, 3));
+        assert_eq!(a.name(), "atrous:passes=4:sigma_l=8:taps=3");
+        assert_eq!(Atrous::parse(&a.name()), Ok(a));
+        assert_eq!(Atrous::default().name(), "atrous");
+        for bad in [
+            "atrous:passes=0",
+            "atrous:passes=-1",
+            "atrous:passes=2.5",
+            "atrous:passes=13",
+            "atrous:sigma_l=0",
+            "atrous:sigma_l=nan",
+            "atrous:sigma_n=-1",
+            "atrous:taps=4",
+            "atrous:radius=2",
+            "atrous:passes",
+            "atrous:sigma_z=x",
+        ] {
+            assert!(Atrous::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn exp2_neg_is_close_and_never_negative() {
+        for i in 0..=20_000 {
+            let t = i as f32 * 0.005;
+            let (got, want) = (exp2_neg(t), (-t).exp2());
+            assert!((got / want - 1.0).abs() < 2e-4, "{t}: {got} vs {want}");
+        }
+        assert!(exp2_neg(f32::NAN) >= 0.0 && exp2_neg(f32::NAN) < 1e-30);
+        assert!(exp2_neg(f32::INFINITY) < 1e-30);
+        assert_eq!(exp2_neg(-1.0), 1.0);
+    }
+}
