@@ -190,10 +190,18 @@ pub struct ConvergeArgs {
 /// How to filter: shared by `render` and `filter`.
 #[derive(clap::Args, Clone)]
 pub struct FilterArgs {
-    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, or an odd
-    /// square kernel as comma-separated weights.
+    /// Noise-reduction filter: box3 (the paper's A), weighted3 (B), median3 (C), box5, an odd
+    /// square kernel as comma-separated weights, or atrous (variance-guided à-trous wavelets,
+    /// with settings: atrous:passes=5:sigma_l=4:sigma_n=128:sigma_z=1:taps=5).
     #[arg(long)]
     pub filter: Option<String>,
+    /// Denoise with the best setting measured (docs/RESULTS.md, "Denoising"): the à-trous
+    /// filter (atrous:taps=3:passes=4:sigma_l=6) on each component, emitted light left alone.
+    #[arg(
+        long,
+        conflicts_with_all = ["filter", "filter_target", "edge_aware", "edge_normal", "edge_depth", "edge_pure"]
+    )]
+    pub denoise: bool,
     /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
     #[arg(long, value_parser = choice::<FilterTarget, Target>())]
     pub filter_target: Option<Target>,
@@ -215,6 +223,9 @@ pub struct FilterArgs {
 impl FilterArgs {
     /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
     fn check(&self, base: &Setting) -> Result<Setting, Failure> {
+        if self.denoise {
+            return Ok(Setting::denoise());
+        }
         let kernel = match self.filter.as_deref() {
             Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
             None => base.kernel.clone(),
@@ -280,6 +291,9 @@ pub struct FilterCommandArgs {
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
+    /// Print what was done as JSON on stdout: the filter, its target and its seconds.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `compare`.

@@ -342,7 +342,19 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
             args.input.display()
         )));
     }
-    args.out.write(film, &setting, &args.output)?;
+    let seconds = args.out.write(film, &setting, &args.output)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "input": args.input,
+                "output": args.output,
+                "filter": setting.kernel.as_ref().map(Kernel::name),
+                "filter_target": setting.target.name(),
+                "filter_seconds": seconds,
+            })
+        );
+    }
     Ok(())
 }
 

@@ -307,6 +307,22 @@ fn atrous_and_the_components_target_work_and_check_their_input() {
         assert!(err.contains(needle), "{args:?}: {err}");
         assert!(!Path::new(&p("bad.exr")).exists());
     }
+    // --denoise: the shortcut filters, and cannot be combined with a filter of one's own.
+    let (out, err) = run(&["filter", &p("f.exr"), "-o", &p("denoised.exr"), "--denoise", "--json"]);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(v["filter_target"], "components");
+    assert!(v["filter"].as_str().is_some_and(|f| f.starts_with("atrous")), "{v}");
+    assert!(v["filter_seconds"].as_f64().is_some_and(|s| s > 0.0), "{v}");
+    let (out, _) = run(&["compare", &p("denoised.exr"), &p("f.exr"), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(v["rmse"].as_f64().expect("rmse") > 0.0, "--denoise changed nothing");
+    for other in [&["--filter", "box3"][..], &["--filter-target", "image"], &["--edge-aware"]] {
+        let (out, err) =
+            run(&[&["filter", &p("f.exr"), "-o", &p("bad.exr"), "--denoise"][..], other].concat());
+        assert_eq!(out.status.code(), Some(2), "{other:?}: {err}");
+        assert!(err.contains("--denoise"), "{err}");
+    }
     // A file without the variance layers: the paper's filters still run, atrous says why not.
     let (w, h, channels) = lightsplit::film::read_exr_channels(Path::new(&p("f.exr"))).expect("reads");
     let old: Vec<_> = channels.into_iter().filter(|(name, _)| !name.contains("_variance")).collect();

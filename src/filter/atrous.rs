@@ -164,7 +164,7 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
     }
     let guides = Guides::new(film, a, pure);
     let k = live.len();
-    let albedo: Vec<Vec3> = film.albedo.pixels.iter().map(|p| p.max(Vec3::ZERO)).collect();
+    let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
     // Demodulated illumination, its luminance and its variance, row by row.
     let mut cur = vec![0.0f32; h * k * PLANES * w];
     cur.par_chunks_mut(k * PLANES * w).enumerate().for_each(|(y, row)| {
@@ -173,7 +173,7 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
             let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
             for x in 0..w {
                 let i = y * w + x;
-                let (v, a) = (layer.image.pixels[i], albedo[i]);
+                let (v, a) = (layer.image.pixels[i], albedo(i));
                 let u = demodulate(v, a);
                 let (lu, lv) = (luminance(u), luminance(v));
                 let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
@@ -186,7 +186,6 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
             }
         }
     });
-    let first = cur.clone();
     let mut next = vec![0.0f32; cur.len()];
     let mut inv_sigma = vec![0.0f32; h * k * w];
     for pass in 0..a.passes {
@@ -196,19 +195,16 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
         run_pass(a, &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
         std::mem::swap(&mut cur, &mut next);
     }
-    // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first).
+    // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
+    // first made again as it was.
     for (c, &li) in live.iter().enumerate() {
         let image = &mut out[li];
         image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let base = (y * k + c) * PLANES * w;
             for (x, px) in row.iter_mut().enumerate() {
-                let at = |buf: &[f32], p: usize| buf[base + p * w + x];
-                let du = Vec3::new(
-                    at(&cur, 0) - at(&first, 0),
-                    at(&cur, 1) - at(&first, 1),
-                    at(&cur, 2) - at(&first, 2),
-                );
-                *px += albedo[y * w + x] * du;
+                let a = albedo(y * w + x);
+                let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
+                *px += a * (last - demodulate(*px, a));
             }
         });
     }
@@ -264,6 +260,7 @@ impl Guides {
         let (w, h) = (film.width as usize, film.height as usize);
         let n = w * h;
         let key: Vec<f32> = (0..n)
+            .into_par_iter()
             .map(|i| {
                 let o = film.object[i];
                 if o < 0.0 || (pure && film.coverage[i] < 1.0) {
@@ -273,7 +270,7 @@ impl Guides {
                 }
             })
             .collect();
-        let z: Vec<f32> = film.depth.iter().map(|&z| if z.is_finite() { z } else { 0.0 }).collect();
+        let z: Vec<f32> = film.depth.par_iter().map(|&z| if z.is_finite() { z } else { 0.0 }).collect();
         let normal = |i: usize| {
             let v = film.normal.pixels[i];
             if v.is_finite() {
@@ -285,6 +282,7 @@ impl Guides {
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
         let inv_dz = (0..n)
+            .into_par_iter()
             .map(|i| {
                 let (x, y) = (i % w, i / w);
                 let side = |j: Option<usize>| {
@@ -297,9 +295,9 @@ impl Guides {
             })
             .collect();
         Guides {
-            nx: (0..n).map(|i| normal(i).x).collect(),
-            ny: (0..n).map(|i| normal(i).y).collect(),
-            nz: (0..n).map(|i| normal(i).z).collect(),
+            nx: (0..n).into_par_iter().map(|i| normal(i).x).collect(),
+            ny: (0..n).into_par_iter().map(|i| normal(i).y).collect(),
+            nz: (0..n).into_par_iter().map(|i| normal(i).z).collect(),
             z,
             key,
             inv_dz,
@@ -419,19 +417,33 @@ impl Pass<'_> {
                 let pq = pq as usize;
                 let inv_dist = 1.0 / (step as f32 * ((dx * dx + dy * dy) as f32).sqrt());
                 let hk = kx * ky;
-                // The geometric weight and exponent, shared by every layer.
-                geometry(
-                    hk,
-                    sigma_n,
-                    inv_dist,
+                let q0 = (x0 as i64 + off) as usize;
+                let guides = (
                     [&g.key[pc..pc + n], &g.key[pq..pq + n]],
                     [&g.nx[pc..pc + n], &g.ny[pc..pc + n], &g.nz[pc..pc + n]],
                     [&g.nx[pq..pq + n], &g.ny[pq..pq + n], &g.nz[pq..pq + n]],
                     [&g.z[pc..pc + n], &g.z[pq..pq + n], &g.inv_dz[pc..pc + n]],
-                    &mut s.geo[..n],
-                    &mut s.exponent[..n],
                 );
-                let q0 = (x0 as i64 + off) as usize;
+                if k == 1 {
+                    // One layer: the geometry in the same loop, never stored.
+                    let centre = |p: usize| &self.plane(y, 0, p)[x0..x1];
+                    let tap = |p: usize| &self.plane(yy, 0, p)[q0..q0 + n];
+                    let (ar, rest) = s.acc.split_at_mut(w);
+                    let (ag, rest) = rest.split_at_mut(w);
+                    let (ab, rest) = rest.split_at_mut(w);
+                    let (av, aw) = rest.split_at_mut(w);
+                    accumulate_one(
+                        (hk, sigma_n, inv_dist),
+                        guides,
+                        &self.inv_sigma[y * w + x0..y * w + x1],
+                        [centre(0), centre(1), centre(2), centre(3)],
+                        [tap(0), tap(1), tap(2), tap(3), tap(4)],
+                        [&mut ar[x0..x1], &mut ag[x0..x1], &mut ab[x0..x1], &mut av[x0..x1], &mut aw[x0..x1]],
+                    );
+                    continue;
+                }
+                // The geometric weight and exponent, shared by every layer.
+                geometry(hk, sigma_n, inv_dist, guides, &mut s.geo[..n], &mut s.exponent[..n]);
                 for c in 0..k {
                     let centre = |p: usize| &self.plane(y, c, p)[x0..x1];
                     let tap = |p: usize| &self.plane(yy, c, p)[q0..q0 + n];
@@ -475,19 +487,9 @@ impl Pass<'_> {
 /// One tap's geometric weight (kernel weight, 0 across objects) and exponent (normal and depth
 /// stops) for a run of centres, from the centres' and the taps' guides: a flat loop over
 /// equal-length slices, which the compiler vectorises.
-#[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn geometry(
-    hk: f32,
-    sigma_n: f32,
-    inv_dist: f32,
-    [kc, kq]: [&[f32]; 2],
-    [nxc, nyc, nzc]: [&[f32]; 3],
-    [nxq, nyq, nzq]: [&[f32]; 3],
-    [zc, zq, idz]: [&[f32]; 3],
-    geo: &mut [f32],
-    e: &mut [f32],
-) {
+fn geometry(hk: f32, sigma_n: f32, inv_dist: f32, guides: TapGuides, geo: &mut [f32], e: &mut [f32]) {
+    let ([kc, kq], [nxc, nyc, nzc], [nxq, nyq, nzq], [zc, zq, idz]) = guides;
     let n = geo.len();
     let (kc, kq, nxc, nyc, nzc) = (&kc[..n], &kq[..n], &nxc[..n], &nyc[..n], &nzc[..n]);
     let (nxq, nyq, nzq, zc, zq, idz, e) =
@@ -496,6 +498,41 @@ fn geometry(
         geo[j] = if kc[j] == kq[j] { hk } else { 0.0 };
         let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
         e[j] = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
+    }
+}
+
+/// The guides of a run of centres and of their taps: object keys (centre, tap), the centres'
+/// normals, the taps' normals, and depths (centre, tap) with the centres' inverse gradients.
+type TapGuides<'a> = ([&'a [f32]; 2], [&'a [f32]; 3], [&'a [f32]; 3], [&'a [f32]; 3]);
+
+/// [`geometry`] and [`accumulate`] in one loop, for a single layer.
+#[inline(never)]
+fn accumulate_one(
+    (hk, sigma_n, inv_dist): (f32, f32, f32),
+    guides: TapGuides,
+    isg: &[f32],
+    [rc, gc, bc, lc]: [&[f32]; 4],
+    [rq, gq, bq, lq, vq]: [&[f32]; 5],
+    [ar, ag, ab, av, aw]: [&mut [f32]; 5],
+) {
+    let ([kc, kq], [nxc, nyc, nzc], [nxq, nyq, nzq], [zc, zq, idz]) = guides;
+    let n = isg.len();
+    let (kc, kq, nxc, nyc, nzc) = (&kc[..n], &kq[..n], &nxc[..n], &nyc[..n], &nzc[..n]);
+    let (nxq, nyq, nzq, zc, zq, idz) = (&nxq[..n], &nyq[..n], &nzq[..n], &zc[..n], &zq[..n], &idz[..n]);
+    let (rc, gc, bc, lc) = (&rc[..n], &gc[..n], &bc[..n], &lc[..n]);
+    let (rq, gq, bq, lq, vq) = (&rq[..n], &gq[..n], &bq[..n], &lq[..n], &vq[..n]);
+    let (ar, ag, ab, av, aw) = (&mut ar[..n], &mut ag[..n], &mut ab[..n], &mut av[..n], &mut aw[..n]);
+    for j in 0..n {
+        let geo = if kc[j] == kq[j] { hk } else { 0.0 };
+        let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
+        let e = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
+        let t = e + (lc[j] - lq[j]).abs() * isg[j];
+        let k = geo * exp2_neg(t);
+        ar[j] += k * (rq[j] - rc[j]);
+        ag[j] += k * (gq[j] - gc[j]);
+        ab[j] += k * (bq[j] - bc[j]);
+        av[j] += k * k * vq[j];
+        aw[j] += k;
     }
 }
 

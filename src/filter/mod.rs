@@ -105,6 +105,19 @@ impl Default for Setting {
     }
 }
 
+impl Setting {
+    /// What `--denoise` asks for: the setting with the least error measured on the three
+    /// scenes of docs/RESULTS.md ("Denoising", `scripts/bench-denoise.sh`) within the time
+    /// budget.
+    pub fn denoise() -> Setting {
+        Setting {
+            kernel: Some(Kernel::Atrous(Atrous { taps: 3, passes: 4, sigma_l: 6.0, ..Atrous::default() })),
+            target: Target::Components,
+            stops: EdgeStops::default(),
+        }
+    }
+}
+
 /// What the filter is applied to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Target {
