@@ -3,10 +3,12 @@
 # render, the paper's weighted3 on L_rdd, box5 on L_rdd with `--edge-aware --edge-pure`, the
 # à-trous filter on L_rdd and on every component (`--denoise`), and Intel Open Image Denoise 2.5
 # on the beauty with albedo and normal, all on the very same renders, against one reference.
-# Writes the section between `<!-- denoise:begin -->` and `<!-- denoise:end -->` of
+# Then `converge` on each scene at 4 to 256 spp: --denoise against box5 --edge-pure on L_rdd.
+# And on the gallery, the textured regions alone (carpet, pictures, marble): error, detail kept,
+# crops. Writes the section between `<!-- denoise:begin -->` and `<!-- denoise:end -->` of
 # docs/RESULTS.md (appended when missing).
 #
-#   scripts/bench-denoise.sh                  # about 25 minutes on a 2-core machine
+#   scripts/bench-denoise.sh                  # about 15 minutes on a 2-core machine
 #   SCENES=cornell scripts/bench-denoise.sh --no-write
 #
 # Options (each also an environment variable):
@@ -69,13 +71,13 @@ if ! "$PY" -c "import numpy, mitsuba, pyoidn" 2>/dev/null; then
     "$PY" -m pip install --quiet numpy "mitsuba>=3,<4" "pyoidn==2.5.1.0"
 fi
 
-# The filters measured, as `name|flags of lightsplit filter`.
+# The filters measured, as `name|flags of lightsplit filter` (no comma in a name: rows.csv).
 SETTINGS=(
     "unfiltered|"
     "weighted3 indirect|--filter weighted3"
     "box5 indirect --edge-pure|--filter box5 --edge-aware --edge-pure"
-    "atrous indirect|--filter atrous:taps=3:passes=4:sigma_l=6"
-    "--denoise (atrous components)|--denoise"
+    "atrous on indirect|--filter atrous:taps=3:passes=4:sigma_l=6"
+    "--denoise (atrous on components; edge-pure)|--denoise"
 )
 mkdir -p "$OUT"
 rows=$OUT/rows.csv
@@ -108,6 +110,28 @@ for s in $SCENES; do
         echo "$s,$seed,OIDN 2.5 (beauty + albedo + normal),$(metric "$oidn" "$ref"),$seconds" >> "$rows"
     done
 done
-args=("$rows" --spp "$SPP" --seeds "$SEEDS" --reference-spp "$REFERENCE_SPP")
+# The textured regions of the gallery (seed 1): error and detail kept, and crops.
+if [[ " $SCENES " == *" paper-gallery "* ]]; then
+    dir=$OUT/paper-gallery
+    "$BIN" filter "$dir/film-1.exr" -o "$dir/denoised-1.exr" --denoise
+    "$PY" scripts/denoise/regions.py "$dir/film-1.exr" "$dir/reference-${REFERENCE_SPP}spp.exr" \
+        "unfiltered=$dir/film-1.exr" "denoise=$dir/denoised-1.exr" "OIDN 2.5=$dir/oidn-1.pfm" \
+        --crops "$OUT/gallery-crops.png" > "$OUT/regions.md"
+fi
+# Against box5 --edge-pure at every spp from 4 to 256: converge, which renders each spp once per
+# seed and filters that render both ways.
+DENOISE_KERNEL=atrous:taps=3:passes=4:sigma_l=6
+for s in $SCENES; do
+    echo "bench-denoise: $s: converge at 4 to 256 spp" >&2
+    "$BIN" converge "scenes/$s.toml" --reference "$OUT/$s/reference-${REFERENCE_SPP}spp.exr" \
+        --spp 4,16,64,256 --seeds "$SEEDS" --filters "none,box5,$DENOISE_KERNEL" \
+        --targets indirect,components --edge-aware pure --out "$OUT/$s/converge" >/dev/null
+done
+args=("$rows" --spp "$SPP" --seeds "$SEEDS" --reference-spp "$REFERENCE_SPP" --regions "$OUT/regions.md"
+    --curves "$OUT" --denoise-kernel "$DENOISE_KERNEL")
+if [ "$write" = 1 ] && [ -f "$OUT/gallery-crops.png" ]; then
+    mkdir -p docs/results
+    cp "$OUT/gallery-crops.png" docs/results/denoise-gallery-crops.png
+fi
 [ "$write" = 1 ] && args+=(--write docs/RESULTS.md)
 "$PY" scripts/denoise/report.py "${args[@]}"

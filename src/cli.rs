@@ -196,7 +196,8 @@ pub struct FilterArgs {
     #[arg(long)]
     pub filter: Option<String>,
     /// Denoise with the best setting measured (docs/RESULTS.md, "Denoising"): the à-trous
-    /// filter (atrous:taps=3:passes=4:sigma_l=6) on each component, emitted light left alone.
+    /// filter (atrous:taps=3:passes=4:sigma_l=6, --edge-pure) on each component, emitted light
+    /// left alone.
     #[arg(
         long,
         conflicts_with_all = ["filter", "filter_target", "edge_aware", "edge_normal", "edge_depth", "edge_pure"]

@@ -151,7 +151,8 @@ const PLANES: usize = 5;
 
 /// Filters each layer with `a`, its colour stop scaled by its own variance, all sharing the
 /// guides of `film` (albedo, normal, depth, object; with `pure`, pixels whose samples saw more
-/// than one object are left alone and out of their neighbours' windows). The film's guides and
+/// than one object stay out of their neighbours' windows and are filtered only among
+/// themselves). The film's guides and
 /// the layers must have the film's size.
 pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
     let (w, h) = (film.width as usize, film.height as usize);
@@ -243,8 +244,13 @@ fn demodulate(v: Vec3, a: Vec3) -> Vec3 {
     Vec3::select(a.cmpge(Vec3::splat(MIN_ALBEDO)), v / a.max(Vec3::splat(MIN_ALBEDO)), Vec3::splat(grey))
 }
 
+/// The key of a pixel whose samples saw more than one object, under `pure`: such pixels mix
+/// only with each other, along the border they lie on (their normals and depths are averages
+/// of both sides, so the other stops keep them there).
+const MIXED: f32 = -2.0;
+
 /// The guide planes, made once: normal, depth, the object key (NaN where the pixel may not
-/// mix: no object, or with `pure` a mixed pixel) and the inverse depth gradient.
+/// mix: no object; [`MIXED`] with `pure` for a mixed pixel) and the inverse depth gradient.
 struct Guides {
     nx: Vec<f32>,
     ny: Vec<f32>,
@@ -263,8 +269,10 @@ impl Guides {
             .into_par_iter()
             .map(|i| {
                 let o = film.object[i];
-                if o < 0.0 || (pure && film.coverage[i] < 1.0) {
+                if o < 0.0 {
                     f32::NAN
+                } else if pure && film.coverage[i] < 1.0 {
+                    MIXED
                 } else {
                     o
                 }
@@ -325,11 +333,37 @@ struct Scratch {
     acc: Vec<f32>,
     geo: Vec<f32>,
     exponent: Vec<f32>,
+    /// Per layer, the runs of the row's pixels with noise to remove.
+    spans: Vec<Vec<(usize, usize)>>,
 }
 
 impl Scratch {
     fn new(w: usize, k: usize) -> Scratch {
-        Scratch { acc: vec![0.0; k * PLANES * w], geo: vec![0.0; w], exponent: vec![0.0; w] }
+        Scratch {
+            acc: vec![0.0; k * PLANES * w],
+            geo: vec![0.0; w],
+            exponent: vec![0.0; w],
+            spans: vec![Vec::new(); k],
+        }
+    }
+}
+
+/// The colour stop of a pixel whose blurred variance is 0: one with no noise to remove, which
+/// keeps its value (taps of any other luminance would weigh 2^-125 or less anyway).
+const NOISELESS: f32 = LOG2_E / 1e-10;
+
+/// Into `spans`, the runs of pixels of a row whose colour stops `inv_sigma` show noise, runs
+/// less than 8 pixels apart joined (a few noiseless pixels cost less than another call).
+fn active_spans(inv_sigma: &[f32], spans: &mut Vec<(usize, usize)>) {
+    spans.clear();
+    for (x, &isg) in inv_sigma.iter().enumerate() {
+        if isg >= NOISELESS {
+            continue;
+        }
+        match spans.last_mut() {
+            Some(last) if x < last.1 + 8 => last.1 = x + 1,
+            _ => spans.push((x, x + 1)),
+        }
     }
 }
 
@@ -379,6 +413,7 @@ impl Pass<'_> {
             }
             let sigma_l = self.a.sigma_l;
             for ((o, s), wt) in out[c * w..(c + 1) * w].iter_mut().zip(sum.iter()).zip(weight.iter()) {
+                // NOISELESS where the variance is 0.
                 *o = LOG2_E / (sigma_l * (s / wt).max(0.0).sqrt() + 1e-10);
             }
         }
@@ -393,10 +428,21 @@ impl Pass<'_> {
         let g = self.guides;
         let sigma_n = self.a.sigma_n * LOG2_E;
         s.acc.fill(0.0);
+        // Each layer's runs of pixels that have noise to remove; elsewhere nothing changes.
+        for c in 0..k {
+            active_spans(&self.inv_sigma[(y * k + c) * w..(y * k + c + 1) * w], &mut s.spans[c]);
+        }
+        let hull = (
+            s.spans[..k].iter().filter_map(|v| v.first()).map(|r| r.0).min().unwrap_or(0),
+            s.spans[..k].iter().filter_map(|v| v.last()).map(|r| r.1).max().unwrap_or(0),
+        );
+        if hull.0 >= hull.1 {
+            s.spans.iter_mut().for_each(Vec::clear);
+        }
         for (dyi, &ky) in kernel.iter().enumerate() {
             let dy = dyi as i64 - r as i64;
             let yy = y as i64 + dy * step as i64;
-            if yy < 0 || yy >= self.h as i64 {
+            if yy < 0 || yy >= self.h as i64 || hull.0 >= hull.1 {
                 continue;
             }
             let yy = yy as usize;
@@ -406,59 +452,63 @@ impl Pass<'_> {
                     continue;
                 }
                 let off = dx * step as i64;
-                // Centres x0..x1 have their tap inside the row.
-                let x0 = (-off).max(0) as usize;
-                let x1 = (w as i64 - off.max(0)).max(x0 as i64) as usize;
+                // Centres x0..x1 have their tap inside the row (and some noise to remove).
+                let x0 = ((-off).max(0) as usize).max(hull.0);
+                let x1 = ((w as i64 - off.max(0)).max(0) as usize).min(hull.1);
                 if x0 >= x1 {
                     continue;
                 }
-                let n = x1 - x0;
-                let (pc, pq) = (y * w + x0, (yy * w) as i64 + x0 as i64 + off);
-                let pq = pq as usize;
                 let inv_dist = 1.0 / (step as f32 * ((dx * dx + dy * dy) as f32).sqrt());
                 let hk = kx * ky;
-                let q0 = (x0 as i64 + off) as usize;
-                let guides = (
-                    [&g.key[pc..pc + n], &g.key[pq..pq + n]],
-                    [&g.nx[pc..pc + n], &g.ny[pc..pc + n], &g.nz[pc..pc + n]],
-                    [&g.nx[pq..pq + n], &g.ny[pq..pq + n], &g.nz[pq..pq + n]],
-                    [&g.z[pc..pc + n], &g.z[pq..pq + n], &g.inv_dz[pc..pc + n]],
-                );
-                if k == 1 {
-                    // One layer: the geometry in the same loop, never stored.
-                    let centre = |p: usize| &self.plane(y, 0, p)[x0..x1];
-                    let tap = |p: usize| &self.plane(yy, 0, p)[q0..q0 + n];
-                    let (ar, rest) = s.acc.split_at_mut(w);
-                    let (ag, rest) = rest.split_at_mut(w);
-                    let (ab, rest) = rest.split_at_mut(w);
-                    let (av, aw) = rest.split_at_mut(w);
-                    accumulate_one(
-                        (hk, sigma_n, inv_dist),
-                        guides,
-                        &self.inv_sigma[y * w + x0..y * w + x1],
-                        [centre(0), centre(1), centre(2), centre(3)],
-                        [tap(0), tap(1), tap(2), tap(3), tap(4)],
-                        [&mut ar[x0..x1], &mut ag[x0..x1], &mut ab[x0..x1], &mut av[x0..x1], &mut aw[x0..x1]],
+                // The guides of centres a..b and of their taps.
+                let guides = |a: usize, b: usize| {
+                    let (pc, pq) = (y * w + a, (yy * w + a) as i64 + off);
+                    let (pq, n) = (pq as usize, b - a);
+                    (
+                        [&g.key[pc..pc + n], &g.key[pq..pq + n]],
+                        [&g.nx[pc..pc + n], &g.ny[pc..pc + n], &g.nz[pc..pc + n]],
+                        [&g.nx[pq..pq + n], &g.ny[pq..pq + n], &g.nz[pq..pq + n]],
+                        [&g.z[pc..pc + n], &g.z[pq..pq + n], &g.inv_dz[pc..pc + n]],
+                    )
+                };
+                if k > 1 {
+                    // The geometric weight and exponent, shared by every layer.
+                    geometry(
+                        hk,
+                        sigma_n,
+                        inv_dist,
+                        guides(x0, x1),
+                        &mut s.geo[..x1 - x0],
+                        &mut s.exponent[..x1 - x0],
                     );
-                    continue;
                 }
-                // The geometric weight and exponent, shared by every layer.
-                geometry(hk, sigma_n, inv_dist, guides, &mut s.geo[..n], &mut s.exponent[..n]);
                 for c in 0..k {
-                    let centre = |p: usize| &self.plane(y, c, p)[x0..x1];
-                    let tap = |p: usize| &self.plane(yy, c, p)[q0..q0 + n];
                     let base = (y * k + c) * w;
-                    let acc = &mut s.acc[c * PLANES * w..(c + 1) * PLANES * w];
-                    let (ar, rest) = acc.split_at_mut(w);
+                    let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at_mut(w);
                     let (ag, rest) = rest.split_at_mut(w);
                     let (ab, rest) = rest.split_at_mut(w);
                     let (av, aw) = rest.split_at_mut(w);
-                    accumulate(
-                        (&s.geo[..n], &s.exponent[..n], &self.inv_sigma[base + x0..base + x1]),
-                        [centre(0), centre(1), centre(2), centre(3)],
-                        [tap(0), tap(1), tap(2), tap(3), tap(4)],
-                        [&mut ar[x0..x1], &mut ag[x0..x1], &mut ab[x0..x1], &mut av[x0..x1], &mut aw[x0..x1]],
-                    );
+                    for &(a, b) in &s.spans[c] {
+                        let (a, b) = (a.max(x0), b.min(x1));
+                        if a >= b {
+                            continue;
+                        }
+                        let q = (a as i64 + off) as usize;
+                        let centre = |p: usize| &self.plane(y, c, p)[a..b];
+                        let tap = |p: usize| &self.plane(yy, c, p)[q..q + b - a];
+                        let isg = &self.inv_sigma[base + a..base + b];
+                        let sums =
+                            [&mut ar[a..b], &mut ag[a..b], &mut ab[a..b], &mut av[a..b], &mut aw[a..b]];
+                        let centres = [centre(0), centre(1), centre(2), centre(3)];
+                        let taps = [tap(0), tap(1), tap(2), tap(3), tap(4)];
+                        if k == 1 {
+                            // One layer: the geometry in the same loop, never stored.
+                            accumulate_one((hk, sigma_n, inv_dist), guides(a, b), isg, centres, taps, sums);
+                        } else {
+                            let (ga, gb) = (a - x0, b - x0);
+                            accumulate((&s.geo[ga..gb], &s.exponent[ga..gb], isg), centres, taps, sums);
+                        }
+                    }
                 }
             }
         }
@@ -631,8 +681,10 @@ mod tests {
                     }
                     let isg = LOG2_E / (a.sigma_l * (sum / weight).max(0.0).sqrt() + 1e-10);
                     let mut acc = [0.0f32; 5];
-                    for dy in -r..=r {
-                        for dx in -r..=r {
+                    // A pixel without noise keeps its value.
+                    let reach = if isg >= NOISELESS { 0 } else { r };
+                    for dy in -reach..=reach {
+                        for dx in -reach..=reach {
                             let (xx, yy) = (x as i64 + dx * step, y as i64 + dy * step);
                             if (dx, dy) == (0, 0) || xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
                                 continue;
@@ -687,8 +739,15 @@ mod tests {
         let mut next = stream(seed);
         let mut cur = vec![0.0; h * k * PLANES * w];
         for (i, v) in cur.iter_mut().enumerate() {
-            let plane = (i / w) % PLANES;
-            *v = if plane == 4 { 0.01 * next() } else { next() * 2.0 };
+            let (x, plane, c, y) = (i % w, (i / w) % PLANES, (i / w / PLANES) % k, i / w / PLANES / k);
+            // Noiseless regions, which keep their values: a band of columns in even layers, the
+            // top rows in odd ones.
+            let noiseless = if c % 2 == 0 { 3 * x < w } else { 2 * y < h };
+            *v = match plane {
+                4 if noiseless => 0.0,
+                4 => 0.01 * next(),
+                _ => next() * 2.0,
+            };
         }
         cur
     }
@@ -823,8 +882,11 @@ mod tests {
         }
     }
 
+    /// With `pure`, mixed pixels (coverage below 1) mix only with each other: a lone one keeps
+    /// its value, a column of them is smoothed along itself, and what the pure pixels become
+    /// does not depend on the mixed pixels' values.
     #[test]
-    fn mixed_pixels_are_left_alone_when_pure() {
+    fn mixed_pixels_mix_only_among_themselves_when_pure() {
         let mut next = stream(7);
         let (mut film, image) = flat(20, 20, |_, _| Vec3::splat(0.5 + next()));
         film.coverage[210] = 0.5;
@@ -834,6 +896,23 @@ mod tests {
         assert_eq!(pure[0].pixels[210], image.pixels[210]);
         let not = filter(&layer, &film, &Atrous::default(), false);
         assert_ne!(not[0].pixels[210], image.pixels[210]);
+
+        film.coverage[210] = 1.0;
+        let column: Vec<usize> = (0..20).map(|y| y * 20 + 9).collect();
+        column.iter().for_each(|&i| film.coverage[i] = 0.5);
+        let pure = filter(&layer, &film, &Atrous::default(), true);
+        let mut bright = image.clone();
+        column.iter().for_each(|&i| bright.pixels[i] *= 10.0);
+        let brighter =
+            filter(&[Layer { image: &bright, variance: Some(&variance) }], &film, &Atrous::default(), true);
+        let spread = |img: &Image| {
+            let v: Vec<f32> = column.iter().map(|&i| img.pixels[i].x).collect();
+            v.iter().fold(f32::MIN, |a, &b| a.max(b)) - v.iter().fold(f32::MAX, |a, &b| a.min(b))
+        };
+        assert!(spread(&pure[0]) < 0.8 * spread(&image), "the column was not smoothed along itself");
+        for i in (0..400).filter(|i| !column.contains(i)) {
+            assert_eq!(pure[0].pixels[i], brighter[0].pixels[i], "pixel {i} took from a mixed pixel");
+        }
     }
 
     #[test]

@@ -113,7 +113,7 @@ impl Setting {
         Setting {
             kernel: Some(Kernel::Atrous(Atrous { taps: 3, passes: 4, sigma_l: 6.0, ..Atrous::default() })),
             target: Target::Components,
-            stops: EdgeStops::default(),
+            stops: EdgeStops { pure: true, ..EdgeStops::default() },
         }
     }
 }
