@@ -120,7 +120,7 @@ if [[ " $SCENES " == *" paper-gallery "* ]]; then
 fi
 # Against box5 --edge-pure at every spp from 4 to 256: converge, which renders each spp once per
 # seed and filters that render both ways.
-DENOISE_KERNEL=atrous:taps=3:passes=4:sigma_l=6
+DENOISE_KERNEL=atrous:passes=4:sigma_l=6:taps=3 # as converge names it
 for s in $SCENES; do
     echo "bench-denoise: $s: converge at 4 to 256 spp" >&2
     "$BIN" converge "scenes/$s.toml" --reference "$OUT/$s/reference-${REFERENCE_SPP}spp.exr" \
@@ -129,9 +129,17 @@ for s in $SCENES; do
 done
 args=("$rows" --spp "$SPP" --seeds "$SEEDS" --reference-spp "$REFERENCE_SPP" --regions "$OUT/regions.md"
     --curves "$OUT" --denoise-kernel "$DENOISE_KERNEL")
-if [ "$write" = 1 ] && [ -f "$OUT/gallery-crops.png" ]; then
+if [ "$write" = 1 ]; then
     mkdir -p docs/results
-    cp "$OUT/gallery-crops.png" docs/results/denoise-gallery-crops.png
+    [ -f "$OUT/gallery-crops.png" ] && cp "$OUT/gallery-crops.png" docs/results/denoise-gallery-crops.png
+    for s in $SCENES; do
+        c=$OUT/$s/converge
+        cp "$c/error-vs-time.png" "docs/results/denoise-$s-error-vs-time.png"
+        cp "$c/diff-${SPP}spp-unfiltered.png" "docs/results/denoise-$s-diff-unfiltered.png" 2>/dev/null || true
+        cp "$c/diff-${SPP}spp-box5-indirect-edge-aware-pure.png" "docs/results/denoise-$s-diff-box5.png" 2>/dev/null || true
+        cp "$c/diff-${SPP}spp-$DENOISE_KERNEL-components-edge-aware-pure.png" "docs/results/denoise-$s-diff-denoise.png" 2>/dev/null || true
+    done
+    args+=(--figures "$SCENES")
 fi
 [ "$write" = 1 ] && args+=(--write docs/RESULTS.md)
 "$PY" scripts/denoise/report.py "${args[@]}"
