@@ -44,14 +44,26 @@ table's 1.44x.
   except `sigma_z` 0.5 (+20%).
 - 3x3 taps against 5x5: within 2% in error at half the time, so `--denoise` uses 3x3, 4 passes.
 
-**Time.** `lightsplit filter --json`, on this 2-core machine (SSE2 code; no AVX2, which would need
-`unsafe` outside the modules allowed it): `--denoise` takes 16 to 27 ms at 256x256 (two or three
-layers) and 2.8 s at 3840x2160 (a 1-spp Cornell box); on indirect alone 11 to 14 ms and 1.2 to 1.3
-s. The budget is 10 ms and 1.5 s: met at 4K on indirect alone, missed at 256x256 by 1.1 to 2.7x.
-Steps: fused geometry and weight loop for one layer, no copy of the first pass (15.5 to 12.9 ms
-on indirect, 3x3); noiseless pixels skipped (the gallery's direct light is 88% zero; no change
-within the noise of the measurement). Of the 27 ms on the gallery: the tap loops 16 ms, the
-colour stops 3.4 ms, demodulation and allocation 4.5 ms, the guides 2 ms. OIDN takes 254 ms."""
+**Time.** `cargo bench --bench filter` (criterion, warm, on its synthetic film: two live layers,
+noise everywhere) on this 2-core machine, SSE2 code (AVX2 would need `unsafe` outside the
+modules allowed it):
+
+| | 256x256 | 3840x2160 | budget |
+|---|---|---|---|
+| `--denoise` (3x3, 4 passes, components) | 18.2 ms | 2.07 s | 10 ms, 1.5 s: **missed**, 1.8x and 1.4x |
+| the same on indirect alone | 9.7 ms | 1.27 s | met |
+| `atrous` defaults (5x5, 5 passes), indirect | 24.0 ms | 2.83 s | |
+| `atrous` defaults, components | 40.2 ms | 4.65 s | |
+
+On the real films (`filter --json`, a fresh process) `--denoise` takes 24 to 29 ms at 256x256
+(with the first allocation's page faults), OIDN 254 ms. Steps, each measured before and after:
+vectorisable row loops over equal-length slices and `2^-t` from exponent bits (5x5 components on
+the bench film: 135 to 46 ms); one fused geometry-and-weight loop for a single layer (28 to 27
+ms); no copy of the first pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped (the
+gallery's direct light is 88% zero: no change beyond the noise of the measurement); one vector
+division to demodulate and a vectorised end of row (gallery 24.7 to 23.9 ms, median of 24 runs,
+alternated). Of `--denoise`'s 24 ms on the gallery: the tap loops about 60%, the colour stops
+(the 3x3 variance blur) and the ends of rows 10% each, demodulation and the guides the rest."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 

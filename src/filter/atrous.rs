@@ -19,7 +19,7 @@
 //! would pile weight onto the border). Every output pixel is computed on its own from the
 //! previous pass, so the result is the same for any number of threads.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::{Film, Image};
@@ -239,7 +239,12 @@ fn run_pass(
 /// of the albedo is (nearly) black, so that its light cannot be seen, the grey light
 /// `lum(v) / lum(a)`. Multiplied back by `a`, that channel's change vanishes anyway; the
 /// estimate keeps the luminance of a red surface's light comparable with a grey one's.
+#[inline(always)]
 fn demodulate(v: Vec3, a: Vec3) -> Vec3 {
+    if a.min_element() >= MIN_ALBEDO {
+        // Every channel seen: one vector division.
+        return Vec3::from(Vec3A::from(v) / Vec3A::from(a));
+    }
     let grey = luminance(v) / luminance(a).max(MIN_ALBEDO);
     Vec3::select(a.cmpge(Vec3::splat(MIN_ALBEDO)), v / a.max(Vec3::splat(MIN_ALBEDO)), Vec3::splat(grey))
 }
@@ -345,6 +350,31 @@ impl Scratch {
             exponent: vec![0.0; w],
             spans: vec![Vec::new(); k],
         }
+    }
+}
+
+/// A row's weighted means from its centres and sums (plane by plane, so the loop vectorises):
+/// the centre plus the weighted differences over the weight sum, its luminance, and the
+/// variance of the weighted mean.
+fn finish_row(
+    h0: f32,
+    [r0, g0, b0, v0]: [&[f32]; 4],
+    [ar, ag, ab, av, aw]: [&[f32]; 5],
+    [dr, dg, db, dl, dv]: [&mut [f32]; 5],
+) {
+    let n = dr.len();
+    let (r0, g0, b0, v0) = (&r0[..n], &g0[..n], &b0[..n], &v0[..n]);
+    let (ar, ag, ab, av, aw) = (&ar[..n], &ag[..n], &ab[..n], &av[..n], &aw[..n]);
+    let (dg, db, dl, dv) = (&mut dg[..n], &mut db[..n], &mut dl[..n], &mut dv[..n]);
+    for x in 0..n {
+        let inv = 1.0 / (h0 + aw[x]);
+        let (r, g, b) = (r0[x] + ar[x] * inv, g0[x] + ag[x] * inv, b0[x] + ab[x] * inv);
+        dr[x] = r;
+        dg[x] = g;
+        db[x] = b;
+        // `luminance`, term by term in its order.
+        dl[x] = r * 0.2126 + g * 0.7152 + b * 0.0722;
+        dv[x] = (h0 * h0 * v0[x] + av[x]) * inv * inv;
     }
 }
 
@@ -514,22 +544,17 @@ impl Pass<'_> {
         }
         // The weighted means, as changes to the centre.
         for c in 0..k {
-            let acc = &s.acc[c * PLANES * w..(c + 1) * PLANES * w];
-            let dst = &mut out[c * PLANES * w..(c + 1) * PLANES * w];
-            for x in 0..w {
-                let sum_w = h0 + acc[4 * w + x];
-                let inv = 1.0 / sum_w;
-                let (r, g, b) = (
-                    self.plane(y, c, 0)[x] + acc[x] * inv,
-                    self.plane(y, c, 1)[x] + acc[w + x] * inv,
-                    self.plane(y, c, 2)[x] + acc[2 * w + x] * inv,
-                );
-                dst[x] = r;
-                dst[w + x] = g;
-                dst[2 * w + x] = b;
-                dst[3 * w + x] = luminance(Vec3::new(r, g, b));
-                dst[4 * w + x] = (h0 * h0 * self.plane(y, c, 4)[x] + acc[3 * w + x]) * inv * inv;
-            }
+            let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at(w);
+            let (ag, rest) = rest.split_at(w);
+            let (ab, rest) = rest.split_at(w);
+            let (av, aw) = rest.split_at(w);
+            let (dr, rest) = out[c * PLANES * w..(c + 1) * PLANES * w].split_at_mut(w);
+            let (dg, rest) = rest.split_at_mut(w);
+            let (db, rest) = rest.split_at_mut(w);
+            let (dl, dv) = rest.split_at_mut(w);
+            let (r0, g0, b0, v0) =
+                (self.plane(y, c, 0), self.plane(y, c, 1), self.plane(y, c, 2), self.plane(y, c, 4));
+            finish_row(h0, [r0, g0, b0, v0], [ar, ag, ab, av, aw], [dr, dg, db, dl, dv]);
         }
     }
 }
