@@ -55,8 +55,9 @@ modules allowed it):
 | `atrous` defaults (5x5, 5 passes), indirect | 24.0 ms | 2.83 s | |
 | `atrous` defaults, components | 40.2 ms | 4.65 s | |
 
-On the real films (`filter --json`, a fresh process) `--denoise` takes 24 to 29 ms at 256x256
-(with the first allocation's page faults), OIDN 254 ms. Steps, each measured before and after:
+The table's times on the real films (`filter --json`, a fresh process, first-touch page faults
+included) vary by several ms from run to run (17 to 29 ms for `--denoise` over the runs made);
+OIDN's are 10 to 15 times ours. Steps, each measured before and after:
 vectorisable row loops over equal-length slices and `2^-t` from exponent bits (5x5 components on
 the bench film: 135 to 46 ms); one fused geometry-and-weight loop for a single layer (28 to 27
 ms); no copy of the first pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped (the

@@ -20,8 +20,9 @@ fn font() {
     });
 }
 
-const WIDTH: u32 = 1180;
-/// The legend's column, right of the chart, so that it never covers a line.
+/// The chart's width; the legend's column, right of it so that it never covers a line, is as
+/// wide as its longest label needs (at least [`LEGEND`]).
+const CHART: u32 = 880;
 const LEGEND: u32 = 300;
 const HEIGHT: u32 = 600;
 
@@ -47,12 +48,15 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
     }
     let (xmin, xmax) = all.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let (ymin, ymax) = all.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
-    let mut buf = vec![0u8; (WIDTH * HEIGHT * 3) as usize];
+    // About 9 pixels a character at the legend's size, after the 38-pixel swatch.
+    let longest = table.series.iter().map(|s| s.label().chars().count()).max().unwrap_or(0) as u32;
+    let width = CHART + (48 + 9 * longest).max(LEGEND);
+    let mut buf = vec![0u8; (width * HEIGHT * 3) as usize];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut buf, (width, HEIGHT)).into_drawing_area();
         let e = |e: DrawingAreaErrorKind<_>| e.to_string();
         root.fill(&WHITE).map_err(e)?;
-        let (plot, legend) = root.split_horizontally(WIDTH - LEGEND);
+        let (plot, legend) = root.split_horizontally(CHART);
         let title =
             if by_time { "RMSE against render + filter time" } else { "RMSE against samples per pixel" };
         let mut chart = ChartBuilder::on(&plot)
@@ -82,5 +86,5 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
         }
         root.present().map_err(e)?;
     }
-    crate::film::write_rgb8(path, WIDTH, HEIGHT, buf).map_err(|e| e.to_string())
+    crate::film::write_rgb8(path, width, HEIGHT, buf).map_err(|e| e.to_string())
 }

@@ -15,6 +15,10 @@
 //!   kernel weight alone), so a constant image is exact;
 //! - `V'_p = (h(0)² V_p + Σ k_q² V_q) / W²`, the variance of that weighted mean.
 //!
+//! A pixel whose blurred variance `g3x3(V)_p` is 0 has no noise to remove and keeps its value
+//! (every tap of another luminance would weigh 2^-125 or less anyway); rows are filtered only
+//! over their runs of noisy pixels.
+//!
 //! Taps outside the image are left out (not replicated: at a hole of 16 pixels replication
 //! would pile weight onto the border). Every output pixel is computed on its own from the
 //! previous pass, so the result is the same for any number of threads.
