@@ -288,14 +288,8 @@ impl Guides {
             })
             .collect();
         let z: Vec<f32> = film.depth.par_iter().map(|&z| if z.is_finite() { z } else { 0.0 }).collect();
-        let normal = |i: usize| {
-            let v = film.normal.pixels[i];
-            if v.is_finite() {
-                v
-            } else {
-                Vec3::ZERO
-            }
-        };
+        let normals: Vec<Vec3> =
+            film.normal.pixels.par_iter().map(|&v| if v.is_finite() { v } else { Vec3::ZERO }).collect();
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
         let inv_dz = (0..n)
@@ -312,9 +306,9 @@ impl Guides {
             })
             .collect();
         Guides {
-            nx: (0..n).into_par_iter().map(|i| normal(i).x).collect(),
-            ny: (0..n).into_par_iter().map(|i| normal(i).y).collect(),
-            nz: (0..n).into_par_iter().map(|i| normal(i).z).collect(),
+            nx: normals.par_iter().map(|v| v.x).collect(),
+            ny: normals.par_iter().map(|v| v.y).collect(),
+            nz: normals.par_iter().map(|v| v.z).collect(),
             z,
             key,
             inv_dz,

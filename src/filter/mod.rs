@@ -521,13 +521,14 @@ pub fn composite<'a>(
         return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
     }
     let layers: Vec<Layer> = filtered.iter().map(|&c| layer(c)).collect();
-    let images = filter_layers(&layers, kernel, film, stops);
+    let mut images = filter_layers(&layers, kernel, film, stops);
     let mut out = film.components[Emitted].clone();
     for c in [Direct, Caustic, Indirect] {
         let image = filtered.iter().position(|&f| f == c).map_or(&film.components[c], |i| &images[i]);
         out.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
     }
-    let indirect = filtered.iter().position(|&f| f == Indirect).map(|i| images[i].clone());
+    // The filtered indirect layer is handed out, not copied.
+    let indirect = filtered.iter().position(|&f| f == Indirect).map(|i| images.swap_remove(i));
     (Cow::Owned(out), indirect)
 }
 
