@@ -26,6 +26,7 @@
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
+use crate::component::Component;
 use crate::film::{Film, Image};
 use crate::math::luminance;
 
@@ -44,11 +45,32 @@ pub struct Atrous {
     pub sigma_z: f32,
     /// The kernel's width: 5 (B3 spline, 1 4 6 4 1) or 3 (1 2 1).
     pub taps: u32,
+    /// Under `--filter-target components`, the direct light's own `sigma_l` and `passes`
+    /// (`direct_sigma_l`, `direct_passes`); unset, the ones above.
+    pub direct: Strength,
+    /// The same for the caustic light (`caustic_sigma_l`, `caustic_passes`).
+    pub caustic: Strength,
+}
+
+/// One component's colour stop and passes, where they differ from the filter's own.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Strength {
+    pub sigma_l: Option<f32>,
+    /// 0 leaves the component as it is.
+    pub passes: Option<u32>,
 }
 
 impl Default for Atrous {
     fn default() -> Self {
-        Atrous { passes: 5, sigma_l: 4.0, sigma_n: 128.0, sigma_z: 1.0, taps: 5 }
+        Atrous {
+            passes: 5,
+            sigma_l: 4.0,
+            sigma_n: 128.0,
+            sigma_z: 1.0,
+            taps: 5,
+            direct: Strength::default(),
+            caustic: Strength::default(),
+        }
     }
 }
 
@@ -76,9 +98,14 @@ impl Atrous {
                 "sigma_n" => a.sigma_n = number,
                 "sigma_z" => a.sigma_z = number,
                 "taps" => a.taps = whole(key, number)?,
+                "direct_sigma_l" => a.direct.sigma_l = Some(number),
+                "direct_passes" => a.direct.passes = Some(whole(key, number)?),
+                "caustic_sigma_l" => a.caustic.sigma_l = Some(number),
+                "caustic_passes" => a.caustic.passes = Some(whole(key, number)?),
                 other => {
                     return Err(format!(
-                        "unknown atrous setting `{other}` (passes, sigma_l, sigma_n, sigma_z, taps)"
+                        "unknown atrous setting `{other}` (passes, sigma_l, sigma_n, sigma_z, taps, \
+                         direct_sigma_l, direct_passes, caustic_sigma_l, caustic_passes)"
                     ))
                 }
             }
@@ -87,12 +114,25 @@ impl Atrous {
         Ok(a)
     }
 
-    /// Checks the ranges: 1 to 12 passes, positive finite sigmas, 3 or 5 taps.
+    /// Checks the ranges: 1 to 12 passes (0 to 12 for a component's own), positive finite
+    /// sigmas, 3 or 5 taps.
     pub fn check(&self) -> Result<(), String> {
         if !(1..=MAX_PASSES).contains(&self.passes) {
             return Err(format!("atrous passes must be 1 to {MAX_PASSES}, not {}", self.passes));
         }
-        for (name, v) in [("sigma_l", self.sigma_l), ("sigma_n", self.sigma_n), ("sigma_z", self.sigma_z)] {
+        for (name, p) in [("direct_passes", self.direct.passes), ("caustic_passes", self.caustic.passes)] {
+            if p.is_some_and(|p| p > MAX_PASSES) {
+                return Err(format!("atrous {name} must be 0 to {MAX_PASSES}, not {}", p.unwrap_or(0)));
+            }
+        }
+        let own = |s: Option<f32>| s.unwrap_or(self.sigma_l);
+        for (name, v) in [
+            ("sigma_l", self.sigma_l),
+            ("sigma_n", self.sigma_n),
+            ("sigma_z", self.sigma_z),
+            ("direct_sigma_l", own(self.direct.sigma_l)),
+            ("caustic_sigma_l", own(self.caustic.sigma_l)),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("atrous {name} must be a positive number, not {v}"));
             }
@@ -118,7 +158,25 @@ impl Atrous {
         add("sigma_n", self.sigma_n, d.sigma_n);
         add("sigma_z", self.sigma_z, d.sigma_z);
         add("taps", self.taps as f32, d.taps as f32);
+        for (name, s) in [("direct", self.direct), ("caustic", self.caustic)] {
+            if let Some(v) = s.sigma_l {
+                out.push_str(&format!(":{name}_sigma_l={v}"));
+            }
+            if let Some(p) = s.passes {
+                out.push_str(&format!(":{name}_passes={p}"));
+            }
+        }
         out
+    }
+
+    /// The colour stop and passes of a layer that is `component` (if it is one).
+    fn strength(&self, component: Option<Component>) -> (f32, u32) {
+        let own = match component {
+            Some(Component::Direct) => self.direct,
+            Some(Component::Caustic) => self.caustic,
+            _ => Strength::default(),
+        };
+        (own.sigma_l.unwrap_or(self.sigma_l), own.passes.unwrap_or(self.passes))
     }
 
     /// The 1-D kernel, centre in the middle.
@@ -145,6 +203,16 @@ pub struct Layer<'a> {
     pub image: &'a Image,
     /// Without it (an old film), the colour stop sees no noise and nothing is smoothed.
     pub variance: Option<&'a [f32]>,
+    /// The light-path component the layer holds, if it is one: [`Atrous::direct`] and
+    /// [`Atrous::caustic`] apply to theirs.
+    pub component: Option<Component>,
+}
+
+impl<'a> Layer<'a> {
+    /// A layer that is no particular component.
+    pub fn new(image: &'a Image, variance: Option<&'a [f32]>) -> Layer<'a> {
+        Layer { image, variance, component: None }
+    }
 }
 
 /// The smallest albedo divided by: darker channels are treated as black ([`demodulate`]).
@@ -160,9 +228,12 @@ const PLANES: usize = 5;
 /// the layers must have the film's size.
 pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
     let (w, h) = (film.width as usize, film.height as usize);
-    // Layers that are zero everywhere stay so.
-    let live: Vec<usize> =
-        (0..layers.len()).filter(|&i| layers[i].image.pixels.iter().any(|p| *p != Vec3::ZERO)).collect();
+    // Layers that are zero everywhere, or have no passes, stay as they are.
+    let live: Vec<usize> = (0..layers.len())
+        .filter(|&i| {
+            a.strength(layers[i].component).1 > 0 && layers[i].image.pixels.iter().any(|p| *p != Vec3::ZERO)
+        })
+        .collect();
     let mut out: Vec<Image> = layers.iter().map(|l| l.image.clone()).collect();
     if live.is_empty() || w == 0 || h == 0 {
         return out;
@@ -193,11 +264,14 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
     });
     let mut next = vec![0.0f32; cur.len()];
     let mut inv_sigma = vec![0.0f32; h * k * w];
-    for pass in 0..a.passes {
+    // Each layer's colour stop and passes; a layer past its passes is carried over.
+    let strengths: Vec<(f32, u32)> = live.iter().map(|&li| a.strength(layers[li].component)).collect();
+    let passes = strengths.iter().map(|s| s.1).max().unwrap_or(0);
+    for pass in 0..passes {
         if (1usize << pass) >= w.max(h) {
             break; // every tap would fall outside the image
         }
-        run_pass(a, &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
+        run_pass((a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
         std::mem::swap(&mut cur, &mut next);
     }
     // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
@@ -219,7 +293,7 @@ pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Imag
 /// Pass `pass` (holes of `2^pass` pixels) over `cur`, rows of `k` layers of [`PLANES`] planes
 /// of width `w`, into `next`; `inv_sigma` (`h k w` floats) is scratch for the colour stops.
 fn run_pass(
-    a: &Atrous,
+    (a, strengths): (&Atrous, &[(f32, u32)]),
     guides: &Guides,
     (w, h, k): (usize, usize, usize),
     pass: u32,
@@ -228,7 +302,7 @@ fn run_pass(
     inv_sigma: &mut [f32],
 ) {
     let step = 1usize << pass;
-    let pass = Pass { a, w, h, k, step, guides, cur, inv_sigma: &[] };
+    let pass = Pass { a, strengths, pass, w, h, k, step, guides, cur, inv_sigma: &[] };
     inv_sigma
         .par_chunks_mut(k * w)
         .enumerate()
@@ -319,6 +393,9 @@ impl Guides {
 /// One pass: reads `cur`, writes rows of the next buffer.
 struct Pass<'a> {
     a: &'a Atrous,
+    /// Per layer, its `sigma_l` and passes.
+    strengths: &'a [(f32, u32)],
+    pass: u32,
     w: usize,
     h: usize,
     /// Layers.
@@ -439,7 +516,7 @@ impl Pass<'_> {
                     }
                 }
             }
-            let sigma_l = self.a.sigma_l;
+            let sigma_l = self.strengths[c].0;
             for ((o, s), wt) in out[c * w..(c + 1) * w].iter_mut().zip(sum.iter()).zip(weight.iter()) {
                 // NOISELESS where the variance is 0.
                 *o = LOG2_E / (sigma_l * (s / wt).max(0.0).sqrt() + 1e-10);
@@ -456,9 +533,13 @@ impl Pass<'_> {
         let g = self.guides;
         let sigma_n = self.a.sigma_n * LOG2_E;
         s.acc.fill(0.0);
-        // Each layer's runs of pixels that have noise to remove; elsewhere nothing changes.
+        // Each layer's runs of pixels that have noise to remove; elsewhere, and in a layer past
+        // its passes, nothing changes.
         for c in 0..k {
             active_spans(&self.inv_sigma[(y * k + c) * w..(y * k + c + 1) * w], &mut s.spans[c]);
+            if self.pass >= self.strengths[c].1 {
+                s.spans[c].clear();
+            }
         }
         let hull = (
             s.spans[..k].iter().filter_map(|v| v.first()).map(|r| r.0).min().unwrap_or(0),
@@ -788,7 +869,8 @@ mod tests {
                         let want = pass_by_definition(&a, &g, (w, h, k), pass, &cur);
                         let mut got = vec![0.0; cur.len()];
                         let mut scratch = vec![0.0; h * k * w];
-                        run_pass(&a, &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
+                        let strengths = vec![(a.sigma_l, a.passes); k];
+                        run_pass((&a, &strengths), &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
                         for (i, (x, y)) in got.iter().zip(&want).enumerate() {
                             assert!(
                                 (x - y).abs() <= 1e-5 * y.abs().max(1e-3),
@@ -824,7 +906,7 @@ mod tests {
         let variance = vec![0.5; 40 * 23];
         for a in [Atrous::default(), Atrous { taps: 3, passes: 6, sigma_l: 0.5, ..Atrous::default() }] {
             for pure in [false, true] {
-                let out = filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &a, pure);
+                let out = filter(&[Layer::new(&image, Some(&variance))], &film, &a, pure);
                 assert_eq!(out[0], image, "{a:?}");
             }
         }
@@ -842,8 +924,7 @@ mod tests {
             *px = albedo * 3.0;
         }
         let variance = vec![1.0; 32 * 32];
-        let out =
-            filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &Atrous::default(), false);
+        let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
         for (a, b) in out[0].pixels.iter().zip(&image.pixels) {
             assert!(a.is_finite() && (*a - *b).abs().max_element() <= 1e-5 * b.max_element(), "{a} vs {b}");
         }
@@ -855,7 +936,7 @@ mod tests {
         let (film, image) = flat(w, h, |x, _| Vec3::splat(1.0 + 0.01 * x as f32));
         let variance = vec![1e-4; (w * h) as usize];
         for a in [Atrous::default(), Atrous { taps: 3, passes: 6, ..Atrous::default() }] {
-            let out = filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &a, false);
+            let out = filter(&[Layer::new(&image, Some(&variance))], &film, &a, false);
             // Away from the left and right borders, farther than the filter reaches (62 pixels
             // for five 5x5 passes, 63 for six 3x3), the symmetric taps cancel.
             for y in 0..h {
@@ -885,12 +966,7 @@ mod tests {
                 }
             }
             let variance = vec![0.3; (w * h) as usize];
-            let out = filter(
-                &[Layer { image: &image, variance: Some(&variance) }],
-                &film,
-                &Atrous::default(),
-                false,
-            );
+            let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
             for y in 0..h {
                 for x in 0..w {
                     let (got, input) = (out[0].get(x, y), image.get(x, y));
@@ -914,7 +990,7 @@ mod tests {
         let (mut film, image) = flat(20, 20, |_, _| Vec3::splat(0.5 + next()));
         film.coverage[210] = 0.5;
         let variance = vec![0.3; 400];
-        let layer = [Layer { image: &image, variance: Some(&variance) }];
+        let layer = [Layer::new(&image, Some(&variance))];
         let pure = filter(&layer, &film, &Atrous::default(), true);
         assert_eq!(pure[0].pixels[210], image.pixels[210]);
         let not = filter(&layer, &film, &Atrous::default(), false);
@@ -926,8 +1002,7 @@ mod tests {
         let pure = filter(&layer, &film, &Atrous::default(), true);
         let mut bright = image.clone();
         column.iter().for_each(|&i| bright.pixels[i] *= 10.0);
-        let brighter =
-            filter(&[Layer { image: &bright, variance: Some(&variance) }], &film, &Atrous::default(), true);
+        let brighter = filter(&[Layer::new(&bright, Some(&variance))], &film, &Atrous::default(), true);
         let spread = |img: &Image| {
             let v: Vec<f32> = column.iter().map(|&i| img.pixels[i].x).collect();
             v.iter().fold(f32::MIN, |a, &b| a.max(b)) - v.iter().fold(f32::MAX, |a, &b| a.min(b))
@@ -953,7 +1028,7 @@ mod tests {
             }
         }
         let mut next = vec![0.0; cur.len()];
-        run_pass(&a, &g, (w, h, 1), 0, &cur, &mut next, &mut vec![0.0; h * w]);
+        run_pass((&a, &[(a.sigma_l, a.passes)]), &g, (w, h, 1), 0, &cur, &mut next, &mut vec![0.0; h * w]);
         let sum_h2: f32 = a.kernel().iter().map(|k| k * k).sum();
         assert_eq!(sum_h2, 0.2734375);
         let want = sum_h2 * sum_h2 * 2.0;
@@ -980,8 +1055,7 @@ mod tests {
         });
         let n = (w * h) as f32;
         let variance = vec![sd * sd; n as usize];
-        let out =
-            filter(&[Layer { image: &image, variance: Some(&variance) }], &film, &Atrous::default(), false);
+        let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
         let mean = |img: &Image| img.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n as f64;
         let (m_in, m_out) = (mean(&image), mean(&out[0]));
         let tolerance = 4.0 * sd as f64 / (n as f64).sqrt();
@@ -1003,19 +1077,52 @@ mod tests {
         let variance: Vec<f32> = (0..57 * 33).map(|_| 0.1 * next()).collect();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
-            pool.install(|| {
-                filter(
-                    &[Layer { image: &image, variance: Some(&variance) }],
-                    &film,
-                    &Atrous::default(),
-                    false,
-                )
-            })
+            pool.install(|| filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false))
         };
         let one = run(1);
         assert_ne!(one[0], image);
         assert_eq!(one, run(2));
         assert_eq!(one, run(3));
+    }
+
+    #[test]
+    fn each_component_gets_its_own_strength() {
+        let film = random_film(41, 29, 11);
+        let mut next = stream(13);
+        let mut noisy = || {
+            let mut image = Image::new(41, 29);
+            image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
+            image
+        };
+        let (direct, caustic, indirect) = (noisy(), noisy(), noisy());
+        let variance: Vec<f32> = (0..41 * 29).map(|i| 0.02 + 0.001 * (i % 7) as f32).collect();
+        let a = Atrous {
+            taps: 3,
+            direct: Strength { sigma_l: Some(1.5), passes: Some(1) },
+            caustic: Strength { sigma_l: None, passes: Some(0) },
+            ..Atrous::default()
+        };
+        let layer = |image, component| Layer { image, variance: Some(&variance), component: Some(component) };
+        let together = filter(
+            &[
+                layer(&direct, Component::Direct),
+                layer(&caustic, Component::Caustic),
+                layer(&indirect, Component::Indirect),
+            ],
+            &film,
+            &a,
+            true,
+        );
+        // Each layer as if filtered alone, with its component's settings as the filter's own.
+        let alone = |image, sigma_l, passes| {
+            filter(&[Layer::new(image, Some(&variance))], &film, &Atrous { sigma_l, passes, ..a }, true)
+                .remove(0)
+        };
+        assert_eq!(together[0], alone(&direct, 1.5, 1));
+        assert_ne!(together[0], alone(&direct, a.sigma_l, a.passes));
+        assert_eq!(together[1], caustic, "no passes: left as it is");
+        assert_eq!(together[2], alone(&indirect, a.sigma_l, a.passes));
+        assert_ne!(together[2], indirect);
     }
 
     #[test]
@@ -1025,6 +1132,12 @@ mod tests {
         assert_eq!((a.passes, a.sigma_l, a.taps), (4, 8.0, 3));
         assert_eq!(a.name(), "atrous:passes=4:sigma_l=8:taps=3");
         assert_eq!(Atrous::parse(&a.name()), Ok(a));
+        let own =
+            Atrous::parse("atrous:caustic_passes=2:direct_sigma_l=1.5:direct_passes=0").expect("parses");
+        assert_eq!(own.direct, Strength { sigma_l: Some(1.5), passes: Some(0) });
+        assert_eq!(own.caustic, Strength { sigma_l: None, passes: Some(2) });
+        assert_eq!(own.name(), "atrous:direct_sigma_l=1.5:direct_passes=0:caustic_passes=2");
+        assert_eq!(Atrous::parse(&own.name()), Ok(own));
         assert_eq!(Atrous::default().name(), "atrous");
         for bad in [
             "atrous:passes=0",
@@ -1038,6 +1151,11 @@ mod tests {
             "atrous:radius=2",
             "atrous:passes",
             "atrous:sigma_z=x",
+            "atrous:direct_passes=13",
+            "atrous:caustic_passes=-1",
+            "atrous:direct_sigma_l=0",
+            "atrous:caustic_sigma_l=inf",
+            "atrous:emitted_passes=1",
         ] {
             assert!(Atrous::parse(bad).is_err(), "{bad}");
         }

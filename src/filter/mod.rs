@@ -15,7 +15,7 @@ use std::borrow::Cow;
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use atrous::{Atrous, Layer};
+pub use atrous::{Atrous, Layer, Strength};
 
 use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
 use crate::film::{Film, Image};
@@ -111,7 +111,17 @@ impl Setting {
     /// budget.
     pub fn denoise() -> Setting {
         Setting {
-            kernel: Some(Kernel::Atrous(Atrous { taps: 3, passes: 4, sigma_l: 6.0, ..Atrous::default() })),
+            kernel: Some(Kernel::Atrous(Atrous {
+                taps: 3,
+                passes: 4,
+                sigma_l: 6.0,
+                sigma_n: 32.0,
+                sigma_z: 2.0,
+                // The direct light is the least noisy: a light touch, one pass. The caustic
+                // light is the noisiest: a loose stop.
+                direct: Strength { sigma_l: Some(1.5), passes: Some(1) },
+                caustic: Strength { sigma_l: Some(24.0), passes: None },
+            })),
             target: Target::Components,
             stops: EdgeStops { pure: true, ..EdgeStops::default() },
         }
@@ -198,7 +208,7 @@ impl EdgeStops {
 /// the image as it is.
 pub fn filter(image: &Image, kernel: &Kernel, film: &Film, stops: &EdgeStops) -> Image {
     if let Kernel::Atrous(_) = kernel {
-        let mut out = filter_layers(&[Layer { image, variance: None }], kernel, film, stops);
+        let mut out = filter_layers(&[Layer::new(image, None)], kernel, film, stops);
         return out.pop().unwrap_or_else(|| image.clone());
     }
     let f = Filter::new(image, kernel, film, stops);
@@ -507,6 +517,7 @@ pub fn composite<'a>(
     let layer = |c: Component| Layer {
         image: &film.components[c],
         variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
+        component: Some(c),
     };
     let filtered: &[Component] = match target {
         Target::None => return (Cow::Borrowed(&film.raw), None),
@@ -517,7 +528,7 @@ pub fn composite<'a>(
     };
     if filtered.is_empty() {
         let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
-        let mut out = filter_layers(&[Layer { image: &film.raw, variance }], kernel, film, stops);
+        let mut out = filter_layers(&[Layer::new(&film.raw, variance)], kernel, film, stops);
         return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
     }
     let layers: Vec<Layer> = filtered.iter().map(|&c| layer(c)).collect();
@@ -751,7 +762,7 @@ mod tests {
         let (out, indirect) = composite(&noisy, Some(&k), Target::Components, &EdgeStops::default());
         let indirect = indirect.expect("filtered indirect");
         let direct = filter_layers(
-            &[Layer { image: &noisy.components[Direct], variance: Some(&noisy.component_variance[Direct]) }],
+            &[Layer::new(&noisy.components[Direct], Some(&noisy.component_variance[Direct]))],
             &k,
             &noisy,
             &EdgeStops::default(),
