@@ -55,7 +55,7 @@ fn bench(c: &mut Criterion) {
             b.iter(|| composite(&film, denoise.kernel.as_ref(), denoise.target, &denoise.stops))
         });
         for (spec, target) in [
-            ("atrous:taps=3:passes=4:sigma_l=6", Target::Indirect),
+            ("atrous:taps=3:passes=4:sigma_l=6:sigma_n=32:sigma_z=2", Target::Indirect),
             ("atrous", Target::Indirect),
             ("atrous", Target::Components),
         ] {

@@ -76,7 +76,7 @@ SETTINGS=(
     "unfiltered|"
     "weighted3 indirect|--filter weighted3"
     "box5 indirect --edge-pure|--filter box5 --edge-aware --edge-pure"
-    "atrous on indirect|--filter atrous:taps=3:passes=4:sigma_l=6"
+    "atrous on indirect|--filter atrous:taps=3:passes=4:sigma_l=6:sigma_n=32:sigma_z=2"
     "--denoise (atrous on components; edge-pure)|--denoise"
 )
 mkdir -p "$OUT"
@@ -120,7 +120,10 @@ if [[ " $SCENES " == *" paper-gallery "* ]]; then
 fi
 # Against box5 --edge-pure at every spp from 4 to 256: converge, which renders each spp once per
 # seed and filters that render both ways.
-DENOISE_KERNEL=atrous:passes=4:sigma_l=6:taps=3 # as converge names it
+# --denoise's filter as converge names it, from the binary itself (`filter --json`).
+first=${SCENES%% *}
+DENOISE_KERNEL=$("$BIN" filter "$OUT/$first/film-1.exr" -o "$OUT/$first/denoise-name.exr" --denoise --json |
+    "$PY" -c 'import json, sys; print(json.load(sys.stdin)["filter"])')
 for s in $SCENES; do
     echo "bench-denoise: $s: converge at 4 to 256 spp" >&2
     "$BIN" converge "scenes/$s.toml" --reference "$OUT/$s/reference-${REFERENCE_SPP}spp.exr" \

@@ -18,53 +18,74 @@ import re
 BEGIN, END = "<!-- denoise:begin -->", "<!-- denoise:end -->"
 
 # What the measurements say, as text: checked against the tables above when they change.
-FINDINGS = """**Where the remaining error is.** On the gallery, against OIDN (seed 1), split by object and
-by frequency: the pixels on object borders (coverage below 1) carry 2.7e-4 of our relMSE against
-1.3e-4 of OIDN's, the ceiling 5.0e-4 against 3.2e-4 and the back wall 2.9e-4 against 1.9e-4;
-the carpet, the pictures and the marble are at OIDN's level or better. The rest is
-low-frequency: after a 17-pixel box blur of the error, ours keeps 1.2e-3 RMS against OIDN's
-8.1e-4. These are blotches wider than the filter's reach (4 passes of 3x3 reach 15 pixels);
-more passes or a wider kernel did not help (5x5, 5 passes: relMSE 1.12e-3), because the
-variance carried through the passes tightens the colour stop as it goes; yet keeping the
-variance as it was (1.21e-3) or taking the geometric mean of the two (1.12e-3) is worse than
-SVGF's update (1.07e-3), on all three scenes. Filtering mixed border
-pixels among themselves (`--edge-pure` under atrous) instead of with one of their objects took
-the gallery from 5.26e-3 / 1.09e-3 to 4.91e-3 / 1.07e-3, and helped on the other two scenes too.
-The reference's own noise is about 4.5e-4 of the gallery's relMSE (2.9e-2 at 64 independent
-samples, over 64): about 40% of ours and 60% of OIDN's, so the true gap is larger than the
-table's 1.44x.
+FINDINGS = """**Where the remaining error is.** On the gallery, against OIDN (seed 1): our relMSE is
+9.43e-4 against 7.61e-4. Split by pixel class, ours against OIDN's: the mixed pixels on object
+borders (coverage below 1, 2352 pixels) 1.80e-4 against 1.23e-4; the pixels within 4 of a border
+(6047) 1.73e-4 against 1.05e-4; the interior (57137) 5.91e-4 against 5.33e-4. About a third of
+the gap in each. By object, the ceiling carries 4.6e-4 against 3.0e-4 and the back wall 2.2e-4
+against 1.8e-4; the carpet, the pictures and the marble are better than OIDN's. The interior's
+share is low-frequency blotches on the dark ceiling wider than the filter's reach (4 passes of
+3x3 reach 15 pixels); more passes or a wider kernel do not help (indirect at 5 passes: gallery
+relMSE 9.57e-4 with `sigma_l` 5, 9.83e-4 with 4), because the variance carried through the
+passes tightens the colour stop as it goes. Near borders our window is one-sided (no tap
+crosses an object ID, the paper's rule), so a gradient into a corner is averaged from one side
+only. Mixed pixels: letting them gather from both of their objects (their normal stop at a
+tenth; tried on an earlier setting) took the gallery from 9.95e-4 to 9.44e-4 and the Cornell box
+from 2.56e-4 to 2.40e-4, but `paper-sky` from 6.7e-5 to 9.9e-5 (above OIDN's 9.6e-5), and was not
+kept: a pixel half on the sky holds half an object's light, and
+gathering full-coverage neighbours biases it. Telling those apart needs the share of a pixel's
+samples that missed every object, which the film does not keep yet. The reference's own noise
+is about 4.5e-4 of the gallery's relMSE (2.9e-2 at 64 independent samples, over 64): about half
+of ours and 60% of OIDN's, so the true gap is larger than the table's 1.25x.
 
-**Settings measured** (`converge`, 64 spp, 2 seeds; RMSE / relMSE):
-- `components` against `indirect`: on the gallery 5.26e-3 / 1.09e-3 against 7.13e-3 / 3.57e-3 (the
-  gallery's noise is also in the caustics and the spotlights' direct light); on `paper-sky` and
-  the Cornell box `indirect` alone is slightly better (3.34e-3 against 3.75e-3; 6.46e-3 against
-  6.49e-3), because sobol already leaves their direct light clean and a filter can only blur it.
-- `sigma_l`: 1 and 2 leave noise, 8 to 16 blur (gallery relMSE 1.10e-3 to 1.46e-3 at 8 to 16);
-  4 to 6 is best. `sigma_n` 32 to 512 and `sigma_z` 0.5 to 4 change relMSE by less than 5%,
-  except `sigma_z` 0.5 (+20%).
-- 3x3 taps against 5x5: within 2% in error at half the time, so `--denoise` uses 3x3, 4 passes.
+**Settings measured** (64 spp, seeds 1 and 2, `filter` of the same films; RMSE / relMSE):
+- One colour stop for every component (`sigma_l=6`, 4 passes, `sigma_n=128`, `sigma_z=1`, the
+  previous `--denoise`): paper-sky 3.73e-3 / 7.19e-5, gallery 4.91e-3 / 1.07e-3, cornell
+  6.46e-3 / 2.65e-4. Each component its own: the direct light at `sigma_l` 1.5, the rest
+  unchanged, 3.40e-3 / 6.27e-5, 4.59e-3 / 1.03e-3, 6.44e-3 / 2.60e-4 (sobol leaves the direct
+  light nearly clean: a tight stop keeps it sharp). One pass for it is as good as four (3.37e-3
+  / 6.18e-5, 4.57e-3 / 1.02e-3, 6.44e-3 / 2.59e-4) at a quarter of its time; none at all is
+  worse on the Cornell box's soft shadows (relMSE 2.51e-4 against 2.48e-4 with the final
+  setting). The caustics' stop loosened from 12 to 24: gallery 4.54e-3 / 9.95e-4 to 4.53e-3
+  / 9.91e-4, a small gain (the other scenes have no caustics).
+- Then the shared stops: `sigma_n` 32 and `sigma_z` 2 (from 128 and 1), and the indirect light
+  at `sigma_l` 6: 3.35e-3 / 6.39e-5, 4.39e-3 / 9.34e-4, 6.41e-3 / 2.48e-4, the `--denoise` of
+  the table. `sigma_z` 0.5 is worse everywhere (gallery relMSE 1.20e-3); `sigma_l` 4 or 10 on
+  indirect worse on the gallery (9.90e-4, 9.60e-4).
+- `components` against `indirect` with the same stops: gallery 4.39e-3 / 9.34e-4 against 7.04e-3
+  / 3.51e-3 (its noise is also in the caustics and the spotlights' direct light).
+- 3x3 taps against 5x5: within 5% in error (5x5: paper-sky relMSE 5% worse, gallery 2% better) at
+  half the time, so `--denoise` uses 3x3, 4 passes.
 
-**Time.** `cargo bench --bench filter` (criterion, warm, on its synthetic film: two live layers,
-noise everywhere) on this 2-core machine, SSE2 code (AVX2 would need `unsafe` outside the
-modules allowed it):
+**Time.** `cargo bench --bench filter` (criterion, warm, on its synthetic film: direct light
+nearly clean, indirect noise everywhere, no caustics) on this 2-core machine:
 
 | | 256x256 | 3840x2160 | budget |
 |---|---|---|---|
-| `--denoise` (3x3, 4 passes, components) | 18.2 ms | 2.07 s | 10 ms, 1.5 s: **missed**, 1.8x and 1.4x |
-| the same on indirect alone | 9.7 ms | 1.27 s | met |
-| `atrous` defaults (5x5, 5 passes), indirect | 24.0 ms | 2.83 s | |
-| `atrous` defaults, components | 40.2 ms | 4.65 s | |
+| `--denoise` (3x3, 4 passes, components) | 15.6 ms | 1.93 s | 10 ms, 1.5 s: **missed**, 1.56x and 1.29x |
+| the same on indirect alone | 9.4 ms | 1.28 s | met |
+| `atrous` defaults (5x5, 5 passes), indirect | 23.4 ms | 2.84 s | |
+| `atrous` defaults, components | 40.0 ms | 4.83 s | |
 
-The table's times on the real films (`filter --json`, a fresh process, first-touch page faults
-included) vary by several ms from run to run (17 to 29 ms for `--denoise` over the runs made);
-OIDN's are 10 to 15 times ours. Steps, each measured before and after:
-vectorisable row loops over equal-length slices and `2^-t` from exponent bits (5x5 components on
-the bench film: 135 to 46 ms); one fused geometry-and-weight loop for a single layer (28 to 27
-ms); no copy of the first pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped (the
-gallery's direct light is 88% zero: no change beyond the noise of the measurement); one vector
-division to demodulate and a vectorised end of row (gallery 24.7 to 23.9 ms, median of 24 runs,
-alternated). Of `--denoise`'s 24 ms on the gallery: the tap loops about 60%, the colour stops
-(the 3x3 variance blur) and the ends of rows 10% each, demodulation and the guides the rest."""
+On the real films (`filter --json`, a fresh process, first-touch page faults included) the
+gallery, with its caustics a third live layer, took 22 to 33 ms over the runs made. Where the time goes (`perf record`, the gallery's film, 200 runs
+of `--denoise`): the tap loop 39%, the geometric weights 6%, the colour stops (the 3x3 variance
+blur) 10%, page faults of the fresh buffers 5%, and the rest (demodulation, the guides, the ends
+of rows, the multiply-back, scheduling) about 40%. It is not the vector width: the same code built for AVX2 (`-C
+target-cpu=native`) is only 6 to 11% faster (paper-sky 14.3 to 13.2 ms, gallery 23.4 to 21.2
+ms, medians of 100 runs, three rounds alternated), and two threads run 1.9x faster than one. The tap loop
+streams 21 arrays per tap (the centre's and the tap's guides and planes, and five sums read and
+written); the next step is to hold a block of centres and their sums in registers across all
+taps of a pass, which cuts that to the tap's 10. Using the single-layer fused loop when only
+one layer of a row is live gave nothing (paper-sky medians 14.3 to 15.1 ms with it, 13.9 to
+14.4 without) and was not kept. Steps kept before this round, each measured before and after: vectorisable row loops over
+equal-length slices and `2^-t` from exponent bits (5x5 components on the bench film: 135 to 46
+ms); one fused geometry-and-weight loop for a single layer (28 to 27 ms); no copy of the first
+pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped; one vector division to
+demodulate and a vectorised end of row (gallery 24.7 to 23.9 ms). This round, `--denoise`'s one pass
+for the direct light (criterion, the bench film: 18.2 to 14.9 ms at 256x256, 2.07 to 1.88 s at
+4K; 15.6 ms and 1.93 s in the run of the table).
+OIDN's times are 10 to 15 times ours."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 
@@ -108,7 +129,7 @@ def main():
     ap.add_argument("--regions", help="regions.py's table of the gallery's textured regions")
     ap.add_argument("--curves", help="the output directory: <scene>/converge/results.csv")
     ap.add_argument("--figures", help="the scenes whose figures are in docs/results/denoise-<scene>-*.png")
-    ap.add_argument("--denoise-kernel", default="atrous:passes=4:sigma_l=6:taps=3")
+    ap.add_argument("--denoise-kernel", required=True, help="--denoise's filter as converge names it")
     args = ap.parse_args()
 
     cells = collections.defaultdict(list)
