@@ -33,6 +33,11 @@ struct Failure {
 }
 
 impl Failure {
+    /// Nothing more to say: standard output's reader has gone (a closed pipe, as in `| head`).
+    /// The work is done; the command ends quietly with status 0, as `rg` and `fd` do.
+    fn reader_gone() -> Self {
+        Failure { code: 0, message: String::new() }
+    }
     fn input(message: impl ToString) -> Self {
         Failure { code: EXIT_INPUT, message: message.to_string() }
     }
@@ -51,6 +56,24 @@ impl From<OutputError> for Failure {
     }
 }
 
+/// Writes one line to standard output, as `println!` would, but a closed pipe ends the command
+/// quietly ([`Failure::reader_gone`]) instead of panicking.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        print_line(format_args!($($arg)*))?
+    };
+}
+
+fn print_line(line: std::fmt::Arguments) -> Result<(), Failure> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Failure::reader_gone()),
+        Err(e) => Err(Failure::failed(format!("cannot write to standard output: {e}"))),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -65,6 +88,7 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(f) if f.message.is_empty() => ExitCode::from(f.code),
         Err(f) => {
             eprintln!("error: {}", f.message);
             ExitCode::from(f.code)
@@ -98,20 +122,17 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let format = film::check_output(&output).map_err(Failure::input)?;
     let setting = args.out.check(&scene_filter, format)?;
     let analysis = scene::analysis::Analysis::of(&scene);
-    println!("{}", args.scene.display());
-    print!("{analysis}");
+    say!("{}", args.scene.display());
+    say!("{}", analysis.to_string().trim_end_matches('\n'));
     let Outputs { split, guides } = args.out.layer.reads(format, &setting);
-    println!(
+    say!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
         setting.kernel.as_ref().map_or("none".to_string(), |k| k.name())
     );
     use scene::analysis::need_line;
-    println!(
-        "{}",
-        need_line("the component split", split, "an EXR, a filter on indirect, or a component layer")
-    );
-    println!(
+    say!("{}", need_line("the component split", split, "an EXR, a filter on indirect, or a component layer"));
+    say!(
         "{}",
         need_line(
             "guide buffers (ID, normal, depth)",
@@ -120,7 +141,7 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
         )
     );
     let features = Features::needed(&analysis, Outputs { split, guides });
-    println!("so the render computes: {} (of mis+split+guides+textures)", features.names());
+    say!("so the render computes: {} (of mis+split+guides+textures)", features.names());
     Ok(())
 }
 
@@ -149,7 +170,7 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
     if args.run.json {
         let json =
             serde_json::json!({ "accel": engine.accel, "passed": passed, "failed": failed, "rows": rows });
-        println!("{json}");
+        say!("{json}");
     } else {
         let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0);
         let verdict = |r: &stress::Row| match (r.pass, r.limit) {
@@ -157,15 +178,15 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
             (false, true) => "f32",
             (false, false) => "NO",
         };
-        println!("{:width$}  {:4}  figure", "row", "pass");
+        say!("{:width$}  {:4}  figure", "row", "pass");
         for r in &rows {
-            println!("{:width$}  {:4}  {}", r.name, verdict(r), r.figure);
+            say!("{:width$}  {:4}  {}", r.name, verdict(r), r.figure);
         }
         for r in rows.iter().filter(|r| !r.pass) {
             let what = if r.limit { "past f32's reach" } else { "FAILED" };
-            println!("\n{} {what}: {}", r.name, r.note);
+            say!("\n{} {what}: {}", r.name, r.note);
         }
-        println!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), engine.accel);
+        say!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), engine.accel);
     }
     if failed > 0 {
         return Err(Failure::failed(format!("{failed} stress rows failed")));
@@ -221,7 +242,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let rays_per_second = s.rays as f64 / s.seconds.max(1e-9);
     if args.run.json {
         let json = serde_json::json!({
-            "scene": args.scene,
+            "scene": args.scene.to_string_lossy(),
             "seconds": s.seconds,
             "build_seconds": s.build_seconds,
             "spp": options.spp,
@@ -246,9 +267,9 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "filter_target": setting.target.name(),
             "edge_aware": setting.stops.object,
             "filter_seconds": filter_seconds,
-            "outputs": [output],
+            "outputs": [output.to_string_lossy()],
         });
-        println!("{json}");
+        say!("{json}");
     } else {
         let spp = match options.adaptive {
             Some(t) => format!(
@@ -307,9 +328,9 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
         .map_err(Failure::failed)?;
         bar.finish_and_clear();
         if args.json {
-            println!("{}", serde_json::json!({ "scene": args.scene, "rows": rows }));
+            say!("{}", serde_json::json!({ "scene": args.scene.to_string_lossy(), "rows": rows }));
         } else {
-            print!("{}", lightsplit::bench::settings_table(&rows));
+            say!("{}", lightsplit::bench::settings_table(&rows).trim_end_matches('\n'));
         }
         return Ok(());
     }
@@ -321,9 +342,9 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     bar.finish_and_clear();
     if args.json {
         let json = serde_json::to_string(&report).map_err(Failure::failed)?;
-        println!("{json}");
+        say!("{json}");
     } else {
-        print!("{}", report.table());
+        say!("{}", report.table().trim_end_matches('\n'));
     }
     Ok(())
 }
@@ -344,11 +365,11 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     }
     let seconds = args.out.write(film, &setting, &args.output)?;
     if args.json {
-        println!(
+        say!(
             "{}",
             serde_json::json!({
-                "input": args.input,
-                "output": args.output,
+                "input": args.input.to_string_lossy(),
+                "output": args.output.to_string_lossy(),
                 "filter": setting.kernel.as_ref().map(Kernel::name),
                 "filter_target": setting.target.name(),
                 "filter_seconds": seconds,
@@ -405,7 +426,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     let rows = converge::run(&plan, &scene, &report).map_err(map)?;
     bar.finish_and_clear();
     let md = converge::report(&plan, &rows).map_err(map)?;
-    print!("{md}");
+    say!("{}", md.trim_end_matches('\n'));
     eprintln!("wrote {}", plan.out.display());
     Ok(())
 }
@@ -422,9 +443,9 @@ fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         film::write(&image, diff, 0.0).map_err(Failure::failed)?;
     }
     if args.json {
-        println!("{}", serde_json::to_string(&errors).map_err(Failure::failed)?);
+        say!("{}", serde_json::to_string(&errors).map_err(Failure::failed)?);
     } else {
-        println!(
+        say!(
             "{} against {}: sse {:.6e}  rmse {:.6e}  relmse {:.6e}  (worst 0.1% dropped: rmse {:.6e}  relmse {:.6e})",
             args.test.display(),
             args.reference.display(),
@@ -460,9 +481,9 @@ fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     }
     bar.finish_and_clear();
     if args.run.json {
-        println!("{}", serde_json::json!({ "rows": rows }));
+        say!("{}", serde_json::json!({ "rows": rows }));
     } else {
-        print!("{}", features::table(&rows, &options));
+        say!("{}", features::table(&rows, &options).trim_end_matches('\n'));
     }
     Ok(())
 }
