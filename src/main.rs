@@ -198,6 +198,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let (scene, scene_filter) = load_scene(&args.scene)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output).map_err(Failure::input)?;
+    film::check_not_an_input(&output, &scene.inputs).map_err(Failure::input)?;
 
     let mut options = RenderOptions::from_scene(&scene);
     options.accel = args.run.engine.accel;
@@ -351,6 +352,7 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 
 fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let format = film::check_output(&args.output).map_err(Failure::input)?;
+    film::check_not_an_input(&args.output, std::slice::from_ref(&args.input)).map_err(Failure::input)?;
     let setting = args.out.check(&Setting::default(), format)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
@@ -434,6 +436,8 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
 fn compare_command(args: CompareArgs) -> Result<(), Failure> {
     if let Some(diff) = &args.diff {
         film::check_output(diff).map_err(Failure::input)?;
+        film::check_not_an_input(diff, &[args.test.clone(), args.reference.clone()])
+            .map_err(Failure::input)?;
     }
     let test = film::read_image(&args.test).map_err(Failure::input)?;
     let reference = film::read_image(&args.reference).map_err(Failure::input)?;

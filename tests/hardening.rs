@@ -78,3 +78,93 @@ fn a_closed_standard_output_is_not_a_panic() {
         assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
     }
 }
+
+/// Runs `lightsplit` in `dir`.
+fn run_in<S: AsRef<OsStr>>(dir: &std::path::Path, args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// Defect 3: an output could overwrite its own input, the scene (through the default output or
+/// `-o`), a texture or a mesh of it, `filter`'s input or `compare`'s images. Each is refused
+/// with status 2 and the input is left as it was.
+#[test]
+fn no_output_overwrites_an_input() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let textured = format!(
+        "{SCENE}[[texture]]\nname = \"t\"\ntype = \"image\"\nfile = \"t.png\"\n\
+         [[material]]\nname = \"m\"\ntype = \"diffuse\"\ntexture = \"t\"\n\
+         [[shape]]\ntype = \"mesh\"\nfile = \"mesh.pfm\"\nmaterial = \"m\"\n"
+    );
+    std::fs::write(d.join("scene.exr"), SCENE).expect("write");
+    std::fs::write(d.join("textured.toml"), &textured).expect("write");
+    std::fs::write(d.join("mesh.pfm"), obj).expect("write");
+    let png = {
+        let mut p = Vec::new();
+        image::RgbImage::from_pixel(2, 2, image::Rgb([200, 100, 50]))
+            .write_to(&mut std::io::Cursor::new(&mut p), image::ImageFormat::Png)
+            .expect("png");
+        p
+    };
+    std::fs::write(d.join("t.png"), &png).expect("write");
+    std::fs::hard_link(d.join("scene.exr"), d.join("link.exr")).expect("a hard link");
+    // The textured scene renders when its output is elsewhere.
+    let o = run_in(d, &["render", "textured.toml", "-o", "fine.exr"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["render", "scene.exr"],
+        vec!["render", "scene.exr", "-o", "scene.exr"],
+        vec!["render", "scene.exr", "-o", "./sub/../scene.exr"],
+        vec!["render", "scene.exr", "-o", "link.exr"],
+        vec!["render", "textured.toml", "-o", "t.png"],
+        vec!["render", "textured.toml", "-o", "mesh.pfm"],
+        vec!["filter", "fine.exr", "-o", "fine.exr"],
+        vec!["compare", "fine.exr", "fine.exr", "--diff", "fine.exr"],
+    ];
+    std::fs::create_dir(d.join("sub")).expect("mkdir");
+    let before: Vec<Vec<u8>> = ["scene.exr", "t.png", "mesh.pfm", "fine.exr"]
+        .iter()
+        .map(|f| std::fs::read(d.join(f)).expect("read"))
+        .collect();
+    for args in cases {
+        let o = run_in(d, &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("is an input"), "{args:?}: {}", stderr(&o));
+    }
+    let after: Vec<Vec<u8>> = ["scene.exr", "t.png", "mesh.pfm", "fine.exr"]
+        .iter()
+        .map(|f| std::fs::read(d.join(f)).expect("read"))
+        .collect();
+    assert!(before == after, "an input was changed");
+}
+
+/// Defect 9: output problems were found only after the render, with status 1. A directory, a
+/// directory that cannot be written and a missing one are refused first, with status 2.
+#[test]
+fn output_problems_are_found_before_the_render() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SCENE).expect("write");
+    std::fs::create_dir(d.join("taken.exr")).expect("mkdir");
+    for (output, why) in [
+        ("taken.exr", "is a directory"),
+        ("/proc/lightsplit-test.exr", "cannot write in /proc"),
+        ("gone/x.exr", "does not exist"),
+    ] {
+        // A render of seconds, were it started: the refusal comes first.
+        let o = run_in(
+            d,
+            &["render", "s.toml", "-o", output, "--spp", "64", "--width", "1024", "--height", "1024"],
+        );
+        assert_eq!(o.status.code(), Some(2), "{output}: {}", stderr(&o));
+        assert!(stderr(&o).contains(why), "{output}: {}", stderr(&o));
+    }
+    let leftovers: Vec<_> =
+        std::fs::read_dir(d).expect("list").filter_map(Result::ok).map(|e| e.file_name()).collect();
+    assert_eq!(leftovers.len(), 2, "{leftovers:?}");
+}

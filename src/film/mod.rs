@@ -145,13 +145,41 @@ impl Format {
 pub fn check_output(path: &Path) -> Result<Format, WriteError> {
     let format = Format::from_path(path)?;
     let dir = parent_dir(path);
+    let refuse = |why: String| Err(WriteError::Io(path.to_path_buf(), why));
     if !dir.is_dir() {
-        return Err(WriteError::Io(
-            path.to_path_buf(),
-            format!("the directory {} does not exist", dir.display()),
-        ));
+        return refuse(format!("the directory {} does not exist", dir.display()));
+    }
+    if path.is_dir() {
+        return refuse("is a directory".into());
+    }
+    // The image is written to a temporary file beside it and renamed: that must be possible,
+    // before any work is done.
+    let probe = dir.join(format!(".lightsplit-probe.{}.tmp", std::process::id()));
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+        }
+        Err(e) => return refuse(format!("cannot write in {}: {e}", dir.display())),
     }
     Ok(format)
+}
+
+/// Refuses an output that is one of `inputs` (the same file, by device and inode: through
+/// another name, a link or `..` as well): writing it would destroy what the command reads.
+pub fn check_not_an_input(path: &Path, inputs: &[PathBuf]) -> Result<(), WriteError> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(out) = std::fs::metadata(path) else { return Ok(()) };
+    for input in inputs {
+        if let Ok(m) = std::fs::metadata(input) {
+            if (m.dev(), m.ino()) == (out.dev(), out.ino()) {
+                return Err(WriteError::Io(
+                    path.to_path_buf(),
+                    format!("is an input ({}): choose another output", input.display()),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn parent_dir(path: &Path) -> PathBuf {

@@ -179,6 +179,9 @@ impl Light {
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub path: PathBuf,
+    /// Every file the scene was read from: the scene file, its meshes and image textures (no
+    /// output may overwrite one).
+    pub inputs: Vec<PathBuf>,
     pub camera: Camera,
     pub film: FilmSettings,
     pub render: RenderSettings,

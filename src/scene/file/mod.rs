@@ -132,6 +132,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let shapes = typed::tables::<shape::ShapeKind>(&ctx, root)?;
     let lights = typed::tables::<light::LightKind>(&ctx, root)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let inputs = std::iter::once(path.to_path_buf())
+        .chain(textures.iter().filter_map(|t| t.of_type.file()).map(|f| dir.join(f)))
+        .chain(shapes.iter().filter_map(|s| s.of_type.file()).map(|f| dir.join(f)))
+        .collect();
 
     let camera = settings::camera(&ctx, &file.camera)?;
     let film = settings::film(&ctx, file.film.as_ref())?;
@@ -154,6 +158,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         textures,
         maps,
         path: path.to_path_buf(),
+        inputs,
         camera,
         film,
         render,

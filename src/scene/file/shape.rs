@@ -55,6 +55,16 @@ impl Typed for ShapeKind {
     const SECTION: &'static str = "shape";
 }
 
+impl ShapeKind {
+    /// The file a mesh reads, as written (relative to the scene file).
+    pub(super) fn file(&self) -> Option<&str> {
+        match self {
+            ShapeKind::Mesh(MeshFile { file }) => Some(file),
+            _ => None,
+        }
+    }
+}
+
 /// An analytic sphere.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

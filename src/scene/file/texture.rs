@@ -73,6 +73,16 @@ pub(super) struct Noise {
     seed: Option<u32>,
 }
 
+impl TextureKind {
+    /// The file an image texture reads, as written (relative to the scene file).
+    pub(super) fn file(&self) -> Option<&str> {
+        match self {
+            TextureKind::Image(i) => Some(&i.file),
+            _ => None,
+        }
+    }
+}
+
 /// The textures of a file, and their indices by name.
 pub(super) fn textures(
     ctx: &Ctx,
