@@ -16,6 +16,7 @@ use lightsplit::film::{Film, Format};
 use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
+use lightsplit::scene::limits;
 
 use crate::Failure;
 
@@ -61,7 +62,7 @@ pub struct Engine {
     #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
     pub accel: Backend,
     /// Worker threads (default: one per core).
-    #[arg(long, value_parser = count::<usize>)]
+    #[arg(long, value_parser = threads)]
     pub threads: Option<usize>,
 }
 
@@ -83,13 +84,13 @@ pub struct BenchFeaturesArgs {
     #[arg(required = true)]
     pub scenes: Vec<PathBuf>,
     /// Image width of every render.
-    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
+    #[arg(long, default_value_t = 128, value_parser = size)]
     pub width: u32,
     /// Image height of every render.
-    #[arg(long, default_value_t = 128, value_parser = count::<u32>)]
+    #[arg(long, default_value_t = 128, value_parser = size)]
     pub height: u32,
     /// Samples per pixel of every render.
-    #[arg(long, default_value_t = 16, value_parser = count::<u32>)]
+    #[arg(long, default_value_t = 16, value_parser = samples)]
     pub spp: u32,
     /// Rounds, each rendering every mode once; medians are reported.
     #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
@@ -133,14 +134,14 @@ pub struct ConvergeArgs {
     #[arg(long, conflicts_with = "reference_spp")]
     pub reference: Option<PathBuf>,
     /// Samples per pixel of the rendered reference.
-    #[arg(long, default_value_t = 1024, value_parser = count::<u32>)]
+    #[arg(long, default_value_t = 1024, value_parser = samples)]
     pub reference_spp: u32,
     /// The sample counts to measure.
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "1,2,4,8,16,32,64,128,256",
-        value_parser = count::<u32>
+        value_parser = samples
     )]
     pub spp: Vec<u32>,
     /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
@@ -173,10 +174,10 @@ pub struct ConvergeArgs {
     #[command(flatten)]
     pub engine: Engine,
     /// Image width (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = size)]
     pub width: Option<u32>,
     /// Image height (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = size)]
     pub height: Option<u32>,
     /// The spp whose difference images (the paper's Figure 6) are written (default: the
     /// measured spp nearest 50).
@@ -321,7 +322,7 @@ pub struct BenchAccelArgs {
     #[arg(long, default_value_t = 1 << 20, value_parser = count::<usize>)]
     pub rays: usize,
     /// Threads for the multi-threaded rows (default: one per core).
-    #[arg(long, value_parser = count::<usize>)]
+    #[arg(long, value_parser = threads)]
     pub threads: Option<usize>,
     /// Seconds each measurement runs at least.
     #[arg(long, default_value_t = 0.3, value_parser = seconds)]
@@ -348,7 +349,7 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Samples per pixel (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = samples)]
     pub spp: Option<u32>,
     /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
@@ -357,13 +358,13 @@ pub struct RenderArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Image width (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = size)]
     pub width: Option<u32>,
     /// Image height (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = size)]
     pub height: Option<u32>,
     /// Most scattering events per path (default: the scene file's).
-    #[arg(long, value_parser = count::<u32>)]
+    #[arg(long, value_parser = depth)]
     pub max_depth: Option<u32>,
     /// The random numbers: sobol (Owen-scrambled Sobol points, the default) or independent
     /// (PCG streams). Default: the scene file's.
@@ -408,6 +409,27 @@ where
     T::Err: Display,
 {
     number(text, |n| n >= T::from(1), "at least 1")
+}
+
+/// An image side: 1 to [`limits::MAX_SIZE`] pixels, as in a scene file.
+fn size(text: &str) -> Result<u32, String> {
+    number(text, |n| (1..=limits::MAX_SIZE).contains(&n), &format!("1 to {}", limits::MAX_SIZE))
+}
+
+/// Samples per pixel: 1 to [`limits::MAX_SPP`], as in a scene file.
+fn samples(text: &str) -> Result<u32, String> {
+    number(text, |n| (1..=limits::MAX_SPP).contains(&n), &format!("1 to {}", limits::MAX_SPP))
+}
+
+/// Scattering events per path: 1 to [`limits::MAX_DEPTH`], as in a scene file.
+fn depth(text: &str) -> Result<u32, String> {
+    number(text, |n| (1..=limits::MAX_DEPTH).contains(&n), &format!("1 to {}", limits::MAX_DEPTH))
+}
+
+/// Worker threads: 1 to [`limits::max_threads`] (16 a core).
+fn threads(text: &str) -> Result<usize, String> {
+    let max = limits::max_threads();
+    number(text, |n| (1..=max).contains(&n), &format!("1 to {max} (16 a core)"))
 }
 
 /// `--exposure`: any finite number of stops.

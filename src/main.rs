@@ -223,6 +223,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
         options.sampler = v;
     }
     let setting = args.out.check(&scene_filter, format)?;
+    scene::limits::check_render_memory(options.width, options.height).map_err(Failure::input)?;
     options.adaptive = args.adaptive;
     if args.all_features {
         options.features = Features::ALL;
@@ -395,6 +396,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
+    scene::limits::check_render_memory(options.width, options.height).map_err(Failure::input)?;
     // Compared against independent sampling, the base of the comparison: it goes first.
     let mut samplers = args.sampler.clone();
     samplers.sort_by_key(|s| *s != SamplerKind::Independent);

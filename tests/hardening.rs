@@ -168,3 +168,53 @@ fn output_problems_are_found_before_the_render() {
         std::fs::read_dir(d).expect("list").filter_map(Result::ok).map(|e| e.file_name()).collect();
     assert_eq!(leftovers.len(), 2, "{leftovers:?}");
 }
+
+/// Defect 4: memory and time without bounds. A render larger than memory, `/dev/zero` as a
+/// scene or a mesh, a kernel beyond 63x63, absurd thread counts and depths: each refused with
+/// status 2 before any work. And (item 10) the command line keeps the scene file's bounds.
+#[test]
+fn unbounded_requests_are_refused_up_front() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SCENE).expect("write");
+    let zero_mesh = format!("{SCENE}[[shape]]\ntype = \"mesh\"\nfile = \"/dev/zero\"\n");
+    std::fs::write(d.join("zero.toml"), zero_mesh).expect("write");
+    let weights = vec!["1"; 65 * 65].join(", ");
+    std::fs::write(d.join("kernel.toml"), format!("{SCENE}[filter]\nkernel = [{weights}]\n")).expect("write");
+    std::fs::write(d.join("nan.toml"), format!("{SCENE}[filter]\nkernel = [1, nan, 1, 1, 1, 1, 1, 1, 1]\n"))
+        .expect("write");
+    std::fs::write(d.join("deep.toml"), format!("{SCENE}[render]\nmax_depth = 1025\n")).expect("write");
+    let big = lightsplit_max_size_plus(0);
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (args(&["render", "s.toml", "--width", &big, "--height", &big]), "GiB is available"),
+        (args(&["render", "/dev/zero", "-o", "z.exr"]), "not a regular file"),
+        (args(&["render", "zero.toml", "-o", "z.exr"]), "not a regular file"),
+        (args(&["render", "kernel.toml", "-o", "k.exr"]), "at most 63x63"),
+        (args(&["render", "nan.toml", "-o", "k.exr"]), "not a finite number"),
+        (args(&["render", "s.toml", "--filter", &vec!["1"; 65 * 65].join(",")]), "at most 63x63"),
+        (args(&["render", "s.toml", "--threads", "100000"]), "16 a core"),
+        (args(&["render", "s.toml", "--max-depth", "4294967295"]), "1 to 1024"),
+        (args(&["render", "deep.toml", "-o", "x.exr"]), "between 1 and 1024"),
+        (args(&["render", "s.toml", "--width", &lightsplit_max_size_plus(1)]), "1 to 65536"),
+        (args(&["render", "s.toml", "--spp", "16777217"]), "1 to 16777216"),
+        (args(&["converge", "s.toml", "--spp", "16777217"]), "1 to 16777216"),
+    ];
+    for (a, why) in cases {
+        let o = run_in(d, &a);
+        assert_eq!(o.status.code(), Some(2), "{a:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(why), "{a:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{a:?}: {}", stderr(&o));
+    }
+    // The bounds themselves are allowed.
+    let o = run_in(d, &["render", "s.toml", "-o", "ok.exr", "--max-depth", "1024", "--width", "8"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+fn args(a: &[&str]) -> Vec<String> {
+    a.iter().map(|s| s.to_string()).collect()
+}
+
+/// The largest image side the scene file allows, plus `n`, as text.
+fn lightsplit_max_size_plus(n: u32) -> String {
+    ((1u32 << 16) + n).to_string()
+}

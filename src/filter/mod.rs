@@ -77,6 +77,10 @@ impl Kernel {
 
     /// An odd square kernel from its weights, row by row.
     pub fn custom(weights: Vec<f32>) -> Result<Kernel, String> {
+        let side = crate::scene::limits::MAX_KERNEL;
+        if weights.len() > side * side {
+            return Err(format!("a custom kernel has at most {side}x{side} weights, not {}", weights.len()));
+        }
         let size = (weights.len() as f64).sqrt() as usize;
         if size * size != weights.len() || size.is_multiple_of(2) {
             return Err(format!(

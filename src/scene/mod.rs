@@ -5,6 +5,7 @@
 pub mod analysis;
 pub mod file;
 pub mod image;
+pub mod limits;
 pub mod noise;
 pub mod obj;
 pub mod procedural;

@@ -2,9 +2,13 @@
 //! its keys and that its numbers are finite; `filter::Setting::from_section` reads it (kernel
 //! names and weights, targets and edge stops belong to the filters).
 
+use std::fmt;
+
+use serde::de::{self, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
 use super::F;
+use crate::scene::limits;
 
 /// The `[filter]` section as written.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -30,21 +34,45 @@ pub struct FilterSection {
 }
 
 /// A kernel by name or by its weights (row by row).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(untagged)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum KernelSpec {
     /// A named kernel (`box3`, `weighted3`, ...), or weights written as one string.
     Name(String),
-    /// The weights of an odd square kernel.
-    Weights(#[serde(deserialize_with = "finite_weights")] Vec<f32>),
+    /// The weights of an odd square kernel, at most [`limits::MAX_KERNEL`] on a side.
+    Weights(Vec<f32>),
+}
+
+impl<'de> Deserialize<'de> for KernelSpec {
+    /// A string or an array of finite numbers; a bad weight is named as such (not "did not
+    /// match any variant"), and an array longer than the largest kernel is refused as it is read.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Spec;
+        impl<'de> Visitor<'de> for Spec {
+            type Value = KernelSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a kernel name such as \"box3\", or an array of weights")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<KernelSpec, E> {
+                Ok(KernelSpec::Name(v.to_string()))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<KernelSpec, A::Error> {
+                let most = limits::MAX_KERNEL * limits::MAX_KERNEL;
+                let mut weights = Vec::new();
+                while let Some(F(w)) = seq.next_element::<F>()? {
+                    if weights.len() == most {
+                        let side = limits::MAX_KERNEL;
+                        return Err(de::Error::custom(format!("a kernel has at most {side}x{side} weights")));
+                    }
+                    weights.push(w);
+                }
+                Ok(KernelSpec::Weights(weights))
+            }
+        }
+        d.deserialize_any(Spec)
+    }
 }
 
 /// An optional finite number, as a plain `f32`.
 fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     Ok(Option::<F>::deserialize(d)?.map(|f| f.0))
-}
-
-/// Finite weights, as plain `f32`s.
-fn finite_weights<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
-    Ok(Vec::<F>::deserialize(d)?.into_iter().map(|f| f.0).collect())
 }

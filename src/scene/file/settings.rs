@@ -6,7 +6,7 @@ use toml::Spanned;
 
 use super::{v3, Ctx, F, V3};
 use crate::render::sampler::SamplerKind;
-use crate::scene::{Camera, FilmSettings, RenderSettings, SceneError};
+use crate::scene::{limits, Camera, FilmSettings, RenderSettings, SceneError};
 
 /// `[camera]` as written.
 #[derive(Deserialize)]
@@ -72,9 +72,9 @@ pub(super) fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, Scen
         }
     };
     Ok(FilmSettings {
-        width: get(f.and_then(|f| f.width.as_ref()), "width", 256, 1 << 16)?,
-        height: get(f.and_then(|f| f.height.as_ref()), "height", 256, 1 << 16)?,
-        spp: get(f.and_then(|f| f.spp.as_ref()), "spp", 16, 1 << 24)?,
+        width: get(f.and_then(|f| f.width.as_ref()), "width", 256, limits::MAX_SIZE)?,
+        height: get(f.and_then(|f| f.height.as_ref()), "height", 256, limits::MAX_SIZE)?,
+        spp: get(f.and_then(|f| f.spp.as_ref()), "spp", 16, limits::MAX_SPP)?,
     })
 }
 
@@ -82,7 +82,9 @@ pub(super) fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, Scen
 pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings, SceneError> {
     Ok(RenderSettings {
         max_depth: match r.and_then(|r| r.max_depth.as_ref()) {
-            Some(d) if *d.get_ref() == 0 => return ctx.err(d.span(), "`max_depth` must be at least 1"),
+            Some(d) if !(1..=limits::MAX_DEPTH).contains(d.get_ref()) => {
+                return ctx.err(d.span(), format!("`max_depth` must lie between 1 and {}", limits::MAX_DEPTH))
+            }
             Some(d) => *d.get_ref(),
             None => 8,
         },

@@ -235,7 +235,10 @@ pub(super) fn add(
         }
         ShapeKind::Mesh(MeshFile { file }) => {
             let line = Some(line_of(ctx.text, span.start));
-            let parts = obj::load(&dir.join(file))
+            let path = dir.join(file);
+            let max = crate::scene::limits::max_input_bytes();
+            let parts = crate::scene::limits::check_input_file(&path, max)
+                .and_then(|()| obj::load(&path))
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
             if parts.is_empty() {
                 return ctx.err(span, format!("mesh `{file}` has no faces"));

@@ -124,8 +124,11 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             return Ok(Texture::Checker { a, b, size });
         }
         TextureKind::Image(i) => {
-            let image = image::read(&dir.join(&i.file))
-                .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
+            let path = dir.join(&i.file);
+            let image =
+                crate::scene::limits::check_input_file(&path, crate::scene::limits::max_input_bytes())
+                    .and_then(|()| image::read(&path))
+                    .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
             let repeat = i.repeat.map_or(Vec2::ONE, |[u, v]| Vec2::new(u.0, v.0));
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");

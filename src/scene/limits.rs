@@ -1,0 +1,107 @@
+//! The bounds on what a scene file or the command line may ask for: one rule for both, so
+//! that neither runs a job that cannot end or cannot fit.
+
+/// The largest image side, in pixels.
+pub const MAX_SIZE: u32 = 1 << 16;
+/// The most samples per pixel.
+pub const MAX_SPP: u32 = 1 << 24;
+/// The most scattering events per path (as pbrt and Mitsuba cap theirs): a closed mirror box
+/// would otherwise never end.
+pub const MAX_DEPTH: u32 = 1024;
+/// The widest filter kernel side (63x63).
+pub const MAX_KERNEL: usize = 63;
+/// The largest scene file read, 16 MiB: its parsed form takes about a hundred times its size,
+/// and meshes belong in their own files.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+/// The largest mesh or image texture read, unless `LIGHTSPLIT_MAX_INPUT_BYTES` says otherwise.
+pub const MAX_INPUT_BYTES: u64 = 4 << 30;
+
+/// The most worker threads: 16 a core (at least 64). More only costs memory and start-up.
+pub fn max_threads() -> usize {
+    16 * std::thread::available_parallelism().map_or(4, usize::from).max(4)
+}
+
+/// The largest mesh or texture read: [`MAX_INPUT_BYTES`], or `LIGHTSPLIT_MAX_INPUT_BYTES`.
+pub fn max_input_bytes() -> u64 {
+    std::env::var("LIGHTSPLIT_MAX_INPUT_BYTES")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(MAX_INPUT_BYTES)
+}
+
+/// Checks that `path` is a regular file of at most `max` bytes, before it is read: a device
+/// (`/dev/zero`), a FIFO or a directory would be read without end or not at all.
+pub fn check_input_file(path: &std::path::Path, max: u64) -> Result<(), String> {
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{} is not a regular file", path.display()));
+    }
+    if meta.len() > max {
+        return Err(format!(
+            "{} is {} bytes, over the {max} read at most{}",
+            path.display(),
+            meta.len(),
+            if max == MAX_SCENE_BYTES {
+                " (put meshes in OBJ files)"
+            } else {
+                " (LIGHTSPLIT_MAX_INPUT_BYTES raises it)"
+            }
+        ));
+    }
+    Ok(())
+}
+
+/// The memory a render of `width` x `height` needs at most, in bytes: the film's buffers (eight
+/// colour layers and eight scalar ones), the adaptive tiles' moments, a filter's working
+/// planes and the output's encoding, about 400 bytes a pixel.
+pub fn render_bytes(width: u32, height: u32) -> u64 {
+    width as u64 * height as u64 * 400
+}
+
+/// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), if known.
+pub fn available_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses a render that would not fit in the memory available.
+pub fn check_render_memory(width: u32, height: u32) -> Result<(), String> {
+    let need = render_bytes(width, height);
+    match available_bytes() {
+        Some(have) if need > have => Err(format!(
+            "a {width}x{height} render needs about {:.1} GiB and {:.1} GiB is available: render smaller",
+            need as f64 / (1u64 << 30) as f64,
+            have as f64 / (1u64 << 30) as f64
+        )),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_regular_files_within_the_cap_are_read() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("f.obj");
+        std::fs::write(&file, [0u8; 100]).expect("write");
+        assert_eq!(check_input_file(&file, 100), Ok(()));
+        assert!(check_input_file(&file, 99).is_err_and(|e| e.contains("over the 99")));
+        assert!(check_input_file(dir.path(), 1 << 20).is_err_and(|e| e.contains("not a regular file")));
+        assert!(check_input_file(std::path::Path::new("/dev/zero"), 1 << 20)
+            .is_err_and(|e| e.contains("not a regular file")));
+        assert!(check_input_file(&dir.path().join("gone"), 1 << 20).is_err());
+    }
+
+    #[test]
+    fn a_render_larger_than_memory_is_refused() {
+        let have = available_bytes().expect("/proc/meminfo");
+        assert!(check_render_memory(64, 64).is_ok());
+        // The largest image allowed needs 1.7 TB.
+        assert!(render_bytes(MAX_SIZE, MAX_SIZE) > have);
+        assert!(check_render_memory(MAX_SIZE, MAX_SIZE).is_err_and(|e| e.contains("GiB is available")));
+    }
+}
