@@ -218,3 +218,26 @@ fn args(a: &[&str]) -> Vec<String> {
 fn lightsplit_max_size_plus(n: u32) -> String {
     ((1u32 << 16) + n).to_string()
 }
+
+/// Defect 5: extra array elements, junk included, were accepted silently. A vector has exactly
+/// its length; the error names the file and line.
+#[test]
+fn a_vector_has_exactly_its_length() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let cases = [
+        ("position = [0, 3, 0]", "position = [0, 2.2, -7, nan]", 10),
+        ("intensity = [5, 5, 5]", "intensity = [0.7, 0.08, 0.06, 9]", 11),
+        ("radius = 1", "radius = 1\nrotate = [0, 0, 0, \"junk\", [1, 2]]", 16),
+        ("intensity = [5, 5, 5]", "intensity = [5, 5]", 11),
+    ];
+    for (i, (from, to, line)) in cases.into_iter().enumerate() {
+        assert!(SCENE.contains(from));
+        let name = format!("v{i}.toml");
+        std::fs::write(d.join(&name), SCENE.replace(from, to)).expect("write");
+        let o = run_in(d, &["render", &name, "-o", "x.exr"]);
+        assert_eq!(o.status.code(), Some(2), "{to}: {}", stderr(&o));
+        assert!(stderr(&o).contains(&format!("{name}:{line}:")), "{to}: {}", stderr(&o));
+    }
+    assert!(!d.join("x.exr").exists());
+}

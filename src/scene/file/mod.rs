@@ -56,12 +56,42 @@ impl<'de> Deserialize<'de> for F {
     }
 }
 
+/// `N` finite numbers, exactly: an array with fewer or more elements (junk included) is
+/// refused, not cut short.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Exact<const N: usize>(pub [F; N]);
+
+impl<'de, const N: usize> Deserialize<'de> for Exact<N> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Numbers<const N: usize>;
+        impl<'de, const N: usize> Visitor<'de> for Numbers<N> {
+            type Value = Exact<N>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "an array of {N} finite numbers")
+            }
+            fn visit_seq<A: de::SeqAccess<'de>>(self, mut seq: A) -> Result<Exact<N>, A::Error> {
+                let mut out = [F(0.0); N];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq.next_element::<F>()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                }
+                if seq.next_element::<IgnoredAny>()?.is_some() {
+                    return Err(de::Error::custom(format!(
+                        "expected an array of {N} finite numbers, found more"
+                    )));
+                }
+                Ok(Exact(out))
+            }
+        }
+        d.deserialize_seq(Numbers::<N>)
+    }
+}
+
 /// A point, direction or colour: three finite numbers.
-type V3 = [F; 3];
+type V3 = Exact<3>;
 
 /// The vector of three finite numbers.
-fn v3(v: V3) -> Vec3 {
-    Vec3::new(v[0].0, v[1].0, v[2].0)
+fn v3(Exact([x, y, z]): V3) -> Vec3 {
+    Vec3::new(x.0, y.0, z.0)
 }
 
 /// The whole file. The typed sections are read table by table, after their `type` key

@@ -357,6 +357,7 @@ fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 mod tests {
     use super::*;
     use crate::scene::file::tests::{error_line, MINIMAL};
+    use crate::scene::file::Exact;
 
     #[test]
     fn keys_of_another_type_are_rejected() {
@@ -393,8 +394,8 @@ mod tests {
     fn transform_applies_scale_rotate_translate() {
         let t = Transform::new(Some(&FileTransform {
             scale: Some(F(2.0)),
-            rotate: Some([F(0.0), F(90.0), F(0.0)]),
-            translate: Some([F(1.0), F(0.0), F(0.0)]),
+            rotate: Some(Exact([F(0.0), F(90.0), F(0.0)])),
+            translate: Some(Exact([F(1.0), F(0.0), F(0.0)])),
         }));
         let p = t.point(Vec3::X);
         assert!((p - Vec3::new(1.0, 0.0, -2.0)).length() < 1e-5, "{p}");

@@ -9,7 +9,7 @@ use glam::Vec2;
 use serde::Deserialize;
 
 use super::typed::{Table, Typed};
-use super::{v3, Ctx, F, V3};
+use super::{v3, Ctx, Exact, F, V3};
 use crate::scene::image;
 use crate::scene::texture::{Pattern, Texture};
 use crate::scene::SceneError;
@@ -59,7 +59,7 @@ pub(super) struct Checker {
 #[serde(deny_unknown_fields)]
 pub(super) struct ImageMap {
     file: String,
-    repeat: Option<[F; 2]>,
+    repeat: Option<Exact<2>>,
 }
 
 /// A solid noise pattern blending two colours.
@@ -106,7 +106,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
     let span = t.span.clone();
     // The two colours of a pattern: black to white unless given.
     let colours = |a: Option<V3>, b: Option<V3>| {
-        let (a, b) = (v3(a.unwrap_or([F(0.0); 3])), v3(b.unwrap_or([F(1.0); 3])));
+        let (a, b) = (v3(a.unwrap_or(Exact([F(0.0); 3]))), v3(b.unwrap_or(Exact([F(1.0); 3]))));
         if a.min_element() < 0.0 || b.min_element() < 0.0 {
             ctx.err(span.clone(), "texture colours must not be negative")
         } else {
@@ -129,7 +129,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
                 crate::scene::limits::check_input_file(&path, crate::scene::limits::max_input_bytes())
                     .and_then(|()| image::read(&path))
                     .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
-            let repeat = i.repeat.map_or(Vec2::ONE, |[u, v]| Vec2::new(u.0, v.0));
+            let repeat = i.repeat.map_or(Vec2::ONE, |Exact([u, v])| Vec2::new(u.0, v.0));
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");
             }
