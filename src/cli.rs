@@ -273,7 +273,21 @@ impl OutputArgs {
     pub fn check(&self, base: &Setting, format: Format) -> Result<Setting, Failure> {
         let setting = self.filter.check(base)?;
         self.layer.check(format, &setting)?;
+        if let Some(warning) = self.exposure_warning(format) {
+            eprintln!("warning: {warning}");
+        }
         Ok(setting)
+    }
+
+    /// `--exposure` applies to PNG only: EXR, HDR and PFM keep the linear values.
+    pub fn exposure_warning(&self, format: Format) -> Option<String> {
+        (self.exposure != 0.0 && format != Format::Png).then(|| {
+            format!(
+                "--exposure {} is ignored: it applies to PNG output only, and {} keeps linear values",
+                self.exposure,
+                format!("{format:?}").to_uppercase()
+            )
+        })
     }
 
     /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.

@@ -142,6 +142,9 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     );
     let features = Features::needed(&analysis, Outputs { split, guides });
     say!("so the render computes: {} (of mis+split+guides+textures)", features.names());
+    if args.out.exposure != 0.0 && format == film::Format::Png {
+        say!("and the PNG is exposed by {} stops", args.out.exposure);
+    }
     Ok(())
 }
 

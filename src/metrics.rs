@@ -27,6 +27,16 @@ pub fn compare(test: &Image, reference: &Image) -> Result<Errors, String> {
             test.width, test.height, reference.width, reference.height
         ));
     }
+    // A NaN or an infinity makes every figure NaN or infinite: say where, rather than print it.
+    for (name, image) in [("the image", test), ("the reference", reference)] {
+        let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
+        if bad > 0 {
+            return Err(format!(
+                "{name} has {bad} of {} pixels that are not finite (NaN or infinite): no error can be measured",
+                image.pixels.len()
+            ));
+        }
+    }
     // Per pixel: squared error and relative squared error, summed over channels.
     let per_pixel: Vec<(f64, f64)> = test
         .pixels
@@ -149,6 +159,18 @@ mod tests {
         assert_eq!(e.rmse_trimmed, 0.0);
         assert_eq!(compare(&reference, &reference).expect("same").sse, 0.0);
         assert!(compare(&Image::new(3, 3), &reference).is_err());
+    }
+
+    #[test]
+    fn non_finite_pixels_are_an_error_that_counts_them() {
+        let reference = Image::new(4, 4);
+        let mut test = reference.clone();
+        test.pixels[1] = Vec3::new(f32::NAN, 0.0, 0.0);
+        test.pixels[2] = Vec3::splat(f32::INFINITY);
+        let e = compare(&test, &reference).expect_err("NaN and inf");
+        assert!(e.contains("the image has 2 of 16 pixels"), "{e}");
+        let e = compare(&reference, &test).expect_err("NaN and inf");
+        assert!(e.contains("the reference has 2 of 16"), "{e}");
     }
 
     #[test]

@@ -241,3 +241,47 @@ fn a_vector_has_exactly_its_length() {
     }
     assert!(!d.join("x.exr").exists());
 }
+
+/// Item 10: `compare` with NaN or infinite pixels printed NaN figures and exited 0; now it says
+/// how many pixels are not finite and exits with status 2.
+#[test]
+fn compare_refuses_non_finite_pixels() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    // A 2x1 PFM (little-endian, scale -1) with a NaN in its first pixel, and a clean one.
+    let pfm = |first: f32| {
+        let mut bytes = b"PF\n2 1\n-1.0\n".to_vec();
+        for v in [first, 0.5, 0.5, 0.5, 0.5, 0.5] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes
+    };
+    std::fs::write(d.join("nan.pfm"), pfm(f32::NAN)).expect("write");
+    std::fs::write(d.join("ok.pfm"), pfm(0.5)).expect("write");
+    let o = run_in(d, &["compare", "nan.pfm", "ok.pfm", "--json"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("1 of 2 pixels that are not finite"), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "figures were printed: {}", String::from_utf8_lossy(&o.stdout));
+    let o = run_in(d, &["compare", "ok.pfm", "ok.pfm", "--json"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+/// Item 10: `--exposure` was ignored silently for EXR and HDR output, and by `info`; now a
+/// render warns, and `info` says what it does to a PNG.
+#[test]
+fn exposure_is_never_ignored_silently() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("s.toml"), SCENE).expect("write");
+    for out in ["x.exr", "x.hdr", "x.pfm"] {
+        let o = run_in(d, &["render", "s.toml", "-o", out, "--exposure", "2"]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(stderr(&o).contains("warning: --exposure 2 is ignored"), "{out}: {}", stderr(&o));
+    }
+    let o = run_in(d, &["render", "s.toml", "-o", "x.png", "--exposure", "2"]);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    let o = run_in(d, &["info", "s.toml", "-o", "x.png", "--exposure", "1.5"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("exposed by 1.5 stops"), "{o:?}");
+    let o = run_in(d, &["info", "s.toml", "-o", "x.exr", "--exposure", "1.5"]);
+    assert!(stderr(&o).contains("warning: --exposure 1.5 is ignored"), "{}", stderr(&o));
+}
