@@ -285,3 +285,36 @@ fn exposure_is_never_ignored_silently() {
     let o = run_in(d, &["info", "s.toml", "-o", "x.exr", "--exposure", "1.5"]);
     assert!(stderr(&o).contains("warning: --exposure 1.5 is ignored"), "{}", stderr(&o));
 }
+
+/// Defect 7: `emission = [3e38, ...]` wrote an EXR of infinities. Emission and every light's
+/// power are bounded (1e12), so the film stays finite; a value within the bound renders.
+#[test]
+fn emission_that_would_overflow_the_film_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let cases = [
+        ("radius = 1", "radius = 1\nemission = [3e38, 3e38, 3e38]", "`emission` must be at most"),
+        ("intensity = [5, 5, 5]", "intensity = [2e12, 1, 1]", "`intensity` must be at most"),
+    ];
+    for (i, (from, to, why)) in cases.into_iter().enumerate() {
+        let name = format!("e{i}.toml");
+        std::fs::write(d.join(&name), SCENE.replace(from, to)).expect("write");
+        let o = run_in(d, &["render", &name, "-o", "x.exr"]);
+        assert_eq!(o.status.code(), Some(2), "{to}: {}", stderr(&o));
+        assert!(stderr(&o).contains(why), "{to}: {}", stderr(&o));
+    }
+    std::fs::write(
+        d.join("bright.toml"),
+        SCENE.replace("radius = 1", "radius = 1\nemission = [1e12, 1e12, 1e12]"),
+    )
+    .expect("write");
+    let o = run_in(d, &["render", "bright.toml", "-o", "b.pfm"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let bytes = std::fs::read(d.join("b.pfm")).expect("read");
+    let header = b"PF\n8 8\n-1.0\n".len();
+    let values: Vec<f32> =
+        bytes[header..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    assert_eq!(values.len(), 8 * 8 * 3);
+    assert!(values.iter().all(|v| v.is_finite()), "the film is not finite");
+    assert!(values.iter().any(|&v| v > 1e11), "the emitter is not seen");
+}

@@ -8,6 +8,10 @@ pub const MAX_SPP: u32 = 1 << 24;
 /// The most scattering events per path (as pbrt and Mitsuba cap theirs): a closed mirror box
 /// would otherwise never end.
 pub const MAX_DEPTH: u32 = 1024;
+/// The largest emission, light intensity, irradiance or radiance a scene may give: the film
+/// sums and squares what it sees in 32-bit floats, and must stay finite (a value of 3e38 made
+/// an EXR of infinities). Real scenes are many orders of magnitude below.
+pub const MAX_EMISSION: f32 = 1e12;
 /// The widest filter kernel side (63x63).
 pub const MAX_KERNEL: usize = 63;
 /// The largest scene file read, 16 MiB: its parsed form takes about a hundred times its size,

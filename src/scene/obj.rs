@@ -51,9 +51,13 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
         if !(m.diffuse.is_finite() && m.emission.is_finite()) {
             return Err(format!("{}: material library: a Kd or Ke value is not finite", path.display()));
         }
-        if m.diffuse.min_element() < 0.0 || m.diffuse.max_element() > 1.0 || m.emission.min_element() < 0.0 {
+        if m.diffuse.min_element() < 0.0
+            || m.diffuse.max_element() > 1.0
+            || m.emission.min_element() < 0.0
+            || m.emission.max_element() > crate::scene::limits::MAX_EMISSION
+        {
             return Err(format!(
-                "{}: material library: Kd must lie in [0, 1] and Ke must not be negative",
+                "{}: material library: Kd must lie in [0, 1] and Ke in [0, 1e12]",
                 path.display()
             ));
         }

@@ -185,6 +185,9 @@ pub(super) fn add(
     if emission.min_element() < 0.0 {
         return ctx.err(span, "`emission` must not be negative");
     }
+    if emission.max_element() > crate::scene::limits::MAX_EMISSION {
+        return ctx.err(span, format!("`emission` must be at most {:e}", crate::scene::limits::MAX_EMISSION));
+    }
     let transform = Transform::new(c.transform.as_ref());
     if transform.scale <= 0.0 {
         return ctx.err(span, "a transform's `scale` must be positive");
