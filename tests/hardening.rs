@@ -318,3 +318,51 @@ fn emission_that_would_overflow_the_film_is_refused() {
     assert!(values.iter().all(|v| v.is_finite()), "the film is not finite");
     assert!(values.iter().any(|&v| v > 1e11), "the emitter is not seen");
 }
+
+/// Defect 6: texture values were not validated: an EXR texture of NaN rendered black with exit
+/// 0, a value of 100 or -1 gave huge or negative radiance, a `constant` texture took [5, 5, 5].
+/// Now non-finite pixels are refused, image values are clamped to [0, 1] as a colour (so 100
+/// renders as 1 and -1 as 0, exactly), and pattern colours outside [0, 1] are refused.
+#[test]
+fn texture_values_follow_the_rules_of_colours() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let pfm = |v: f32| {
+        let mut bytes = b"PF\n2 2\n-1.0\n".to_vec();
+        for _ in 0..12 {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes
+    };
+    let textured = |file: &str| {
+        format!(
+            "{SCENE}[[texture]]\nname = \"t\"\ntype = \"image\"\nfile = \"{file}\"\n\
+             [[material]]\nname = \"m\"\ntype = \"diffuse\"\ntexture = \"t\"\n\
+             [[shape]]\ntype = \"quad\"\nvertices = [[-3, 0, -3], [-3, 0, 3], [3, 0, 3], [3, 0, -3]]\nmaterial = \"m\"\n"
+        )
+    };
+    let render = |name: &str, value: f32| {
+        std::fs::write(d.join(format!("{name}.pfm")), pfm(value)).expect("write");
+        std::fs::write(d.join(format!("{name}.toml")), textured(&format!("{name}.pfm"))).expect("write");
+        run_in(d, &["render", &format!("{name}.toml"), "-o", &format!("{name}-out.pfm")])
+    };
+    let o = render("nan", f32::NAN);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("4 of its 4 pixels are NaN or infinite"), "{}", stderr(&o));
+    for (name, value, same_as) in [("hundred", 100.0, 1.0), ("minus", -1.0, 0.0)] {
+        assert_eq!(render(name, value).status.code(), Some(0));
+        assert_eq!(render(&format!("{name}-ref"), same_as).status.code(), Some(0));
+        let got = std::fs::read(d.join(format!("{name}-out.pfm"))).expect("read");
+        let want = std::fs::read(d.join(format!("{name}-ref-out.pfm"))).expect("read");
+        assert!(got == want, "a texture of {value} does not render as {same_as}");
+    }
+    // The texture shows: white and black render differently.
+    let white = std::fs::read(d.join("hundred-ref-out.pfm")).expect("read");
+    let black = std::fs::read(d.join("minus-ref-out.pfm")).expect("read");
+    assert!(white != black, "the texture does not show in the render");
+    let constant = format!("{SCENE}[[texture]]\nname = \"c\"\ntype = \"constant\"\ncolor = [5, 5, 5]\n");
+    std::fs::write(d.join("c.toml"), constant).expect("write");
+    let o = run_in(d, &["render", "c.toml", "-o", "c.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("must lie in [0, 1]"), "{}", stderr(&o));
+}

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::typed::{Table, Typed};
@@ -101,14 +101,15 @@ pub(super) fn textures(
     Ok((textures, ids))
 }
 
-/// A texture, checked: colours not negative, sizes and frequencies positive; an image read.
+/// A texture, checked: colours in [0, 1] as a material's are, sizes and frequencies positive;
+/// an image read, refused if a pixel is NaN or infinite, its values clamped to [0, 1].
 fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, SceneError> {
     let span = t.span.clone();
     // The two colours of a pattern: black to white unless given.
     let colours = |a: Option<V3>, b: Option<V3>| {
         let (a, b) = (v3(a.unwrap_or(Exact([F(0.0); 3]))), v3(b.unwrap_or(Exact([F(1.0); 3]))));
-        if a.min_element() < 0.0 || b.min_element() < 0.0 {
-            ctx.err(span.clone(), "texture colours must not be negative")
+        if a.min_element() < 0.0 || b.min_element() < 0.0 || a.max_element() > 1.0 || b.max_element() > 1.0 {
+            ctx.err(span.clone(), "texture colours must lie in [0, 1], as a material's colour")
         } else {
             Ok((a, b))
         }
@@ -125,10 +126,23 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
         }
         TextureKind::Image(i) => {
             let path = dir.join(&i.file);
-            let image =
+            let mut image =
                 crate::scene::limits::check_input_file(&path, crate::scene::limits::max_input_bytes())
                     .and_then(|()| image::read(&path))
                     .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
+            let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
+            if bad > 0 {
+                return ctx.err(
+                    span,
+                    format!(
+                        "texture `{}`: {bad} of its {} pixels are NaN or infinite",
+                        t.common.name,
+                        image.pixels.len()
+                    ),
+                );
+            }
+            // A colour, as a material's: a value of 100 would multiply the light it reflects.
+            image.pixels.iter_mut().for_each(|p| *p = p.clamp(Vec3::ZERO, Vec3::ONE));
             let repeat = i.repeat.map_or(Vec2::ONE, |Exact([u, v])| Vec2::new(u.0, v.0));
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");
