@@ -90,10 +90,24 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) if f.message.is_empty() => ExitCode::from(f.code),
         Err(f) => {
-            eprintln!("error: {}", f.message);
+            eprintln!("error: {}", printable(&f.message));
             ExitCode::from(f.code)
         }
     }
+}
+
+/// `text` with its control characters (a NUL or an ESC from a file name, say) escaped, so that
+/// an error message cannot move the cursor, recolour or clear the terminal it is printed on.
+fn printable(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() && c != '\n' && c != '\t' {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 fn progress_bar(total: u64, quiet: bool) -> ProgressBar {

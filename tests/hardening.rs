@@ -286,15 +286,16 @@ fn exposure_is_never_ignored_silently() {
     assert!(stderr(&o).contains("warning: --exposure 1.5 is ignored"), "{}", stderr(&o));
 }
 
-/// Defect 7: `emission = [3e38, ...]` wrote an EXR of infinities. Emission and every light's
-/// power are bounded (1e12), so the film stays finite; a value within the bound renders.
+/// Defect 7: `emission = [3e38, ...]` wrote an EXR of infinities. Emission is bounded (1e12),
+/// so the film stays finite; a value within the bound renders. (A light's overflowing samples
+/// are infinite, dropped and counted: `tests/nonfinite.rs`.)
 #[test]
 fn emission_that_would_overflow_the_film_is_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     let cases = [
         ("radius = 1", "radius = 1\nemission = [3e38, 3e38, 3e38]", "`emission` must be at most"),
-        ("intensity = [5, 5, 5]", "intensity = [2e12, 1, 1]", "`intensity` must be at most"),
+        ("radius = 1", "radius = 1\nemission = [1, 2e12, 1]", "`emission` must be at most"),
     ];
     for (i, (from, to, why)) in cases.into_iter().enumerate() {
         let name = format!("e{i}.toml");
@@ -365,4 +366,37 @@ fn texture_values_follow_the_rules_of_colours() {
     let o = run_in(d, &["render", "c.toml", "-o", "c.exr"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("must lie in [0, 1]"), "{}", stderr(&o));
+}
+
+/// Item 10: smaller defects. Control characters from a name were echoed raw to the terminal;
+/// a `.ply` or `.gltf` mesh said "has no faces"; `converge` left an empty `--out` behind when
+/// its reference was bad.
+#[test]
+fn smaller_defects_of_item_10() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let scene = format!("{SCENE}material = \"\\u001b[31mred\\u0000\"\n");
+    std::fs::write(d.join("esc.toml"), scene).expect("write");
+    let o = run_in(d, &["render", "esc.toml", "-o", "x.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!o.stderr.contains(&0x1b) && !o.stderr.contains(&0), "raw control bytes: {:?}", stderr(&o));
+    assert!(stderr(&o).contains("\\u{1b}[31mred\\u{0}"), "{}", stderr(&o));
+    for ext in ["ply", "gltf", "GLB"] {
+        std::fs::write(d.join(format!("m.{ext}")), "ply\nformat ascii 1.0\n").expect("write");
+        let text = format!("{SCENE}[[shape]]\ntype = \"mesh\"\nfile = \"m.{ext}\"\n");
+        std::fs::write(d.join("mesh.toml"), text).expect("write");
+        let o = run_in(d, &["render", "mesh.toml", "-o", "x.exr"]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("meshes are Wavefront OBJ files"), "{ext}: {}", stderr(&o));
+    }
+    // Counts are whole numbers, as docs/scene-format.md now says.
+    std::fs::write(d.join("w.toml"), SCENE.replace("width = 8", "width = 8.0")).expect("write");
+    let o = run_in(d, &["render", "w.toml", "-o", "x.exr"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("w.toml:5:"), "{}", stderr(&o));
+    std::fs::write(d.join("s.toml"), SCENE).expect("write");
+    std::fs::write(d.join("bad.exr"), "not an image").expect("write");
+    let o = run_in(d, &["converge", "s.toml", "--reference", "bad.exr", "--out", "conv", "--spp", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.join("conv").exists(), "an empty --out was left behind");
 }

@@ -381,9 +381,15 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
 /// Runs the plan: renders what `results.csv` lacks, appends its rows, and returns every row of
 /// this scene and backend (earlier and new).
 pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Vec<Row>, ConvergeError> {
+    let created = !plan.out.exists();
     fs::create_dir_all(&plan.out)
         .map_err(|e| ConvergeError::Input(format!("cannot create {}: {e}", plan.out.display())))?;
-    let reference = reference(plan, scene, report)?;
+    let reference = reference(plan, scene, report).inspect_err(|_| {
+        // A bad reference leaves no empty directory behind (`remove_dir` takes only an empty one).
+        if created {
+            let _ = fs::remove_dir(&plan.out);
+        }
+    })?;
     let csv_path = plan.out.join("results.csv");
     let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
     let mut rows: Vec<Row> =

@@ -7,7 +7,7 @@ use serde::Deserialize;
 use super::typed::{NoKeys, Table, Typed};
 use super::{v3, Ctx, F, V3};
 use crate::scene::sky::CloudySky;
-use crate::scene::{limits, Light, SceneError};
+use crate::scene::{Light, SceneError};
 
 /// A light's type and its own keys.
 #[derive(Deserialize)]
@@ -107,8 +107,6 @@ pub(super) fn light(ctx: &Ctx, l: &Table<LightKind>) -> Result<Light, SceneError
         let v = v3(v);
         if v.min_element() < 0.0 {
             ctx.err(span.clone(), format!("`{key}` must not be negative"))
-        } else if v.max_element() > limits::MAX_EMISSION {
-            ctx.err(span.clone(), format!("`{key}` must be at most {:e}", limits::MAX_EMISSION))
         } else {
             Ok(v)
         }

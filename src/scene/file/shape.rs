@@ -55,6 +55,10 @@ impl Typed for ShapeKind {
     const SECTION: &'static str = "shape";
 }
 
+/// Mesh formats that are not Wavefront OBJ, named in the error rather than read as an empty OBJ.
+const OTHER_MESH_FORMATS: &[&str] =
+    &["ply", "gltf", "glb", "fbx", "stl", "dae", "3ds", "usd", "usda", "usdc", "usdz", "abc", "blend"];
+
 impl ShapeKind {
     /// The file a mesh reads, as written (relative to the scene file).
     pub(super) fn file(&self) -> Option<&str> {
@@ -239,12 +243,22 @@ pub(super) fn add(
         ShapeKind::Mesh(MeshFile { file }) => {
             let line = Some(line_of(ctx.text, span.start));
             let path = dir.join(file);
+            // Formats an OBJ reader would read as an OBJ without faces.
+            let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            if let Some(ext) = ext.filter(|e| OTHER_MESH_FORMATS.contains(&e.as_str())) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "mesh `{file}`: .{ext} is not read; meshes are Wavefront OBJ files (.obj, with .mtl)"
+                    ),
+                );
+            }
             let max = crate::scene::limits::max_input_bytes();
             let parts = crate::scene::limits::check_input_file(&path, max)
                 .and_then(|()| obj::load(&path))
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
             if parts.is_empty() {
-                return ctx.err(span, format!("mesh `{file}` has no faces"));
+                return ctx.err(span, format!("mesh `{file}` has no faces (meshes are Wavefront OBJ files)"));
             }
             // Each OBJ object is a shape of its own (and an object of its own, unless the scene
             // file names one), with its .mtl material unless the scene file gives one.
