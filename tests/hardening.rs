@@ -248,14 +248,8 @@ fn a_vector_has_exactly_its_length() {
 fn compare_refuses_non_finite_pixels() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    // A 2x1 PFM (little-endian, scale -1) with a NaN in its first pixel, and a clean one.
-    let pfm = |first: f32| {
-        let mut bytes = b"PF\n2 1\n-1.0\n".to_vec();
-        for v in [first, 0.5, 0.5, 0.5, 0.5, 0.5] {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        bytes
-    };
+    // A 2x1 PFM with a NaN in its first pixel, and a clean one.
+    let pfm = |first: f32| pfm(2, 1, &[first, 0.5, 0.5, 0.5, 0.5, 0.5]);
     std::fs::write(d.join("nan.pfm"), pfm(f32::NAN)).expect("write");
     std::fs::write(d.join("ok.pfm"), pfm(0.5)).expect("write");
     let o = run_in(d, &["compare", "nan.pfm", "ok.pfm", "--json"]);
@@ -328,13 +322,7 @@ fn emission_that_would_overflow_the_film_is_refused() {
 fn texture_values_follow_the_rules_of_colours() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let pfm = |v: f32| {
-        let mut bytes = b"PF\n2 2\n-1.0\n".to_vec();
-        for _ in 0..12 {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        bytes
-    };
+    let pfm = |v: f32| pfm(2, 2, &[v; 12]);
     let textured = |file: &str| {
         format!(
             "{SCENE}[[texture]]\nname = \"t\"\ntype = \"image\"\nfile = \"{file}\"\n\
@@ -399,4 +387,11 @@ fn smaller_defects_of_item_10() {
     let o = run_in(d, &["converge", "s.toml", "--reference", "bad.exr", "--out", "conv", "--spp", "1"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!d.join("conv").exists(), "an empty --out was left behind");
+}
+
+/// A portable float map (little-endian, scale -1) of `width` x `height` from its RGB values.
+fn pfm(width: u32, height: u32, values: &[f32]) -> Vec<u8> {
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    values.iter().for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
+    bytes
 }

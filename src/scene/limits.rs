@@ -35,23 +35,30 @@ pub fn max_input_bytes() -> u64 {
         .unwrap_or(MAX_INPUT_BYTES)
 }
 
+/// Checks a scene file before it is read: a regular file of at most [`MAX_SCENE_BYTES`].
+pub fn check_scene_file(path: &std::path::Path) -> Result<(), String> {
+    check_file(path, MAX_SCENE_BYTES, "put meshes in OBJ files")
+}
+
+/// Checks a mesh or an image texture before it is read: a regular file of at most
+/// [`max_input_bytes`].
+pub fn check_input_file(path: &std::path::Path) -> Result<(), String> {
+    check_file(path, max_input_bytes(), "LIGHTSPLIT_MAX_INPUT_BYTES raises it")
+}
+
 /// Checks that `path` is a regular file of at most `max` bytes, before it is read: a device
-/// (`/dev/zero`), a FIFO or a directory would be read without end or not at all.
-pub fn check_input_file(path: &std::path::Path, max: u64) -> Result<(), String> {
+/// (`/dev/zero`), a FIFO or a directory would be read without end or not at all. `hint` says
+/// what to do about a file too large.
+fn check_file(path: &std::path::Path, max: u64, hint: &str) -> Result<(), String> {
     let meta = std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     if !meta.is_file() {
         return Err(format!("{} is not a regular file", path.display()));
     }
     if meta.len() > max {
         return Err(format!(
-            "{} is {} bytes, over the {max} read at most{}",
+            "{} is {} bytes, over the {max} read at most ({hint})",
             path.display(),
-            meta.len(),
-            if max == MAX_SCENE_BYTES {
-                " (put meshes in OBJ files)"
-            } else {
-                " (LIGHTSPLIT_MAX_INPUT_BYTES raises it)"
-            }
+            meta.len()
         ));
     }
     Ok(())
@@ -94,12 +101,12 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let file = dir.path().join("f.obj");
         std::fs::write(&file, [0u8; 100]).expect("write");
-        assert_eq!(check_input_file(&file, 100), Ok(()));
-        assert!(check_input_file(&file, 99).is_err_and(|e| e.contains("over the 99")));
-        assert!(check_input_file(dir.path(), 1 << 20).is_err_and(|e| e.contains("not a regular file")));
-        assert!(check_input_file(std::path::Path::new("/dev/zero"), 1 << 20)
+        assert_eq!(check_file(&file, 100, ""), Ok(()));
+        assert!(check_file(&file, 99, "").is_err_and(|e| e.contains("over the 99")));
+        assert!(check_file(dir.path(), 1 << 20, "").is_err_and(|e| e.contains("not a regular file")));
+        assert!(check_file(std::path::Path::new("/dev/zero"), 1 << 20, "")
             .is_err_and(|e| e.contains("not a regular file")));
-        assert!(check_input_file(&dir.path().join("gone"), 1 << 20).is_err());
+        assert!(check_file(&dir.path().join("gone"), 1 << 20, "").is_err());
     }
 
     #[test]

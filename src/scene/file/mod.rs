@@ -145,8 +145,7 @@ impl Ctx<'_> {
 
 /// Reads and resolves a scene file. Every problem is one [`SceneError`] naming the file and line.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    crate::scene::limits::check_input_file(path, crate::scene::limits::MAX_SCENE_BYTES)
-        .map_err(|e| SceneError::new(path, None, e))?;
+    crate::scene::limits::check_scene_file(path).map_err(|e| SceneError::new(path, None, e))?;
     let text = std::fs::read_to_string(path)
         .map_err(|e| SceneError::new(path, None, format!("cannot read the scene file: {e}")))?;
     parse(path, &text)

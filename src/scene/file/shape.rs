@@ -253,8 +253,7 @@ pub(super) fn add(
                     ),
                 );
             }
-            let max = crate::scene::limits::max_input_bytes();
-            let parts = crate::scene::limits::check_input_file(&path, max)
+            let parts = crate::scene::limits::check_input_file(&path)
                 .and_then(|()| obj::load(&path))
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
             if parts.is_empty() {

@@ -127,7 +127,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
         TextureKind::Image(i) => {
             let path = dir.join(&i.file);
             let mut image =
-                crate::scene::limits::check_input_file(&path, crate::scene::limits::max_input_bytes())
+                crate::scene::limits::check_input_file(&path)
                     .and_then(|()| image::read(&path))
                     .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
             let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
