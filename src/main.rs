@@ -182,26 +182,20 @@ fn stress_command(args: StressArgs) -> Result<(), Failure> {
     }
     bar.finish_and_clear();
     let passed = rows.iter().filter(|r| r.pass).count();
-    // A limit row may fail: it measures past what f32 holds, and says so.
-    let failed = rows.iter().filter(|r| !r.pass && !r.limit).count();
+    let failed = rows.iter().filter(|r| !r.pass).count();
     if args.run.json {
         let json =
             serde_json::json!({ "accel": engine.accel, "passed": passed, "failed": failed, "rows": rows });
         say!("{json}");
     } else {
         let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0);
-        let verdict = |r: &stress::Row| match (r.pass, r.limit) {
-            (true, _) => "yes",
-            (false, true) => "f32",
-            (false, false) => "NO",
-        };
+        let verdict = |r: &stress::Row| if r.pass { "yes" } else { "NO" };
         say!("{:width$}  {:4}  figure", "row", "pass");
         for r in &rows {
             say!("{:width$}  {:4}  {}", r.name, verdict(r), r.figure);
         }
         for r in rows.iter().filter(|r| !r.pass) {
-            let what = if r.limit { "past f32's reach" } else { "FAILED" };
-            say!("\n{} {what}: {}", r.name, r.note);
+            say!("\n{} FAILED: {}", r.name, r.note);
         }
         say!("\n{passed} of {} rows passed on {}, {failed} failed", rows.len(), engine.accel);
     }
@@ -435,7 +429,7 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
         adaptive: args.adaptive,
         out: args.out.clone(),
     };
-    let bar = progress_bar(plan.total_samples(), false);
+    let bar = progress_bar(plan.total_samples(&scene), false);
     let report = |e: Event| match e {
         Event::Samples(n) => bar.inc(n),
         Event::Message(m) => bar.suspend(|| eprintln!("{m}")),
@@ -444,9 +438,9 @@ fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
         converge::ConvergeError::Input(m) => Failure::input(m),
         converge::ConvergeError::Failed(m) => Failure::failed(m),
     };
-    let rows = converge::run(&plan, &scene, &report).map_err(map)?;
+    let measured = converge::run(&plan, &scene, &report).map_err(map)?;
     bar.finish_and_clear();
-    let md = converge::report(&plan, &rows).map_err(map)?;
+    let md = converge::report(&plan, &measured).map_err(map)?;
     say!("{}", md.trim_end_matches('\n'));
     eprintln!("wrote {}", plan.out.display());
     Ok(())

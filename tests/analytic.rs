@@ -77,7 +77,9 @@ fn diffuse_plane_under_point_light_matches_the_formula() {
     let spp = 16;
     let out = render_text(text, spp);
     let camera = PinholeCamera::new(&scene.camera, 32, 32);
-    let light = glam::Vec3::new(0.7, 1.5, -0.4);
+    // The scene stores points relative to its camera: the light, and the plane y = 0.
+    let origin = scene.origin.as_vec3();
+    let light = glam::Vec3::new(0.7, 1.5, -0.4) - origin;
     let mut worst = 0.0f32;
     for y in 0..32 {
         for x in 0..32 {
@@ -86,7 +88,7 @@ fn diffuse_plane_under_point_light_matches_the_formula() {
                 .map(|j| {
                     let offset = Vec2::new((j % 8) as f32 + 0.5, (j / 8) as f32 + 0.5) / 8.0;
                     let ray = camera.ray(x, y, offset);
-                    let p = ray.at(-ray.origin.y / ray.dir.y);
+                    let p = ray.at((-origin.y - ray.origin.y) / ray.dir.y);
                     let d = light - p;
                     0.6 / std::f32::consts::PI * 10.0 * (d.y / d.length()) / d.length_squared()
                 })

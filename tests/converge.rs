@@ -198,6 +198,162 @@ fn rows_written_before_the_sampler_column_read_as_independent() {
     assert_eq!((row.sampler, row.spp, row.rmse), (SamplerKind::Independent, 16, 2.0e-2));
     let new = row.csv();
     assert_eq!(new.split(',').nth(2), Some("independent"));
-    assert_eq!(Row::parse(&new), Some(row));
+    assert_eq!(Row::parse(&new), Some(row.clone()));
     assert_eq!(Row::parse("cornell.toml,embree,halton,16,0,none,none,false,0.5,0,1,2,3,4"), None);
+    // A row with its run key reads it back; a key that is not hexadecimal is a damaged line.
+    let keyed = Row { run: "00ff00ff00ff00ff".into(), ..row };
+    assert_eq!(Row::parse(&keyed.csv()).as_ref(), Some(&keyed));
+    assert_eq!(Row::parse(&keyed.csv().replace("00ff00ff00ff00ff", "not-a-key")), None);
+}
+
+/// Issue 18, defect 2: the resume key covers everything that changes a number. A run into the
+/// same `--out` at another size renders its own rows, says the others are not used, and its
+/// summary reads only its own; a damaged (non-UTF-8) line spoils only itself.
+#[test]
+fn rows_of_other_settings_are_not_reused_and_a_bad_byte_spoils_one_line() {
+    let (_dir, out, out_s) = run_dir();
+    let scene = scene();
+    let args = |width: &'static str| {
+        let mut a = vec!["converge", &scene, "--width", width, "--height", "8", "--spp", "1,2"];
+        a.extend(["--reference-spp", "8", "--filters", "none,box3", "--out", &out_s]);
+        a.into_iter().map(String::from).collect::<Vec<String>>()
+    };
+    let run = |a: &[String]| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        lightsplit(&a)
+    };
+    let o = run(&args("12"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let first = read_rows(&out.join("results.csv"));
+    assert_eq!(first.len(), 2 * 2);
+    // Another width: nothing of the first run is reused, and the output says so.
+    let o = run(&args("16"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("4 row(s)") && stderr.contains("not used"), "{stderr}");
+    let all = read_rows(&out.join("results.csv"));
+    assert_eq!(all.len(), 2 * first.len(), "the second run rendered its own rows");
+    assert_eq!(&all[..first.len()], &first[..], "the first run's rows are kept in the file");
+    let keys: HashSet<&str> = all.iter().map(|r| r.run.as_str()).collect();
+    assert_eq!(keys.len(), 2, "two runs, two keys");
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary");
+    assert!(summary.contains("16x8") && summary.contains("4 more row(s)"), "{summary}");
+    // A non-UTF-8 byte on one line: the same command finds every row done.
+    let csv = out.join("results.csv");
+    let mut bytes = std::fs::read(&csv).expect("csv");
+    bytes.extend_from_slice(b"sky-sphere.toml,embree,\xff\n");
+    std::fs::write(&csv, &bytes).expect("write");
+    let o = run(&args("16"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(read_rows(&csv), all, "no row repeated or lost");
+}
+
+/// A results.csv from before the run column is brought to the new header; its rows are kept,
+/// but, having no key, never used.
+#[test]
+fn an_older_results_file_is_upgraded_and_its_rows_kept_unused() {
+    let (_dir, out, out_s) = run_dir();
+    std::fs::create_dir_all(&out).expect("mkdir");
+    let old = "scene,accel,sampler,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border\n\
+               sky-sphere.toml,embree,independent,1,0,none,none,false,0.5,0,1.0e0,2.0e-2,3.0e-3,4.0e-2\n";
+    std::fs::write(out.join("results.csv"), old).expect("write");
+    let scene = scene();
+    let args = [
+        "converge",
+        &scene,
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+        "--reference-spp",
+        "4",
+        "--filters",
+        "none",
+    ];
+    let o = lightsplit(&[&args[..], &["--out", &out_s]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(out.join("results.csv")).expect("csv");
+    assert_eq!(text.lines().next(), Some(HEADER));
+    let rows = read_rows(&out.join("results.csv"));
+    assert_eq!(rows.len(), 2, "the old row and the new one");
+    assert_eq!((rows[0].run.as_str(), rows[0].rmse), ("", 2.0e-2));
+    assert!(!rows[1].run.is_empty());
+}
+
+/// The run key changes with every input file (scene, mesh, material library, texture) and every
+/// setting that changes a number, and with nothing else.
+#[test]
+fn the_run_key_covers_the_scene_files_and_every_setting() {
+    use lightsplit::converge::Plan;
+    use lightsplit::render::RenderOptions;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).expect("write");
+    write("m.mtl", "newmtl m\nKd 0.5 0.5 0.5\n");
+    write("m.obj", "mtllib m.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    // A 1x1 PFM texture.
+    let mut pfm = b"PF\n1 1\n-1\n".to_vec();
+    pfm.extend([0.5f32, 0.5, 0.5].iter().flat_map(|v| v.to_le_bytes()));
+    std::fs::write(d.join("t.pfm"), &pfm).expect("write");
+    let scene_text = "[camera]\nposition = [0, 0, -3]\nlook_at = [0, 0, 0]\n\
+        [[texture]]\nname = \"t\"\ntype = \"image\"\nfile = \"t.pfm\"\n\
+        [[material]]\nname = \"m\"\ntype = \"diffuse\"\ntexture = \"t\"\n\
+        [[shape]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"m\"\n";
+    write("s.toml", scene_text);
+    let load = || lightsplit::scene::load(&d.join("s.toml")).expect("loads");
+    let scene = load();
+    let plan = Plan {
+        scene_path: d.join("s.toml"),
+        options: RenderOptions::from_scene(&scene),
+        spps: vec![1],
+        seeds: 1,
+        samplers: vec![SamplerKind::Independent],
+        choices: vec![],
+        reference: None,
+        reference_spp: 64,
+        diff_spp: None,
+        adaptive: None,
+        out: d.join("out"),
+    };
+    let key = |plan: &Plan| plan.run_key(&load()).expect("key");
+    let base = key(&plan);
+    assert_eq!(key(&plan), base, "the same run, the same key");
+    // Settings.
+    let mut changed = Vec::new();
+    for edit in [
+        |p: &mut Plan| p.options.width += 1,
+        |p: &mut Plan| p.options.height += 1,
+        |p: &mut Plan| p.options.max_depth += 1,
+        |p: &mut Plan| p.options.seed += 1,
+        |p: &mut Plan| p.reference_spp *= 2,
+        |p: &mut Plan| p.samplers = vec![SamplerKind::Independent, SamplerKind::Sobol],
+    ] {
+        let mut p = plan.clone();
+        edit(&mut p);
+        changed.push(key(&p));
+    }
+    // Files: each edited in turn, then restored.
+    for (name, edited) in [
+        ("s.toml", format!("{scene_text}[render]\nmax_depth = 3\n").into_bytes()),
+        ("m.obj", b"mtllib m.mtl\nusemtl m\nv 0 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\n".to_vec()),
+        ("m.mtl", b"newmtl m\nKd 0.25 0.5 0.5\n".to_vec()),
+        ("t.pfm", [&pfm[..pfm.len() - 4], &0.25f32.to_le_bytes()[..]].concat()),
+    ] {
+        let before = std::fs::read(d.join(name)).expect("read");
+        std::fs::write(d.join(name), &edited).expect("write");
+        changed.push(key(&plan));
+        std::fs::write(d.join(name), &before).expect("write");
+    }
+    assert_eq!(key(&plan), base, "restored files, the same key");
+    let distinct: HashSet<&String> = changed.iter().chain([&base]).collect();
+    assert_eq!(distinct.len(), changed.len() + 1, "every change gives a key of its own: {changed:?}");
+    // A given reference: its contents count, not its name.
+    std::fs::write(d.join("ref.pfm"), &pfm).expect("write");
+    let given = Plan { reference: Some(d.join("ref.pfm")), ..plan.clone() };
+    let k = key(&given);
+    std::fs::write(d.join("ref.pfm"), [&pfm[..pfm.len() - 4], &0.25f32.to_le_bytes()[..]].concat())
+        .expect("write");
+    assert_ne!(key(&given), k);
 }

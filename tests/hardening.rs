@@ -395,3 +395,57 @@ fn pfm(width: u32, height: u32, values: &[f32]) -> Vec<u8> {
     values.iter().for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
     bytes
 }
+
+/// Worlds far from the origin: a scene (TOML and OBJ) moved by 1e8 renders bit for bit as at
+/// the origin, solid texture included. The coordinates are read in f64 and the camera's
+/// position subtracted before rounding to f32 (f32's step at 1e8 is 8 units: before, the
+/// floor, the sphere and the camera collapsed onto one grid point).
+#[test]
+fn a_world_moved_by_1e8_renders_as_at_the_origin() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene_at = |offset: f64, name: &str| -> std::path::PathBuf {
+        let p = |x: f64, y: f64, z: f64| format!("[{}, {}, {}]", offset + x, offset + y, offset + z);
+        let v = |x: f64, y: f64, z: f64| format!("v {} {} {}\n", offset + x, offset + y, offset + z);
+        let obj = dir.path().join(format!("{name}.obj"));
+        let mut text = String::new();
+        for (x, z) in [(-2.0, -2.0), (2.0, -2.0), (2.0, 2.0), (-2.0, 2.0)] {
+            text.push_str(&v(x, 0.0, z));
+        }
+        text.push_str("f 1 4 3 2\n");
+        std::fs::write(&obj, text).expect("write obj");
+        let toml = format!(
+            "[camera]\nposition = {}\nlook_at = {}\n[film]\nwidth = 16\nheight = 16\nspp = 4\n\
+             [[light]]\ntype = \"point\"\nposition = {}\nintensity = [5, 5, 5]\n\
+             [[texture]]\nname = \"c\"\ntype = \"checker\"\nsize = 0.5\n\
+             [[material]]\nname = \"floor\"\ntype = \"diffuse\"\ntexture = \"c\"\n\
+             [[shape]]\ntype = \"mesh\"\nfile = \"{name}.obj\"\nmaterial = \"floor\"\n\
+             [[shape]]\ntype = \"sphere\"\ncenter = {}\nradius = 0.75\n",
+            p(0.25, 1.5, -4.0),
+            p(0.0, 0.5, 0.0),
+            p(0.5, 3.0, -0.5),
+            p(0.0, 0.75, 0.0),
+        );
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, toml).expect("write scene");
+        path
+    };
+    let render = |scene: &std::path::Path| -> Vec<u8> {
+        let out = scene.with_extension("pfm");
+        let o = run(&[OsStr::new("render"), scene.as_os_str(), OsStr::new("-o"), out.as_os_str()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(out).expect("image")
+    };
+    let near = render(&scene_at(0.0, "near"));
+    let far = render(&scene_at(1e8, "far"));
+    assert!(near.len() > 16 * 16 * 12);
+    let floats = |b: &[u8]| -> Vec<f32> {
+        b[b.len() - 16 * 16 * 12..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let (near, far) = (floats(&near), floats(&far));
+    assert!(near.iter().any(|&v| v > 0.0), "the scene is lit");
+    let differ = near.iter().zip(&far).filter(|(a, b)| a != b).count();
+    assert_eq!(differ, 0, "{differ} of {} values differ", near.len());
+}

@@ -233,6 +233,7 @@ mod tests {
                     rmse,
                     relmse: 0.0,
                     rmse_border: border,
+                    run: String::new(),
                 })
             };
             push("none", "none", false, base, base);

@@ -188,15 +188,17 @@ pub struct Row {
     pub relmse: f64,
     /// The RMSE over the pixels on object borders (of the render's object IDs).
     pub rmse_border: f64,
+    /// The run's key ([`Plan::run_key`]): a hash of the scene's files and of every setting that
+    /// changes a number. Empty for a row written before there was one (never used again).
+    pub run: String,
 }
 
-pub const HEADER: &str =
-    "scene,accel,sampler,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border";
+pub const HEADER: &str = "scene,accel,sampler,spp,seed,filter,target,edge_aware,render_seconds,filter_seconds,sse,rmse,relmse,rmse_border,run";
 
 impl Row {
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e},{:.9e}",
+            "{},{},{},{},{},{},{},{},{:.6},{:.6},{:.9e},{:.9e},{:.9e},{:.9e},{}",
             self.scene.replace(',', ";"),
             self.accel,
             self.sampler,
@@ -210,20 +212,29 @@ impl Row {
             self.sse,
             self.rmse,
             self.relmse,
-            self.rmse_border
+            self.rmse_border,
+            self.run
         )
     }
 
     /// A row from a line of `results.csv`; `None` for a line a stopped run left half written.
     /// A line without the sampler column (written before there was a choice) was rendered
-    /// with independent sampling.
+    /// with independent sampling; one without the run column has no key.
     pub fn parse(line: &str) -> Option<Row> {
         let mut f: Vec<&str> = line.trim_end().split(',').collect();
+        let run = match f.len() {
+            15 => f.pop()?.to_string(),
+            13 | 14 => String::new(),
+            _ => return None,
+        };
         let sampler = match f.len() {
             14 => SamplerKind::parse(f.remove(2))?,
             13 => SamplerKind::Independent,
             _ => return None,
         };
+        if !run.chars().all(|c| c.is_ascii_hexdigit()) {
+            return None;
+        }
         Some(Row {
             scene: f[0].to_string(),
             accel: f[1].to_string(),
@@ -239,6 +250,7 @@ impl Row {
             rmse: f[10].parse().ok()?,
             relmse: f[11].parse().ok()?,
             rmse_border: f[12].parse().ok()?,
+            run,
         })
     }
 
@@ -277,10 +289,10 @@ fn accel_name(a: Backend) -> &'static str {
 impl Plan {
     /// The samples the run takes, the reference's included when it must be rendered (what
     /// an earlier run left done is counted as it is skipped).
-    pub fn total_samples(&self) -> u64 {
+    pub fn total_samples(&self, scene: &Scene) -> u64 {
         let pixels = self.options.width as u64 * self.options.height as u64;
-        let reference = match (&self.reference, fs::read(&self.scene_path)) {
-            (None, Ok(text)) if !self.reference_cache(&text).exists() => self.reference_spp as u64,
+        let reference = match (&self.reference, self.run_key(scene)) {
+            (None, Ok(key)) if !self.reference_cache(&key).exists() => self.reference_spp as u64,
             _ => 0,
         };
         let renders = (1 + self.adaptive.is_some() as u64) * self.samplers.len() as u64;
@@ -302,17 +314,45 @@ impl Plan {
         self.samplers.last().copied().unwrap_or_default()
     }
 
-    /// The cache file of the rendered reference: named by a hash of the scene file and every
-    /// setting that changes the image.
-    pub fn reference_cache(&self, scene_text: &[u8]) -> PathBuf {
+    /// The run's key: a hash of the scene file, every file it reads (meshes, their material
+    /// libraries, image textures), and every setting that changes a number: the image size,
+    /// the path length, the base seed, the reference (the given file's contents, or the spp and
+    /// sampler it is rendered with) and the program's version. The rows' own spp, seed,
+    /// sampler and setting are columns of their own. A row of another key is not used.
+    pub fn run_key(&self, scene: &Scene) -> Result<String, ConvergeError> {
         let mut h = Fnv::default();
-        h.write(scene_text);
-        h.write(self.reference_sampler().name().as_bytes());
+        let file = |h: &mut Fnv, path: &Path| -> Result<(), ConvergeError> {
+            let bytes =
+                fs::read(path).map_err(|e| ConvergeError::Input(format!("{}: {e}", path.display())))?;
+            h.write(&(bytes.len() as u64).to_le_bytes());
+            h.write(&bytes);
+            Ok(())
+        };
+        for path in &scene.inputs {
+            file(&mut h, path)?;
+        }
         let o = &self.options;
-        for v in [o.width as u64, o.height as u64, o.max_depth as u64, o.seed, self.reference_spp as u64] {
+        for v in [o.width as u64, o.height as u64, o.max_depth as u64, o.seed] {
             h.write(&v.to_le_bytes());
         }
-        self.out.join(format!("reference-{}spp-{:016x}.exr", self.reference_spp, h.0))
+        match &self.reference {
+            Some(path) => {
+                h.write(b"reference file");
+                file(&mut h, path)?;
+            }
+            None => {
+                h.write(b"reference rendered");
+                h.write(&(self.reference_spp as u64).to_le_bytes());
+                h.write(self.reference_sampler().name().as_bytes());
+            }
+        }
+        h.write(env!("CARGO_PKG_VERSION").as_bytes());
+        Ok(format!("{:016x}", h.0))
+    }
+
+    /// The cache file of the rendered reference, named by the run's key.
+    pub fn reference_cache(&self, key: &str) -> PathBuf {
+        self.out.join(format!("reference-{}spp-{key}.exr", self.reference_spp))
     }
 }
 
@@ -333,16 +373,26 @@ impl Fnv {
     }
 }
 
-/// Reads the rows an earlier run of the same scene and backend left in `results.csv`.
+/// Reads the rows of `results.csv`. A line that is not a row (half written by a stopped run,
+/// or damaged: a byte that is not UTF-8 spoils only its own line) is skipped.
 pub fn read_rows(path: &Path) -> Vec<Row> {
-    fs::read_to_string(path)
-        .map(|text| text.lines().skip(1).filter_map(Row::parse).collect())
-        .unwrap_or_default()
+    let bytes = fs::read(path).unwrap_or_default();
+    bytes
+        .split(|&b| b == b'\n')
+        .skip(1)
+        .filter_map(|l| std::str::from_utf8(l).ok())
+        .filter_map(Row::parse)
+        .collect()
 }
 
 /// The reference image: the given file, or a render at `reference_spp` cached in the output
 /// directory.
-fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Image, ConvergeError> {
+fn reference(
+    plan: &Plan,
+    scene: &Scene,
+    key: &str,
+    report: &(dyn Fn(Event) + Sync),
+) -> Result<Image, ConvergeError> {
     if let Some(path) = &plan.reference {
         let img = film::read_image(path).map_err(ConvergeError::Input)?;
         if (img.width, img.height) != (plan.options.width, plan.options.height) {
@@ -357,9 +407,7 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
         }
         return Ok(img);
     }
-    let text = fs::read(&plan.scene_path)
-        .map_err(|e| ConvergeError::Input(format!("{}: {e}", plan.scene_path.display())))?;
-    let cache = plan.reference_cache(&text);
+    let cache = plan.reference_cache(key);
     if let Ok(img) = film::read_image(&cache) {
         report(Event::Message(&format!("reference: {} (cached)", cache.display())));
         return Ok(img);
@@ -378,22 +426,66 @@ fn reference(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Res
     Ok(image)
 }
 
+/// What a run measured: the rows of this scene, backend and key, earlier and new.
+pub struct Measured {
+    pub rows: Vec<Row>,
+    /// Rows of this scene and backend in `results.csv` measured under another key (other
+    /// scene contents or settings, or from before there was a key): kept in the file, not used.
+    pub unused: usize,
+}
+
+/// Brings an existing `results.csv` of an older layout to [`HEADER`]'s: its rows rewritten
+/// (those without a key keep an empty one), lines that are not rows kept as they are.
+fn upgrade_csv(path: &Path) -> Result<(), ConvergeError> {
+    let failed = |e: std::io::Error| ConvergeError::Failed(format!("{}: {e}", path.display()));
+    let bytes = match fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(failed(e)),
+    };
+    let mut lines = bytes.split(|&b| b == b'\n');
+    if lines.next().is_some_and(|h| h == HEADER.as_bytes()) {
+        return Ok(());
+    }
+    let mut text = format!("{HEADER}\n").into_bytes();
+    for line in lines.filter(|l| !l.is_empty()) {
+        match std::str::from_utf8(line).ok().and_then(Row::parse) {
+            Some(row) => text.extend_from_slice(row.csv().as_bytes()),
+            None => text.extend_from_slice(line),
+        }
+        text.push(b'\n');
+    }
+    film::write_text(path, &text).map_err(|e| ConvergeError::Failed(e.to_string()))
+}
+
 /// Runs the plan: renders what `results.csv` lacks, appends its rows, and returns every row of
-/// this scene and backend (earlier and new).
-pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Vec<Row>, ConvergeError> {
+/// this scene, backend and key (earlier and new).
+pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Result<Measured, ConvergeError> {
+    let key = plan.run_key(scene)?;
     let created = !plan.out.exists();
     fs::create_dir_all(&plan.out)
         .map_err(|e| ConvergeError::Input(format!("cannot create {}: {e}", plan.out.display())))?;
-    let reference = reference(plan, scene, report).inspect_err(|_| {
+    let reference = reference(plan, scene, &key, report).inspect_err(|_| {
         // A bad reference leaves no empty directory behind (`remove_dir` takes only an empty one).
         if created {
             let _ = fs::remove_dir(&plan.out);
         }
     })?;
     let csv_path = plan.out.join("results.csv");
+    upgrade_csv(&csv_path)?;
     let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
-    let mut rows: Vec<Row> =
-        read_rows(&csv_path).into_iter().filter(|r| r.scene == scene_name && r.accel == accel).collect();
+    let (mut rows, others): (Vec<Row>, Vec<Row>) = read_rows(&csv_path)
+        .into_iter()
+        .filter(|r| r.scene == scene_name && r.accel == accel)
+        .partition(|r| r.run == key);
+    let unused = others.len();
+    if unused > 0 {
+        report(Event::Message(&format!(
+            "{}: {unused} row(s) of {scene_name} on {accel} were measured with other scene files or \
+             settings (size, path length, seed, reference): kept in the file, not used",
+            csv_path.display()
+        )));
+    }
     let done: HashSet<RowId> = rows.iter().map(|r| (r.sampler, r.spp, r.seed, r.key())).collect();
     let fresh = !csv_path.exists();
     let mut csv = fs::OpenOptions::new()
@@ -482,21 +574,23 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                     rmse: e.rmse,
                     relmse: e.relmse,
                     rmse_border: metrics::rmse_masked(&image, &reference, &borders),
+                    run: key.clone(),
                 };
                 write_line(&mut csv, &row.csv())?;
                 rows.push(row);
             }
         }
     }
-    Ok(rows)
+    Ok(Measured { rows, unused })
 }
 
 fn stops(c: &Choice) -> EdgeStops {
     EdgeStops { object: c.edge_aware != Edge::Off, pure: c.edge_aware == Edge::Pure, ..Default::default() }
 }
 
-/// Writes `summary.md` and the two plots for `rows`.
-pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
+/// Writes `summary.md` and the two plots for what was measured.
+pub fn report(plan: &Plan, measured: &Measured) -> Result<String, ConvergeError> {
+    let rows = &measured.rows;
     let mut choices = plan.choices.clone();
     choices.extend(plan.adaptive.map(Choice::adaptive));
     let several = plan.samplers.len() > 1;
@@ -525,6 +619,14 @@ pub fn report(plan: &Plan, rows: &[Row]) -> Result<String, ConvergeError> {
             None => format!("rendered at {} spp ({})", plan.reference_spp, plan.reference_sampler()),
         }
     );
+    if measured.unused > 0 {
+        let _ = writeln!(
+            md,
+            "results.csv holds {} more row(s) of this scene and accelerator, measured with other scene \
+             files or settings: they are not used here.\n",
+            measured.unused
+        );
+    }
     if several {
         md.push_str("## The samplers compared\n\n");
         md.push_str(&summary::samplers_markdown(&tables));

@@ -353,6 +353,7 @@ mod tests {
             rmse,
             relmse: 0.0,
             rmse_border: 0.0,
+            run: String::new(),
         };
         let spps = [4u32, 16, 64];
         let mut rows: Vec<Row> = spps.iter().map(|&s| row("none", s, 0.4 / (s as f64).sqrt())).collect();
@@ -392,6 +393,7 @@ mod tests {
             rmse,
             relmse: 0.0,
             rmse_border: 0.0,
+            run: String::new(),
         };
         let spps = [4u32, 16, 64];
         let choices = [Choice::none()];

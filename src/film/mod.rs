@@ -341,7 +341,7 @@ pub fn write_film(
 }
 
 /// Writes a text file (a summary, a table) the same way as images: whole or not at all.
-pub fn write_text(path: &Path, text: &str) -> Result<(), WriteError> {
+pub fn write_text(path: &Path, text: impl AsRef<[u8]>) -> Result<(), WriteError> {
     atomically(path, |tmp| fs::write(tmp, text).map_err(|e| e.to_string()))
 }
 

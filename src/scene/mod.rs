@@ -183,6 +183,11 @@ pub struct Scene {
     /// Every file the scene was read from: the scene file, its meshes and image textures (no
     /// output may overwrite one).
     pub inputs: Vec<PathBuf>,
+    /// Where the scene's coordinates start, in the world of the scene file: every point of the
+    /// scene (shapes, lights, the camera) is stored relative to it, in f32. A scene file's
+    /// origin is its camera's position, subtracted in f64 before rounding, so precision around
+    /// the camera does not depend on how far the world puts it.
+    pub origin: glam::DVec3,
     pub camera: Camera,
     pub film: FilmSettings,
     pub render: RenderSettings,

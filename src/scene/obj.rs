@@ -2,9 +2,10 @@
 //! `.mtl` Kd as diffuse colour and Ke as emission. When tobj rejects a file, or a vertex is not a
 //! finite number, the offending OBJ line is found and named.
 
-use std::path::Path;
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 /// What the mesh's `.mtl` says about a part.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -13,11 +14,12 @@ pub struct ObjMaterial {
     pub emission: Vec3,
 }
 
-/// One OBJ object, re-indexed on its own vertices.
+/// One OBJ object, re-indexed on its own vertices. Positions stay in f64, as written, until
+/// the scene subtracts its origin (far from the origin f32 cannot hold them).
 #[derive(Clone, Debug)]
 pub struct ObjPart {
     pub name: String,
-    pub positions: Vec<Vec3>,
+    pub positions: Vec<DVec3>,
     pub normals: Option<Vec<Vec3>>,
     /// Texture coordinates, one per vertex, when the file has them (`vt`).
     pub uvs: Option<Vec<Vec2>>,
@@ -25,26 +27,53 @@ pub struct ObjPart {
     pub material: Option<ObjMaterial>,
 }
 
-fn triple(values: &[f32]) -> Vec3 {
+/// A loaded OBJ: its parts, and the material libraries (`mtllib`) it read.
+#[derive(Clone, Debug)]
+pub struct Obj {
+    pub parts: Vec<ObjPart>,
+    pub libraries: Vec<PathBuf>,
+}
+
+fn triple(values: &[f64]) -> DVec3 {
     match values {
-        [a, b, c, ..] => Vec3::new(*a, *b, *c),
-        _ => Vec3::ZERO,
+        [a, b, c, ..] => DVec3::new(*a, *b, *c),
+        _ => DVec3::ZERO,
     }
 }
 
-/// Loads an OBJ file. Errors are messages naming the OBJ file and, where found, its line.
-pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
+/// Loads an OBJ file (a regular file of bounded size: the caller checks). Errors are messages
+/// naming the OBJ file and, where found, its line.
+pub fn load(path: &Path) -> Result<Obj, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, materials) = match tobj::load_obj(path, &options) {
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    // Each library read, and why one could not be (a library is an input like any other).
+    let libraries = RefCell::new(Vec::new());
+    let library_error = RefCell::new(None);
+    let loaded = tobj::load_obj_buf(&mut std::io::Cursor::new(&bytes), &options, |name| {
+        let full = dir.join(name);
+        libraries.borrow_mut().push(full.clone());
+        match crate::scene::limits::check_input_file(&full) {
+            Ok(()) => tobj::load_mtl(&full),
+            Err(e) => {
+                library_error.borrow_mut().get_or_insert(e);
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    });
+    let (models, materials) = match loaded {
         Ok(loaded) => loaded,
-        Err(e) => return Err(describe(path, &e.to_string())),
+        Err(e) => return Err(describe(path, &bytes, &e.to_string())),
     };
-    let materials = materials.map_err(|e| format!("{}: material library: {e}", path.display()))?;
+    let materials = materials.map_err(|e| match library_error.borrow_mut().take() {
+        Some(why) => format!("{}: material library: {why}", path.display()),
+        None => format!("{}: material library: {e}", path.display()),
+    })?;
     let materials: Vec<ObjMaterial> = materials
         .iter()
         .map(|m| ObjMaterial {
-            diffuse: m.diffuse.map_or(Vec3::splat(0.8), Vec3::from_array),
-            emission: m.emissive.map_or(Vec3::ZERO, Vec3::from_array),
+            diffuse: m.diffuse.map_or(Vec3::splat(0.8), |d| Vec3::from_array(d.map(|x| x as f32))),
+            emission: m.emissive.map_or(Vec3::ZERO, |e| Vec3::from_array(e.map(|x| x as f32))),
         })
         .collect();
     for m in &materials {
@@ -69,18 +98,24 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
         if mesh.indices.is_empty() {
             continue;
         }
-        let positions: Vec<Vec3> = mesh.positions.chunks_exact(3).map(triple).collect();
-        if positions.iter().any(|p| !p.is_finite()) {
-            return Err(describe(path, "a vertex position is not a finite number"));
+        let positions: Vec<DVec3> = mesh.positions.chunks_exact(3).map(triple).collect();
+        if positions.iter().any(|p| !p.is_finite() || p.abs().max_element() > f32::MAX as f64) {
+            return Err(describe(path, &bytes, "a vertex position is not a finite number"));
         }
-        let normals = (mesh.normals.len() == mesh.positions.len())
-            .then(|| mesh.normals.chunks_exact(3).map(|n| triple(n).normalize_or_zero()).collect::<Vec<_>>());
+        let normals = (mesh.normals.len() == mesh.positions.len()).then(|| {
+            mesh.normals.chunks_exact(3).map(|n| triple(n).normalize_or_zero().as_vec3()).collect::<Vec<_>>()
+        });
         let uvs = (mesh.texcoords.len() / 2 == positions.len() && !mesh.texcoords.is_empty())
-            .then(|| mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])).collect::<Vec<_>>())
+            .then(|| {
+                mesh.texcoords
+                    .chunks_exact(2)
+                    .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
+                    .collect::<Vec<_>>()
+            })
             .filter(|uvs| uvs.iter().all(|t| t.is_finite()));
         let indices: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
         if indices.iter().flatten().any(|&i| i as usize >= positions.len()) {
-            return Err(describe(path, "face vertex index out of bounds"));
+            return Err(describe(path, &bytes, "face vertex index out of bounds"));
         }
         parts.push(ObjPart {
             name: model.name.clone(),
@@ -91,39 +126,52 @@ pub fn load(path: &Path) -> Result<Vec<ObjPart>, String> {
             material: mesh.material_id.and_then(|i| materials.get(i).copied()),
         });
     }
-    Ok(parts)
+    Ok(Obj { parts, libraries: libraries.into_inner() })
 }
 
-/// Names the OBJ line that explains `message`, when one can be found: a vertex that is not a
-/// finite number, or a face index outside the vertices defined so far.
-fn describe(path: &Path, message: &str) -> String {
-    let Ok(text) = std::fs::read_to_string(path) else {
-        return format!("{}: {message}", path.display());
-    };
-    let mut vertices: i64 = 0;
+/// Names the OBJ line that explains `message`, when one can be found: a `v`, `vt` or `vn` line
+/// without its finite numbers, or a face index outside the vertices, texture coordinates or
+/// normals defined so far.
+fn describe(path: &Path, bytes: &[u8], message: &str) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    // Defined so far: positions, texture coordinates, normals.
+    let mut defined = [0i64; 3];
+    const WHAT: [&str; 3] = ["vertices", "texture coordinates", "normals"];
+    let at = |n: usize, detail: String| format!("{}:{}: {message} ({detail})", path.display(), n + 1);
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => {
-                vertices += 1;
-                if words.take(3).any(|w| w.parse::<f32>().map_or(true, |x| !x.is_finite())) {
-                    return format!("{}:{}: {message} (vertex {vertices})", path.display(), n + 1);
-                }
-            }
+        let (kind, count) = match words.next() {
+            Some("v") => (0, 3),
+            Some("vt") => (1, 2),
+            Some("vn") => (2, 3),
             Some("f") => {
                 for w in words {
-                    let index = w.split('/').next().and_then(|i| i.parse::<i64>().ok());
-                    let resolved = index.map(|i| if i < 0 { vertices + i } else { i - 1 });
-                    if !matches!(resolved, Some(r) if (0..vertices).contains(&r)) {
-                        return format!(
-                            "{}:{}: {message} (`{w}` with {vertices} vertices defined)",
-                            path.display(),
-                            n + 1
-                        );
+                    for (i, index) in w.split('/').enumerate().take(3) {
+                        // `1//3`: no texture coordinate.
+                        if i > 0 && index.is_empty() {
+                            continue;
+                        }
+                        let resolved =
+                            index.parse::<i64>().ok().map(|k| if k < 0 { defined[i] + k } else { k - 1 });
+                        if !matches!(resolved, Some(r) if (0..defined[i]).contains(&r)) {
+                            let which = ["vertex", "texture coordinate", "normal"][i];
+                            return at(
+                                n,
+                                format!("{which} `{index}` of `{w}` with {} {} defined", defined[i], WHAT[i]),
+                            );
+                        }
                     }
                 }
+                continue;
             }
-            _ => {}
+            _ => continue,
+        };
+        defined[kind] += 1;
+        let numbers: Vec<Option<f64>> =
+            words.take(count).map(|w| w.parse::<f64>().ok().filter(|x| x.is_finite())).collect();
+        if numbers.len() < count || numbers.iter().any(Option::is_none) {
+            let name = ["vertex", "texture coordinate", "normal"][kind];
+            return at(n, format!("{name} {} needs {count} finite numbers", defined[kind]));
         }
     }
     format!("{}: {message}", path.display())
@@ -148,7 +196,9 @@ mod tests {
             "m.obj",
             "mtllib m.mtl\no lamp\nusemtl lamp\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",
         );
-        let parts = load(&obj).expect("loads");
+        let loaded = load(&obj).expect("loads");
+        assert_eq!(loaded.libraries, [dir.path().join("m.mtl")]);
+        let parts = loaded.parts;
         assert_eq!(parts.len(), 1);
         assert_eq!(parts[0].indices.len(), 2);
         let m = parts[0].material.expect("material");
@@ -170,5 +220,49 @@ mod tests {
         let obj = write(dir.path(), "nan.obj", "v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n");
         let e = load(&obj).expect_err("nan vertex");
         assert!(e.contains("nan.obj:2:"), "{e}");
+    }
+
+    /// A short `v`, `vt` or `vn` line and a face's texture or normal index out of range are
+    /// named by their line (they were not).
+    #[test]
+    fn short_lines_and_bad_uv_and_normal_indices_name_the_obj_line() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let cases = [
+            ("short-v", "v 0 0 0\nv 1 0\nv 1 1 0\nf 1 2 3\n", 2, "vertex 2 needs 3"),
+            (
+                "short-vt",
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0\nf 1/1 2/1 3/1\n",
+                4,
+                "texture coordinate 1 needs 2",
+            ),
+            ("short-vn", "v 0 0 0\nv 1 0 0\nv 1 1 0\nvn 0 1\nf 1//1 2//1 3//1\n", 4, "normal 1 needs 3"),
+            (
+                "uv-range",
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/7\n",
+                5,
+                "texture coordinate `7` of `3/7` with 1 texture coordinates defined",
+            ),
+            (
+                "normal-range",
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//-4\n",
+                5,
+                "normal `-4` of `3//-4` with 1 normals defined",
+            ),
+        ];
+        for (name, text, line, detail) in cases {
+            let obj = write(dir.path(), &format!("{name}.obj"), text);
+            let e = load(&obj).expect_err(name);
+            assert!(e.contains(&format!("{name}.obj:{line}:")) && e.contains(detail), "{name}: {e}");
+        }
+    }
+
+    /// Coordinates are read in f64: one unit at 1e8 survives (f32's step there is 8).
+    #[test]
+    fn coordinates_keep_f64_precision() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let obj =
+            write(dir.path(), "far.obj", "v 100000001 0 0\nv 100000000 1 0\nv 100000000 0 1\nf 1 2 3\n");
+        let parts = load(&obj).expect("loads").parts;
+        assert_eq!(parts[0].positions[0].x - parts[0].positions[1].x, 1.0);
     }
 }

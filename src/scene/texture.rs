@@ -6,7 +6,7 @@
 use std::f32::consts::PI;
 use std::sync::Arc;
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::image::Image;
 use super::noise::{fbm, perlin};
@@ -34,6 +34,9 @@ pub enum Texture {
         a: Vec3,
         b: Vec3,
         size: f32,
+        /// The scene's origin ([`Scene::origin`](super::Scene::origin)): a solid pattern is
+        /// fixed in the world, read at the origin plus the (camera-relative) point.
+        origin: DVec3,
     },
     /// A solid noise pattern at `frequency` features a unit, blending `a` (at 0) to `b` (at 1).
     Noise {
@@ -43,6 +46,8 @@ pub enum Texture {
         frequency: f32,
         octaves: u32,
         seed: u32,
+        /// As a checker's.
+        origin: DVec3,
     },
     /// An image (linear RGB, top row first) over the unit square of (u, v), repeated `repeat`
     /// times in each direction; v = 0 is the image's bottom row.
@@ -68,12 +73,12 @@ impl Texture {
     /// The scalar in [0, 1] of a pattern texture at `p`, or the luminance of a colour.
     pub fn scalar(&self, p: Vec3, uv: Vec2) -> f32 {
         match self {
-            Texture::Checker { size, .. } => {
-                let c = (p / size.max(1e-12)).floor();
+            Texture::Checker { size, origin, .. } => {
+                let c = ((*origin + p.as_dvec3()) / size.max(1e-12) as f64).floor();
                 ((c.x + c.y + c.z) as i64).rem_euclid(2) as f32
             }
-            Texture::Noise { pattern, frequency, octaves, seed, .. } => {
-                let q = p * *frequency;
+            Texture::Noise { pattern, frequency, octaves, seed, origin, .. } => {
+                let q = ((*origin + p.as_dvec3()) * *frequency as f64).as_vec3();
                 let t = match pattern {
                     Pattern::Perlin => 0.5 + 0.5 * perlin(*seed, q),
                     Pattern::Fbm => 0.5 + 0.5 * fbm(*seed, q, *octaves, 0.5),
@@ -156,7 +161,15 @@ mod tests {
     use super::*;
 
     fn noise(pattern: Pattern) -> Texture {
-        Texture::Noise { pattern, a: Vec3::ZERO, b: Vec3::ONE, frequency: 3.0, octaves: 5, seed: 4 }
+        Texture::Noise {
+            pattern,
+            a: Vec3::ZERO,
+            b: Vec3::ONE,
+            frequency: 3.0,
+            octaves: 5,
+            seed: 4,
+            origin: DVec3::ZERO,
+        }
     }
 
     #[test]

@@ -264,7 +264,10 @@ mod tests {
                 "{CAMERA}[[shape]]\ntype = \"sphere\"\nemission = [1, 1, 1]\ncenter = [0.5, 0.3, 2]\nradius = 1\n"
             );
             let (scene, lights) = lights_of(&text);
+            // The centre seen from the shading point `o`, the world's origin (the scene stores
+            // points relative to its camera).
             let c = Vec3::new(0.5, 0.3, 2.0);
+            let o = -scene.origin.as_vec3();
             // The density of the cone of a sphere of radius r around c, traced.
             let pdf = |d: Vec3, r: f32| {
                 let b = d.dot(c);
@@ -275,13 +278,12 @@ mod tests {
                 let q = d * (b - disc.sqrt());
                 let dc2 = c.length_squared();
                 if r == 1.0 {
-                    lights.pdf_shape(0, Vec3::ZERO, q, (q - c) / r)
+                    lights.pdf_shape(0, o, o + q, (q - c) / r)
                 } else {
                     1.0 / (2.0 * PI * cone_one_minus_cos(r * r / dc2))
                 }
             };
-            let sample =
-                |s: &mut Sampler| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi);
+            let sample = |s: &mut Sampler| lights.sample_one(&scene, 0, o, s.next_2d()).map(|l| l.wi);
             let z = z_score(sample, |d| pdf(d, 1.0));
             assert!(z < 4.0, "z = {z}");
             // The test has power: judged by the cone of a sphere 5% larger, the samples fail.
@@ -300,7 +302,9 @@ mod tests {
         // The intensity a receiver at angle `deg` from the axis, 2 units from the light, gets.
         let at = |deg: f32| {
             let t = deg.to_radians();
-            let p = Vec3::new(0.0, 4.0, 0.0) + 2.0 * Vec3::new(t.sin(), -t.cos(), 0.0);
+            // The receiver as the scene stores points: relative to the camera.
+            let p =
+                Vec3::new(0.0, 4.0, 0.0) - scene.origin.as_vec3() + 2.0 * Vec3::new(t.sin(), -t.cos(), 0.0);
             lights.sample_one(&scene, 0, p, Vec2::splat(0.5)).map_or(0.0, |l| l.radiance.x * 4.0)
         };
         assert!((at(0.0) - 8.0).abs() < 1e-4, "centre {}", at(0.0));

@@ -5,7 +5,7 @@ use glam::Vec3;
 use serde::Deserialize;
 
 use super::typed::{NoKeys, Table, Typed};
-use super::{v3, Ctx, F, V3};
+use super::{dv3, v3, Ctx, F, V3};
 use crate::scene::sky::CloudySky;
 use crate::scene::{Light, SceneError};
 
@@ -112,9 +112,10 @@ pub(super) fn light(ctx: &Ctx, l: &Table<LightKind>) -> Result<Light, SceneError
         }
     };
     match &l.of_type {
-        LightKind::Point(p) => {
-            Ok(Light::Point { position: v3(p.position), intensity: non_negative(p.intensity, "intensity")? })
-        }
+        LightKind::Point(p) => Ok(Light::Point {
+            position: (dv3(p.position) - ctx.origin).as_vec3(),
+            intensity: non_negative(p.intensity, "intensity")?,
+        }),
         LightKind::Sun(s) => {
             let direction = v3(s.direction);
             if direction.length_squared() == 0.0 {
@@ -175,7 +176,7 @@ pub(super) fn light(ctx: &Ctx, l: &Table<LightKind>) -> Result<Light, SceneError
                 return ctx.err(span, "`falloff_start` must lie between 0 and `cone_angle` degrees");
             }
             Ok(Light::Spot {
-                position: v3(s.position),
+                position: (dv3(s.position) - ctx.origin).as_vec3(),
                 direction: direction.normalize(),
                 intensity: non_negative(s.intensity, "intensity")?,
                 cos_total: cone.to_radians().cos(),

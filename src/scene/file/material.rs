@@ -7,7 +7,7 @@ use glam::Vec3;
 use serde::Deserialize;
 
 use super::typed::{Table, Typed};
-use super::{v3, Ctx, Exact, F, V3};
+use super::{v3, Ctx, Exact, Wide, F, V3};
 use crate::scene::texture::Texture;
 use crate::scene::{Maps, Material, SceneError};
 
@@ -88,7 +88,7 @@ pub(super) fn materials(
             return ctx.err(span, format!("material `{}` is defined twice", c.name));
         }
         let unit = |v: Option<V3>, default: f32, message: &str| -> Result<Vec3, SceneError> {
-            let v = v3(v.unwrap_or(Exact([F(default); 3])));
+            let v = v3(v.unwrap_or(Exact([Wide(default as f64); 3])));
             if v.min_element() < 0.0 || v.max_element() > 1.0 {
                 ctx.err(span.clone(), message)
             } else {

@@ -14,7 +14,7 @@ use std::fmt;
 use std::ops::Range;
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::de::{self, Deserializer, IgnoredAny, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
@@ -24,31 +24,32 @@ pub use filter::{FilterSection, KernelSpec};
 
 use super::{Scene, SceneError};
 
-/// A finite number: TOML's `nan` and `inf` are rejected where they are written.
+/// A finite number within f32's range, kept in f64: TOML's `nan` and `inf` are rejected where
+/// they are written. Coordinates stay in f64 until the scene's origin is subtracted.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct F(pub f32);
+pub struct Wide(pub f64);
 
-impl<'de> Deserialize<'de> for F {
+impl<'de> Deserialize<'de> for Wide {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         struct Finite;
         impl Visitor<'_> for Finite {
-            type Value = F;
+            type Value = Wide;
             fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
                 f.write_str("a finite number")
             }
-            fn visit_i64<E: de::Error>(self, v: i64) -> Result<F, E> {
-                Ok(F(v as f32))
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Wide, E> {
+                self.visit_f64(v as f64)
             }
-            fn visit_u64<E: de::Error>(self, v: u64) -> Result<F, E> {
-                Ok(F(v as f32))
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Wide, E> {
+                self.visit_f64(v as f64)
             }
-            fn visit_f64<E: de::Error>(self, v: f64) -> Result<F, E> {
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<Wide, E> {
                 if !v.is_finite() {
                     Err(E::custom(format!("{v} is not a finite number")))
                 } else if v.abs() > f32::MAX as f64 {
                     Err(E::custom(format!("{v} is too large for a 32-bit float")))
                 } else {
-                    Ok(F(v as f32))
+                    Ok(Wide(v))
                 }
             }
         }
@@ -56,10 +57,20 @@ impl<'de> Deserialize<'de> for F {
     }
 }
 
+/// A finite number (a [`Wide`] one, rounded to f32).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct F(pub f32);
+
+impl<'de> Deserialize<'de> for F {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Wide::deserialize(d).map(|w| F(w.0 as f32))
+    }
+}
+
 /// `N` finite numbers, exactly: an array with fewer or more elements (junk included) is
 /// refused, not cut short.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Exact<const N: usize>(pub [F; N]);
+pub struct Exact<const N: usize>(pub [Wide; N]);
 
 impl<'de, const N: usize> Deserialize<'de> for Exact<N> {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
@@ -70,9 +81,9 @@ impl<'de, const N: usize> Deserialize<'de> for Exact<N> {
                 write!(f, "an array of {N} finite numbers")
             }
             fn visit_seq<A: de::SeqAccess<'de>>(self, mut seq: A) -> Result<Exact<N>, A::Error> {
-                let mut out = [F(0.0); N];
+                let mut out = [Wide(0.0); N];
                 for (i, slot) in out.iter_mut().enumerate() {
-                    *slot = seq.next_element::<F>()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                    *slot = seq.next_element::<Wide>()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
                 }
                 if seq.next_element::<IgnoredAny>()?.is_some() {
                     return Err(de::Error::custom(format!(
@@ -89,9 +100,14 @@ impl<'de, const N: usize> Deserialize<'de> for Exact<N> {
 /// A point, direction or colour: three finite numbers.
 type V3 = Exact<3>;
 
-/// The vector of three finite numbers.
-fn v3(Exact([x, y, z]): V3) -> Vec3 {
-    Vec3::new(x.0, y.0, z.0)
+/// The vector of three finite numbers, in f32 (a direction or colour).
+fn v3(v: V3) -> Vec3 {
+    dv3(v).as_vec3()
+}
+
+/// The vector of three finite numbers, in f64 (a point, before the origin is subtracted).
+fn dv3(Exact([x, y, z]): V3) -> DVec3 {
+    DVec3::new(x.0, y.0, z.0)
 }
 
 /// The whole file. The typed sections are read table by table, after their `type` key
@@ -123,6 +139,8 @@ fn line_of(text: &str, offset: usize) -> usize {
 struct Ctx<'a> {
     path: &'a Path,
     text: &'a str,
+    /// The world position every point is stored relative to: the camera's.
+    origin: DVec3,
 }
 
 impl Ctx<'_> {
@@ -153,25 +171,22 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// Parses scene text as if read from `path` (relative mesh paths resolve against its directory).
 pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
-    let ctx = Ctx { path, text };
+    let ctx = Ctx { path, text, origin: DVec3::ZERO };
     let doc = ImDocument::parse(text).map_err(|e| ctx.toml(e.span(), e.message()))?;
     let file = FileScene::deserialize(toml_edit::de::Deserializer::from(doc.clone()))
         .map_err(|e| ctx.toml(e.span(), e.message()))?;
     let root = doc.as_table();
-    let textures = typed::tables::<texture::TextureKind>(&ctx, root)?;
+    let textures_in = typed::tables::<texture::TextureKind>(&ctx, root)?;
     let materials = typed::tables::<material::MaterialKind>(&ctx, root)?;
     let shapes = typed::tables::<shape::ShapeKind>(&ctx, root)?;
     let lights = typed::tables::<light::LightKind>(&ctx, root)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let inputs = std::iter::once(path.to_path_buf())
-        .chain(textures.iter().filter_map(|t| t.of_type.file()).map(|f| dir.join(f)))
-        .chain(shapes.iter().filter_map(|s| s.of_type.file()).map(|f| dir.join(f)))
-        .collect();
 
-    let camera = settings::camera(&ctx, &file.camera)?;
+    let (camera, origin) = settings::camera(&ctx, &file.camera)?;
+    let ctx = Ctx { origin, ..ctx };
     let film = settings::film(&ctx, file.film.as_ref())?;
     let render = settings::render(&ctx, file.render.as_ref())?;
-    let (textures, texture_ids) = texture::textures(&ctx, &dir, &textures)?;
+    let (textures, texture_ids) = texture::textures(&ctx, &dir, &textures_in)?;
     let material::Materials { mut materials, maps, ids: material_ids } =
         material::materials(&ctx, &materials, &textures, &texture_ids)?;
     let mut builder = shape::Builder::default();
@@ -179,6 +194,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
     }
     let lights = lights.iter().map(|l| light::light(&ctx, l)).collect::<Result<Vec<_>, _>>()?;
+    let inputs = std::iter::once(path.to_path_buf())
+        .chain(textures_in.iter().filter_map(|t| t.of_type.file()).map(|f| dir.join(f)))
+        .chain(shapes.iter().filter_map(|s| s.of_type.file()).map(|f| dir.join(f)))
+        .chain(builder.libraries)
+        .collect();
     let filter = file.filter.map(|f| {
         let line = line_of(text, f.span().start);
         FilterSection { line, ..f.into_inner() }
@@ -190,6 +210,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         maps,
         path: path.to_path_buf(),
         inputs,
+        origin,
         camera,
         film,
         render,

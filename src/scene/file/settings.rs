@@ -4,7 +4,9 @@
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{v3, Ctx, F, V3};
+use glam::{DVec3, Vec3};
+
+use super::{dv3, v3, Ctx, F, V3};
 use crate::render::sampler::SamplerKind;
 use crate::scene::{limits, Camera, FilmSettings, RenderSettings, SceneError};
 
@@ -36,13 +38,17 @@ pub(super) struct FileRender {
     sampler: Option<Spanned<String>>,
 }
 
-/// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient.
-pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<Camera, SceneError> {
+/// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient. With
+/// it, the scene's origin: the camera's position, in f64. The scene is rendered relative to it
+/// (the camera at zero), so f32 keeps its precision around the camera however far it is from
+/// the world's origin.
+pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<(Camera, DVec3), SceneError> {
     let span = c.span();
     let c = c.get_ref();
-    let position = v3(c.position);
-    let look_at = v3(c.look_at);
-    let up = c.up.map(v3).unwrap_or(glam::Vec3::Y);
+    let origin = dv3(c.position);
+    let position = Vec3::ZERO;
+    let look_at = (dv3(c.look_at) - origin).as_vec3();
+    let up = c.up.map(v3).unwrap_or(Vec3::Y);
     let fov = match &c.fov {
         Some(f) if !(f.get_ref().0 > 0.0 && f.get_ref().0 < 180.0) => {
             return ctx.err(f.span(), "`fov` must lie strictly between 0 and 180 degrees")
@@ -57,7 +63,7 @@ pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<Camera, Scene
     if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared() {
         return ctx.err(span, "the camera's `up` is zero or parallel to its view direction");
     }
-    Ok(Camera { position, look_at, up, fov })
+    Ok((Camera { position, look_at, up, fov }, origin))
 }
 
 /// The film settings, with their defaults (256 x 256, 16 samples per pixel).

@@ -6,12 +6,12 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use glam::{Mat3, Vec2, Vec3, Vec3A};
+use glam::{DMat3, DVec3, Vec2, Vec3, Vec3A};
 use serde::Deserialize;
 use toml::Spanned;
 
 use super::typed::{Table, Typed};
-use super::{line_of, v3, Ctx, F, V3};
+use super::{dv3, line_of, v3, Ctx, F, V3};
 use crate::scene::{obj, procedural, teapot, Geometry, Material, Mesh, SceneError, Shape};
 
 /// The finest terrain: 2 x 4096^2, about 33.5 million triangles.
@@ -122,6 +122,8 @@ pub(super) struct Builder {
     pub shapes: Vec<Shape>,
     pub objects: Vec<String>,
     object_ids: HashMap<String, u32>,
+    /// The material libraries the meshes read (inputs of the scene).
+    pub libraries: Vec<std::path::PathBuf>,
 }
 
 impl Builder {
@@ -137,37 +139,41 @@ impl Builder {
 }
 
 /// An affine transform from the scene file: scale, then rotate about x, y, z (degrees), then
-/// translate.
+/// translate; then the scene's origin is subtracted. All in f64, rounded to f32 once at the
+/// end: far from the world's origin only the camera-relative position fits in f32.
 struct Transform {
-    linear: Mat3,
-    translate: Vec3,
-    scale: f32,
+    linear: DMat3,
+    translate: DVec3,
+    origin: DVec3,
+    scale: f64,
     rotates: bool,
 }
 
 impl Transform {
-    fn new(t: Option<&FileTransform>) -> Self {
-        let scale = t.and_then(|t| t.scale).map_or(1.0, |s| s.0);
-        let r = t.and_then(|t| t.rotate).map(v3).unwrap_or(Vec3::ZERO);
-        let rotation = Mat3::from_rotation_z(r.z.to_radians())
-            * Mat3::from_rotation_y(r.y.to_radians())
-            * Mat3::from_rotation_x(r.x.to_radians());
+    fn new(t: Option<&FileTransform>, origin: DVec3) -> Self {
+        let scale = t.and_then(|t| t.scale).map_or(1.0, |s| s.0 as f64);
+        let r = t.and_then(|t| t.rotate).map(dv3).unwrap_or(DVec3::ZERO);
+        let rotation = DMat3::from_rotation_z(r.z.to_radians())
+            * DMat3::from_rotation_y(r.y.to_radians())
+            * DMat3::from_rotation_x(r.x.to_radians());
         Transform {
-            linear: rotation * Mat3::from_diagonal(Vec3::splat(scale)),
-            translate: t.and_then(|t| t.translate).map(v3).unwrap_or(Vec3::ZERO),
+            linear: rotation * DMat3::from_diagonal(DVec3::splat(scale)),
+            translate: t.and_then(|t| t.translate).map(dv3).unwrap_or(DVec3::ZERO),
+            origin,
             scale,
-            rotates: r != Vec3::ZERO,
+            rotates: r != DVec3::ZERO,
         }
     }
 
-    fn point(&self, p: Vec3) -> Vec3 {
-        self.linear * p + self.translate
+    /// A point of the shape, relative to the scene's origin.
+    fn point(&self, p: DVec3) -> Vec3 {
+        (self.linear * p + self.translate - self.origin).as_vec3()
     }
 
     /// Normals under the transform (by the inverse transpose of the linear part).
     fn normals(&self, normals: &[Vec3]) -> Arc<[Vec3]> {
         let inv_t = self.linear.inverse().transpose();
-        normals.iter().map(|&v| (inv_t * v).normalize_or_zero()).collect()
+        normals.iter().map(|&v| (inv_t * v.as_dvec3()).normalize_or_zero().as_vec3()).collect()
     }
 }
 
@@ -192,7 +198,7 @@ pub(super) fn add(
     if emission.max_element() > crate::scene::limits::MAX_EMISSION {
         return ctx.err(span, format!("`emission` must be at most {:e}", crate::scene::limits::MAX_EMISSION));
     }
-    let transform = Transform::new(c.transform.as_ref());
+    let transform = Transform::new(c.transform.as_ref(), ctx.origin);
     if transform.scale <= 0.0 {
         return ctx.err(span, "a transform's `scale` must be positive");
     }
@@ -214,25 +220,25 @@ pub(super) fn add(
             if transform.rotates {
                 return ctx.err(span, "a sphere takes no `rotate`");
             }
-            let radius = sphere.radius.0 * transform.scale;
+            let radius = sphere.radius.0 * transform.scale as f32;
             if radius < 0.0 {
                 return ctx.err(span, "a sphere's `radius` must not be negative");
             }
-            let center = transform.point(sphere.center.map(v3).unwrap_or(Vec3::ZERO));
+            let center = transform.point(sphere.center.map(dv3).unwrap_or(DVec3::ZERO));
             Geometry::Sphere { center, radius }
         }
         ShapeKind::Quad(Quad { vertices: v }) => {
             if v.len() != 4 {
                 return ctx.err(span, format!("a quad needs 4 `vertices`, not {}", v.len()));
             }
-            let p: Vec<Vec3> = v.iter().map(|&p| transform.point(v3(p))).collect();
+            let p: Vec<Vec3> = v.iter().map(|&p| transform.point(dv3(p))).collect();
             let mut quad = mesh(&p, &[[0, 1, 2], [0, 2, 3]]);
             // An image's bottom left, bottom right, top right and top left.
             quad.uvs = Some([Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y].into());
             Geometry::Triangles(quad)
         }
         ShapeKind::Box(b) => {
-            let (lo, hi) = (v3(b.min), v3(b.max));
+            let (lo, hi) = (dv3(b.min), dv3(b.max));
             if lo.cmpge(hi).any() {
                 return ctx.err(span, "a box's `min` must be below its `max` on every axis");
             }
@@ -253,9 +259,10 @@ pub(super) fn add(
                     ),
                 );
             }
-            let parts = crate::scene::limits::check_input_file(&path)
+            let obj::Obj { parts, libraries } = crate::scene::limits::check_input_file(&path)
                 .and_then(|()| obj::load(&path))
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
+            out.libraries.extend(libraries);
             if parts.is_empty() {
                 return ctx.err(span, format!("mesh `{file}` has no faces (meshes are Wavefront OBJ files)"));
             }
@@ -310,10 +317,8 @@ pub(super) fn add(
             }
             let height = t.height.map_or(1.0, |v| v.0);
             let mut mesh = procedural::terrain(resolution, size, height, t.seed.unwrap_or(0));
-            if transform.rotates || transform.scale != 1.0 || transform.translate != Vec3::ZERO {
-                mesh.positions =
-                    mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.into()))).collect();
-            }
+            mesh.positions =
+                mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.as_dvec3()))).collect();
             Geometry::Triangles(mesh)
         }
         ShapeKind::Teapot(t) => {
@@ -328,7 +333,8 @@ pub(super) fn add(
                 None => 8,
             };
             let mut mesh = teapot::teapot(resolution);
-            mesh.positions = mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.into()))).collect();
+            mesh.positions =
+                mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.as_dvec3()))).collect();
             mesh.normals = mesh.normals.map(|n| transform.normals(&n));
             Geometry::Triangles(mesh)
         }
@@ -349,10 +355,10 @@ fn mesh(p: &[Vec3], indices: &[[u32; 3]]) -> Mesh {
 }
 
 /// An axis-aligned box as 12 triangles wound counter-clockwise seen from outside.
-fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let p: Vec<Vec3> = (0..8)
+fn box_mesh(lo: DVec3, hi: DVec3) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let p: Vec<DVec3> = (0..8)
         .map(|i| {
-            Vec3::new(
+            DVec3::new(
                 if i & 1 == 0 { lo.x } else { hi.x },
                 if i & 2 == 0 { lo.y } else { hi.y },
                 if i & 4 == 0 { lo.z } else { hi.z },
@@ -373,7 +379,7 @@ fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 mod tests {
     use super::*;
     use crate::scene::file::tests::{error_line, MINIMAL};
-    use crate::scene::file::Exact;
+    use crate::scene::file::{Exact, Wide};
 
     #[test]
     fn keys_of_another_type_are_rejected() {
@@ -397,7 +403,7 @@ mod tests {
 
     #[test]
     fn box_triangles_face_outwards() {
-        let (p, tris) = box_mesh(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let (p, tris) = box_mesh(DVec3::splat(-1.0), DVec3::splat(1.0));
         for [a, b, c] in tris {
             let (a, b, c) = (p[a as usize], p[b as usize], p[c as usize]);
             let n = (b - a).cross(c - a);
@@ -408,12 +414,18 @@ mod tests {
 
     #[test]
     fn transform_applies_scale_rotate_translate() {
-        let t = Transform::new(Some(&FileTransform {
-            scale: Some(F(2.0)),
-            rotate: Some(Exact([F(0.0), F(90.0), F(0.0)])),
-            translate: Some(Exact([F(1.0), F(0.0), F(0.0)])),
-        }));
-        let p = t.point(Vec3::X);
+        let t = Transform::new(
+            Some(&FileTransform {
+                scale: Some(F(2.0)),
+                rotate: Some(Exact([Wide(0.0), Wide(90.0), Wide(0.0)])),
+                translate: Some(Exact([Wide(1.0), Wide(0.0), Wide(0.0)])),
+            }),
+            DVec3::ZERO,
+        );
+        let p = t.point(DVec3::X);
         assert!((p - Vec3::new(1.0, 0.0, -2.0)).length() < 1e-5, "{p}");
+        // The origin is subtracted in f64, before rounding: one unit at 1e8 survives.
+        let far = Transform::new(None, DVec3::splat(1e8));
+        assert_eq!(far.point(DVec3::new(1e8 + 1.0, 1e8, 1e8 - 0.5)), Vec3::new(1.0, 0.0, -0.5));
     }
 }

@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::typed::{Table, Typed};
-use super::{v3, Ctx, Exact, F, V3};
+use super::{v3, Ctx, Exact, Wide, F, V3};
 use crate::scene::image;
 use crate::scene::texture::{Pattern, Texture};
 use crate::scene::SceneError;
@@ -107,7 +107,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
     let span = t.span.clone();
     // The two colours of a pattern: black to white unless given.
     let colours = |a: Option<V3>, b: Option<V3>| {
-        let (a, b) = (v3(a.unwrap_or(Exact([F(0.0); 3]))), v3(b.unwrap_or(Exact([F(1.0); 3]))));
+        let (a, b) = (v3(a.unwrap_or(Exact([Wide(0.0); 3]))), v3(b.unwrap_or(Exact([Wide(1.0); 3]))));
         if a.min_element() < 0.0 || b.min_element() < 0.0 || a.max_element() > 1.0 || b.max_element() > 1.0 {
             ctx.err(span.clone(), "texture colours must lie in [0, 1], as a material's colour")
         } else {
@@ -122,7 +122,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             if size <= 0.0 {
                 return ctx.err(span, "a checker's `size` must be positive");
             }
-            return Ok(Texture::Checker { a, b, size });
+            return Ok(Texture::Checker { a, b, size, origin: ctx.origin });
         }
         TextureKind::Image(i) => {
             let path = dir.join(&i.file);
@@ -143,7 +143,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             }
             // A colour, as a material's: a value of 100 would multiply the light it reflects.
             image.pixels.iter_mut().for_each(|p| *p = p.clamp(Vec3::ZERO, Vec3::ONE));
-            let repeat = i.repeat.map_or(Vec2::ONE, |Exact([u, v])| Vec2::new(u.0, v.0));
+            let repeat = i.repeat.map_or(Vec2::ONE, |Exact([u, v])| Vec2::new(u.0 as f32, v.0 as f32));
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");
             }
@@ -163,7 +163,15 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
     if !(1..=16).contains(&octaves) {
         return ctx.err(span, "`octaves` must lie between 1 and 16");
     }
-    Ok(Texture::Noise { pattern, a, b, frequency, octaves, seed: noise.seed.unwrap_or(0) })
+    Ok(Texture::Noise {
+        pattern,
+        a,
+        b,
+        frequency,
+        octaves,
+        seed: noise.seed.unwrap_or(0),
+        origin: ctx.origin,
+    })
 }
 
 #[cfg(test)]
