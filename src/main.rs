@@ -76,6 +76,7 @@ fn print_line(line: std::fmt::Arguments) -> Result<(), Failure> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    remove_temporaries_on_signals();
     let result = match cli.command {
         Command::Render(args) => render_command(args),
         Command::Filter(args) => filter_command(args),
@@ -92,6 +93,25 @@ fn main() -> ExitCode {
         Err(f) => {
             eprintln!("error: {}", printable(&f.message));
             ExitCode::from(f.code)
+        }
+    }
+}
+
+/// On SIGINT, SIGTERM or SIGHUP: removes the temporary file of a write under way (the output
+/// it would replace is left as it was) and exits with 128 + the signal's number, the status a
+/// shell reports for a process the signal stopped.
+fn remove_temporaries_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
+        Ok(mut signals) => {
+            std::thread::spawn(move || {
+                if let Some(signal) = signals.forever().next() {
+                    film::remove_temporaries_and_exit(128 + signal)
+                }
+            });
+        }
+        Err(e) => {
+            eprintln!("warning: no signal handler ({e}): a stop during a write may leave a temporary file")
         }
     }
 }

@@ -449,3 +449,56 @@ fn a_world_moved_by_1e8_renders_as_at_the_origin() {
     let differ = near.iter().zip(&far).filter(|(a, b)| a != b).count();
     assert_eq!(differ, 0, "{differ} of {} values differ", near.len());
 }
+
+/// Defect 8: a SIGTERM or SIGINT in the middle of a write removes the temporary file and leaves
+/// the output as it was (exit status 128 + the signal). A temporary that a SIGKILL left, its
+/// process gone, is removed by the next write of the same file; a running process's is not.
+#[test]
+fn a_stop_during_a_write_leaves_no_temporary() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("s.toml");
+    std::fs::write(&scene, SCENE).expect("write");
+    let out = dir.path().join("o.exr");
+    std::fs::write(&out, b"the old output").expect("write");
+    let temporaries = || -> Vec<String> {
+        let names = std::fs::read_dir(dir.path()).expect("read_dir").flatten();
+        names.map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.contains(".tmp.")).collect()
+    };
+    for (signal, number) in [("TERM", 15), ("INT", 2)] {
+        // A 1024x1024 EXR takes about half a second to write: the stop lands inside it.
+        let mut child = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+            .args([OsStr::new("render"), scene.as_os_str(), OsStr::new("-o"), out.as_os_str()])
+            .args(["--width", "1024", "--height", "1024"])
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawns");
+        let tmp = dir.path().join(format!(".o.exr.{}.tmp.exr", child.id()));
+        let start = std::time::Instant::now();
+        while !tmp.exists() && start.elapsed() < std::time::Duration::from_secs(60) {
+            if child.try_wait().expect("waits").is_some() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        assert!(tmp.exists(), "the write was never seen under way");
+        let kill =
+            Command::new("kill").args(["-s", signal, &child.id().to_string()]).status().expect("kill runs");
+        assert!(kill.success());
+        let status = child.wait().expect("waits");
+        assert_eq!(status.code(), Some(128 + number), "SIG{signal}");
+        assert_eq!(temporaries(), Vec::<String>::new(), "SIG{signal} left a temporary");
+        assert_eq!(std::fs::read(&out).expect("read"), b"the old output", "SIG{signal} touched the output");
+    }
+    // Beyond Linux's largest process id (2^22): the process that left it is gone.
+    let stale = dir.path().join(".o.exr.4194305.tmp.exr");
+    let live = dir.path().join(format!(".o.exr.{}.tmp.exr", std::process::id()));
+    let other = dir.path().join(".p.exr.4194305.tmp.exr");
+    for f in [&stale, &live, &other] {
+        std::fs::write(f, b"half an image").expect("write");
+    }
+    let o = run(&[OsStr::new("render"), scene.as_os_str(), OsStr::new("-o"), out.as_os_str()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stale.exists(), "the stale temporary of o.exr is removed");
+    assert!(live.exists(), "a running process's temporary is left alone");
+    assert!(other.exists(), "another file's temporary is not this write's to remove");
+}

@@ -5,6 +5,7 @@
 use std::fs;
 use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use glam::Vec3;
 
@@ -353,18 +354,75 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: Vec<u8>) -> Result<
     atomically(path, |tmp| encode_png(tmp, width, height, &rgb, image::ExtendedColorType::Rgb8))
 }
 
-/// Runs `write` on a temporary file beside `path`, then renames it over `path`.
-fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), WriteError> {
+/// The temporary files being written now, removed by [`remove_temporaries_and_exit`] when a
+/// signal stops the process in the middle of a write.
+static WRITING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// The temporary file of `path` for the process `pid`: `.NAME.PID.tmp.EXT` beside it (its
+/// extension kept, so the encoder knows the format).
+fn temporary(path: &Path, pid: u32) -> PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = parent_dir(path).join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
-    match write(&tmp).and_then(|()| fs::rename(&tmp, path).map_err(|e| e.to_string())) {
-        Ok(()) => Ok(()),
-        Err(e) => {
-            let _ = fs::remove_file(&tmp);
-            Err(WriteError::Io(path.to_path_buf(), e))
+    parent_dir(path).join(format!(".{name}.{pid}.tmp.{ext}"))
+}
+
+/// Removes the temporaries of `path` that processes no longer running left (a SIGKILL in the
+/// middle of a write): those of its own naming whose process id is not in `/proc`. Where there
+/// is no `/proc` to ask, nothing is removed.
+fn remove_stale_temporaries(path: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let (dir, me) = (parent_dir(path), std::process::id());
+    let Some(mine) = temporary(path, me).file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return;
+    };
+    let (prefix, suffix) = mine.split_once(&format!(".{me}.")).unwrap_or_default();
+    let suffix = format!(".{suffix}");
+    for entry in fs::read_dir(&dir).into_iter().flatten().flatten() {
+        let file = entry.file_name();
+        let file = file.to_string_lossy();
+        let pid =
+            file.strip_prefix(prefix).and_then(|r| r.strip_prefix('.')).and_then(|r| r.strip_suffix(&suffix));
+        if let Some(pid) = pid.and_then(|p| p.parse::<u32>().ok()) {
+            if pid != me && !Path::new(&format!("/proc/{pid}")).exists() {
+                let _ = fs::remove_file(entry.path());
+            }
         }
     }
+}
+
+/// Removes every temporary file being written and exits with `code`, holding the list so that
+/// no write starts another (for a SIGINT or SIGTERM handler: the outputs already there are left
+/// as they were).
+pub fn remove_temporaries_and_exit(code: i32) -> ! {
+    let writing = WRITING.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    for tmp in writing.iter() {
+        let _ = fs::remove_file(tmp);
+    }
+    std::process::exit(code)
+}
+
+/// Runs `write` on a temporary file beside `path`, then renames it over `path`. The temporary
+/// is listed while it exists, so a signal removes it ([`remove_temporaries_and_exit`]), and the
+/// stale temporaries of `path` a killed process left are removed first.
+fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), WriteError> {
+    remove_stale_temporaries(path);
+    let tmp = temporary(path, std::process::id());
+    let listed = |add: bool| {
+        let mut writing = WRITING.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match add {
+            true => writing.push(tmp.clone()),
+            false => writing.retain(|t| t != &tmp),
+        }
+    };
+    listed(true);
+    let result = write(&tmp).and_then(|()| fs::rename(&tmp, path).map_err(|e| e.to_string()));
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    listed(false);
+    result.map_err(|e| WriteError::Io(path.to_path_buf(), e))
 }
 
 /// Writes named float channels as one single-part EXR (32-bit float, lossless).
