@@ -291,8 +291,14 @@ impl OutputArgs {
     }
 
     /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
-    pub fn write(&self, film: Film, setting: &Setting, path: &Path) -> Result<f64, OutputError> {
-        output::write(film, setting, path, self.layer, self.exposure)
+    pub fn write(
+        &self,
+        film: Film,
+        setting: &Setting,
+        path: &Path,
+        meta: &lightsplit::film::Metadata,
+    ) -> Result<f64, OutputError> {
+        output::write(film, setting, path, self.layer, self.exposure, meta)
     }
 }
 

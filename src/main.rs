@@ -97,6 +97,15 @@ fn main() -> ExitCode {
     }
 }
 
+/// The filter a file's metadata names: `box3 on indirect`, or none.
+fn filter_label(setting: &Setting) -> Option<String> {
+    setting
+        .kernel
+        .as_ref()
+        .filter(|_| setting.target != Target::None)
+        .map(|k| format!("{} on {}", k.name(), setting.target.name()))
+}
+
 /// On SIGINT, SIGTERM or SIGHUP: removes the temporary file of a write under way (the output
 /// it would replace is left as it was) and exits with 128 + the signal's number, the status a
 /// shell reports for a process the signal stopped.
@@ -268,7 +277,20 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let filter_seconds = args.out.write(out.film, &setting, &output)?;
+    let (world_to_camera, world_to_ndc) =
+        render::camera::exr_matrices(&scene.camera, scene.origin, options.width, options.height);
+    let meta = film::Metadata {
+        scene: Some(args.scene.to_string_lossy().into_owned()),
+        spp: Some(options.spp),
+        seed: Some(options.seed),
+        max_depth: Some(options.max_depth),
+        sampler: Some(options.sampler.name().to_string()),
+        render_seconds: Some(out.stats.seconds),
+        filter: filter_label(&setting),
+        world_to_camera: Some(world_to_camera),
+        world_to_ndc: Some(world_to_ndc),
+    };
+    let filter_seconds = args.out.write(out.film, &setting, &output, &meta)?;
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -299,7 +321,12 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "filter": setting.kernel.as_ref().map(Kernel::name),
             "filter_target": setting.target.name(),
             "edge_aware": setting.stops.object,
+            "edge_normal_degrees": setting.stops.normal_degrees,
+            "edge_depth_relative": setting.stops.depth_relative,
+            "edge_pure": setting.stops.pure,
             "filter_seconds": filter_seconds,
+            "max_depth": options.max_depth,
+            "version": env!("CARGO_PKG_VERSION"),
             "outputs": [output.to_string_lossy()],
         });
         say!("{json}");
@@ -397,7 +424,12 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
             args.input.display()
         )));
     }
-    let seconds = args.out.write(film, &setting, &args.output)?;
+    // What the input recorded of its render, and the filter that made this file.
+    let meta = film::Metadata {
+        filter: filter_label(&setting),
+        ..film::Metadata::of_exr(&args.input).unwrap_or_default()
+    };
+    let seconds = args.out.write(film, &setting, &args.output, &meta)?;
     if args.json {
         say!(
             "{}",

@@ -106,6 +106,7 @@ pub fn write(
     path: &Path,
     layer: Layer,
     exposure: f32,
+    meta: &film::Metadata,
 ) -> Result<f64, OutputError> {
     let start = Instant::now();
     let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
@@ -115,12 +116,12 @@ pub fn write(
         match film::Format::from_path(path)? {
             film::Format::Exr => {
                 let final_image = final_image.into_owned();
-                film::write_film(film, final_image, filtered, path, exposure)?
+                film::write_film(film, final_image, filtered, path, exposure, meta)?
             }
-            _ => film::write(&final_image, path, exposure)?,
+            _ => film::write_with(&final_image, path, exposure, meta)?,
         }
     } else {
-        film::write(layer.image(&film, &final_image, filtered.as_ref())?, path, exposure)?;
+        film::write_with(layer.image(&film, &final_image, filtered.as_ref())?, path, exposure, meta)?;
     }
     Ok(seconds)
 }

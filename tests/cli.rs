@@ -205,9 +205,50 @@ fn json_summary_has_the_documented_keys() {
     assert_eq!(v["accel"], "embree");
     assert_eq!((v["sampler"].as_str(), v["seed"].as_u64()), (Some("independent"), Some(5)));
     assert!(v["rays_per_second"].as_f64().unwrap_or(0.0) > 0.0);
+    // Issue 19: the settings that reproduce the image, and the program's version.
+    assert_eq!(v["max_depth"].as_u64(), Some(8));
+    assert_eq!(v["version"].as_str(), Some(env!("CARGO_PKG_VERSION")));
+    assert_eq!((v["edge_aware"].as_bool(), v["edge_pure"].as_bool()), (Some(false), Some(false)));
     assert!(out.exists());
     // Nothing but the output is left in the directory (no temporary files).
     assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 1);
+}
+
+/// Issue 19: the EXR says how it was made (pbrt-v4's attribute names where it has them), and
+/// its alpha is the coverage of the non-background; `filter` keeps what its input recorded and
+/// names its own filter.
+#[test]
+fn the_exr_records_how_it_was_made_and_has_an_alpha() {
+    use lightsplit::film::{read_exr_channels, Metadata};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    // A sphere filling the middle of the image, nothing behind it.
+    let scene = format!("{CAMERA}[film]\nwidth = 16\nheight = 16\nspp = 16\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 1.2\n[[light]]\ntype = \"point\"\nposition = [0, 4, -3]\nintensity = [9, 9, 9]\n");
+    std::fs::write(p("s.toml"), scene).expect("write");
+    let o = lightsplit(&["render", &p("s.toml"), "-o", &p("a.exr"), "--seed", "77", "--max-depth", "3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let meta = Metadata::of_exr(Path::new(&p("a.exr"))).expect("a header");
+    assert_eq!((meta.spp, meta.seed, meta.max_depth), (Some(16), Some(77), Some(3)));
+    assert_eq!(meta.sampler.as_deref(), Some("sobol"));
+    assert_eq!(meta.scene.as_deref(), Some(p("s.toml").as_str()));
+    assert!(meta.render_seconds.is_some_and(|s| s > 0.0));
+    assert!(meta.world_to_camera.is_some() && meta.world_to_ndc.is_some());
+    // worldToCamera takes the camera's position (0, 1, -5) to camera space's origin.
+    let m = meta.world_to_camera.expect("matrix");
+    let eye: Vec<f32> =
+        (0..3).map(|r| m[4 * r] * 0.0 + m[4 * r + 1] * 1.0 + m[4 * r + 2] * -5.0 + m[4 * r + 3]).collect();
+    assert!(eye.iter().all(|v| v.abs() < 1e-5), "{eye:?}");
+    let (w, _, channels) = read_exr_channels(Path::new(&p("a.exr"))).expect("reads");
+    let alpha = &channels.iter().find(|(n, _)| n == "A").expect("an A channel").1;
+    let at = |x: usize, y: usize| alpha[y * w as usize + x];
+    assert_eq!((at(8, 8), at(0, 0)), (1.0, 0.0), "the sphere's middle and an empty corner");
+    assert!(alpha.iter().any(|&a| a > 0.0 && a < 1.0), "fractional on the silhouette");
+    // `filter` keeps the render's record and names its filter.
+    let o = lightsplit(&["filter", &p("a.exr"), "-o", &p("b.exr"), "--filter", "box3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let filtered = Metadata::of_exr(Path::new(&p("b.exr"))).expect("a header");
+    assert_eq!(filtered.filter.as_deref(), Some("box3 on indirect"));
+    assert_eq!(Metadata { filter: None, ..filtered }, meta);
 }
 
 /// `render --filter` writes every layer of DESIGN's list; `filter` re-filters the saved file
@@ -326,7 +367,8 @@ fn atrous_and_the_components_target_work_and_check_their_input() {
     // A file without the variance layers: the paper's filters still run, atrous says why not.
     let (w, h, channels) = lightsplit::film::read_exr_channels(Path::new(&p("f.exr"))).expect("reads");
     let old: Vec<_> = channels.into_iter().filter(|(name, _)| !name.contains("_variance")).collect();
-    lightsplit::film::write_exr_channels(old, w, h, Path::new(&p("old.exr"))).expect("writes");
+    lightsplit::film::write_exr_channels(old, w, h, &Default::default(), Path::new(&p("old.exr")))
+        .expect("writes");
     let (out, err) = run(&["filter", &p("old.exr"), "-o", &p("box.png"), "--filter", "box3"]);
     assert!(out.status.success(), "{err}");
     let (out, err) = run(&["filter", &p("old.exr"), "-o", &p("atrous.png"), "--filter", "atrous"]);

@@ -421,7 +421,16 @@ fn reference(
     let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     let image = out.film.raw.clone();
-    film::write_film(out.film, image.clone(), None, &cache, 0.0)
+    let meta = film::Metadata {
+        scene: Some(plan.scene_path.to_string_lossy().into_owned()),
+        spp: Some(options.spp),
+        seed: Some(options.seed),
+        max_depth: Some(options.max_depth),
+        sampler: Some(options.sampler.name().to_string()),
+        render_seconds: Some(out.stats.seconds),
+        ..Default::default()
+    };
+    film::write_film(out.film, image.clone(), None, &cache, 0.0, &meta)
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     Ok(image)
 }

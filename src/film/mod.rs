@@ -32,6 +32,9 @@ pub struct Film {
     /// The fraction of the pixel's samples that saw that object: below 1 on an antialiased
     /// border, where the pixel mixes two surfaces.
     pub coverage: Vec<f32>,
+    /// The fraction of the pixel's samples that hit a surface (any object): the EXR's alpha,
+    /// 0 where only the background (a sky, or nothing) is seen.
+    pub alpha: Vec<f32>,
     /// The variance of each pixel's mean luminance, of the beauty, estimated from its samples
     /// ([`variance_of_mean`]); empty without the split. While a render runs: the sum of the
     /// squared sample luminances.
@@ -74,6 +77,7 @@ impl Film {
             depth: floats(guides, 0.0),
             object: floats(guides, -1.0),
             coverage: floats(guides, 1.0),
+            alpha: floats(guides, 1.0),
             variance: floats(split, 0.0),
             component_variance: Split::from_fn(|_| floats(split, 0.0)),
         }
@@ -97,6 +101,7 @@ impl Film {
         let scalars = self.depth.capacity()
             + self.object.capacity()
             + self.coverage.capacity()
+            + self.alpha.capacity()
             + self.variance.capacity()
             + variance;
         (rgb + scalars * size_of::<f32>()) as u64
@@ -201,23 +206,28 @@ pub fn srgb8(linear: f32, exposure: f32) -> u8 {
 /// Writes `image` to `path` in the format its extension names. `exposure` (stops) applies to
 /// PNG only: EXR and HDR keep the linear values.
 pub fn write(image: &Image, path: &Path, exposure: f32) -> Result<(), WriteError> {
+    write_with(image, path, exposure, &Metadata::default())
+}
+
+/// [`write`], with what an EXR's header records of how the image was made.
+pub fn write_with(image: &Image, path: &Path, exposure: f32, meta: &Metadata) -> Result<(), WriteError> {
     // A temporary file in the same directory (so the rename is atomic), with the same
     // extension, for writers that look at it.
     match Format::from_path(path)? {
-        Format::Exr => atomically(path, |tmp| write_exr(image, tmp)),
+        Format::Exr => atomically(path, |tmp| write_exr(image, meta, tmp)),
         Format::Png => atomically(path, |tmp| write_png(image, tmp, exposure)),
         Format::Hdr => atomically(path, |tmp| write_hdr(image, tmp)),
         Format::Pfm => atomically(path, |tmp| write_pfm(image, tmp)),
     }
 }
 
-fn write_exr(image: &Image, path: &Path) -> Result<(), String> {
-    let w = image.width as usize;
-    exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
-        let c = image.pixels[y * w + x];
-        (c.x, c.y, c.z)
-    })
-    .map_err(|e| e.to_string())
+fn write_exr(image: &Image, meta: &Metadata, path: &Path) -> Result<(), String> {
+    let channels: Channels = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, n)| (n.to_string(), image.pixels.iter().map(|p| p[c]).collect()))
+        .collect();
+    write_exr_channels(channels, image.width, image.height, meta, path)
 }
 
 fn write_png(image: &Image, path: &Path, exposure: f32) -> Result<(), String> {
@@ -323,7 +333,17 @@ fn write_pfm(image: &Image, path: &Path) -> Result<(), String> {
 pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<Image>) -> Channels {
     let has_guides = film.has_guides();
     let Film {
-        raw, components, albedo, normal, depth, object, coverage, variance, component_variance, ..
+        raw,
+        components,
+        albedo,
+        normal,
+        depth,
+        object,
+        coverage,
+        alpha,
+        variance,
+        component_variance,
+        ..
     } = film;
     let mut out: Channels = Vec::new();
     // A buffer the render did not fill (empty) has no layer.
@@ -350,6 +370,7 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
         out.push(("depth.Z".into(), depth));
         out.push(("objectid.ID".into(), object));
         out.push(("objectid.coverage".into(), coverage));
+        out.push(("A".into(), alpha));
     }
     if !variance.is_empty() {
         out.push(("raw_variance.Y".into(), variance));
@@ -368,14 +389,15 @@ pub fn write_film(
     indirect_filtered: Option<Image>,
     path: &Path,
     exposure: f32,
+    meta: &Metadata,
 ) -> Result<(), WriteError> {
     match Format::from_path(path)? {
         Format::Exr => {
             let (width, height) = (film.width, film.height);
             let channels = film_channels(film, final_image, indirect_filtered);
-            atomically(path, |tmp| write_exr_channels(channels, width, height, tmp))
+            atomically(path, |tmp| write_exr_channels(channels, width, height, meta, tmp))
         }
-        _ => write(&final_image, path, exposure),
+        _ => write_with(&final_image, path, exposure, meta),
     }
 }
 
@@ -463,8 +485,104 @@ fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> R
     result.map_err(|e| WriteError::Io(path.to_path_buf(), e))
 }
 
-/// Writes named float channels as one single-part EXR (32-bit float, lossless).
-pub fn write_exr_channels(channels: Channels, width: u32, height: u32, path: &Path) -> Result<(), String> {
+/// How an image was made, as its file records it: an EXR's header attributes (pbrt-v4's names
+/// where it has one) and, for every format, the software that wrote it. What is not known (a
+/// filtered file read back without it, say) is left out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Metadata {
+    /// The scene file, as given (`scene`).
+    pub scene: Option<String>,
+    /// Samples per pixel (`samplesPerPixel`, as pbrt-v4).
+    pub spp: Option<u32>,
+    /// The base seed (`seed`; text, to keep all 64 bits).
+    pub seed: Option<u64>,
+    /// The path length limit (`maxDepth`).
+    pub max_depth: Option<u32>,
+    /// The sampler's name (`sampler`).
+    pub sampler: Option<String>,
+    /// The render's wall-clock seconds (`renderTimeSeconds`, as pbrt-v4).
+    pub render_seconds: Option<f64>,
+    /// The filter setting that made the final image (`filter`).
+    pub filter: Option<String>,
+    /// `worldToCamera` and `worldToNDC`, as pbrt-v4 writes them
+    /// ([`exr_matrices`](crate::render::camera::exr_matrices)).
+    pub world_to_camera: Option<[f32; 16]>,
+    pub world_to_ndc: Option<[f32; 16]>,
+}
+
+impl Metadata {
+    /// The EXR header attributes: `software` and Mitsuba's `generatedBy` always, the rest when
+    /// known.
+    fn exr_attributes(&self) -> exr::meta::header::LayerAttributes {
+        use exr::meta::attribute::{AttributeValue as V, Text};
+        let mut a = exr::meta::header::LayerAttributes {
+            software_name: Some(Text::from(SOFTWARE)),
+            world_to_camera: self.world_to_camera,
+            world_to_normalized_device: self.world_to_ndc,
+            ..Default::default()
+        };
+        let mut put = |name: &str, value: Option<V>| {
+            if let Some(v) = value {
+                a.other.insert(Text::from(name), v);
+            }
+        };
+        // EXR text is Latin-1: any other character becomes `?`.
+        let text = |t: &str| {
+            let latin1: String = t.chars().map(|c| if (c as u32) < 256 { c } else { '?' }).collect();
+            V::Text(Text::new_or_none(latin1).unwrap_or_default())
+        };
+        put("generatedBy", Some(text(SOFTWARE)));
+        put("scene", self.scene.as_deref().map(text));
+        put("samplesPerPixel", self.spp.map(|v| V::I32(v.min(i32::MAX as u32) as i32)));
+        put("seed", self.seed.map(|v| text(&v.to_string())));
+        put("maxDepth", self.max_depth.map(|v| V::I32(v.min(i32::MAX as u32) as i32)));
+        put("sampler", self.sampler.as_deref().map(text));
+        put("renderTimeSeconds", self.render_seconds.map(|v| V::F32(v as f32)));
+        put("filter", self.filter.as_deref().map(text));
+        a
+    }
+
+    /// What an EXR's header records (the attributes [`Metadata::exr_attributes`] writes).
+    pub fn of_exr(path: &Path) -> Result<Metadata, String> {
+        use exr::meta::attribute::AttributeValue as V;
+        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+        let header = meta.headers.first().ok_or("no header")?;
+        let a = &header.own_attributes;
+        let get = |name: &str| a.other.get(&exr::meta::attribute::Text::from(name));
+        let text = |name: &str| match get(name) {
+            Some(V::Text(t)) => Some(t.to_string()),
+            _ => None,
+        };
+        let int = |name: &str| match get(name) {
+            Some(V::I32(v)) => u32::try_from(*v).ok(),
+            _ => None,
+        };
+        Ok(Metadata {
+            scene: text("scene"),
+            spp: int("samplesPerPixel"),
+            seed: text("seed").and_then(|s| s.parse().ok()),
+            max_depth: int("maxDepth"),
+            sampler: text("sampler"),
+            render_seconds: match get("renderTimeSeconds") {
+                Some(V::F32(v)) => Some(*v as f64),
+                _ => None,
+            },
+            filter: text("filter"),
+            world_to_camera: a.world_to_camera,
+            world_to_ndc: a.world_to_normalized_device,
+        })
+    }
+}
+
+/// Writes named float channels as one single-part EXR (32-bit float, lossless), with `meta` in
+/// its header.
+pub fn write_exr_channels(
+    channels: Channels,
+    width: u32,
+    height: u32,
+    meta: &Metadata,
+    path: &Path,
+) -> Result<(), String> {
     use exr::prelude::*;
     let list: Vec<AnyChannel<FlatSamples>> = channels
         .into_iter()
@@ -472,7 +590,7 @@ pub fn write_exr_channels(channels: Channels, width: u32, height: u32, path: &Pa
         .collect();
     let layer = Layer::new(
         (width as usize, height as usize),
-        LayerAttributes::default(),
+        meta.exr_attributes(),
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(list)),
     );
@@ -507,6 +625,9 @@ impl Film {
         film.depth = find("depth.Z")?.clone();
         film.object = find("objectid.ID")?.clone();
         // Files written before the coverage layer existed: every pixel counts as pure.
+        if let Ok(alpha) = find("A") {
+            film.alpha = alpha.clone();
+        }
         if let Ok(coverage) = find("objectid.coverage") {
             film.coverage = coverage.clone();
         }
@@ -597,7 +718,7 @@ mod tests {
             film.component_variance[c] = (0..15).map(|i| (i * 10 + k) as f32).collect();
         }
         let want = (film.variance.clone(), film.component_variance.clone());
-        write_film(film, gradient(), None, &path, 0.0).expect("write");
+        write_film(film, gradient(), None, &path, 0.0, &Metadata::default()).expect("write");
         let (w, h, channels) = read_exr_channels(&path).expect("read");
         let back = Film::from_channels(w, h, &channels).expect("a film");
         assert_eq!((back.variance, back.component_variance), want);
@@ -689,6 +810,32 @@ mod tests {
         assert_eq!(rgbe(Vec3::splat(0.999)), [128, 128, 128, 129]);
     }
 
+    /// Every field of the metadata comes back from the EXR header, a seed of 64 bits and a
+    /// scene name outside Latin-1 (as `?`) included; an image without any has the software alone.
+    #[test]
+    fn exr_metadata_round_trips() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("m.exr");
+        let meta = Metadata {
+            scene: Some("scènes/ß.toml".into()),
+            spp: Some(64),
+            seed: Some(u64::MAX),
+            max_depth: Some(1024),
+            sampler: Some("sobol".into()),
+            render_seconds: Some(1.5),
+            filter: Some("box3 on indirect".into()),
+            world_to_camera: Some(std::array::from_fn(|i| i as f32)),
+            world_to_ndc: Some(std::array::from_fn(|i| -(i as f32))),
+        };
+        write_film(Film::new(5, 3), gradient(), None, &path, 0.0, &meta).expect("write");
+        assert_eq!(Metadata::of_exr(&path).expect("read"), meta);
+        let greek = Metadata { scene: Some("λ.toml".into()), ..Metadata::default() };
+        write_with(&gradient(), &path, 0.0, &greek).expect("write");
+        assert_eq!(Metadata::of_exr(&path).expect("read").scene.as_deref(), Some("?.toml"));
+        write(&gradient(), &path, 0.0).expect("write");
+        assert_eq!(Metadata::of_exr(&path).expect("read"), Metadata::default());
+    }
+
     #[test]
     fn png_has_an_srgb_chunk_and_names_its_software() {
         let dir = tempfile::tempdir().expect("tempdir");
@@ -735,7 +882,15 @@ mod tests {
         let filtered = film.components[Component::Indirect].clone();
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("film.exr");
-        write_film(film.clone(), final_image.clone(), Some(filtered.clone()), &path, 0.0).expect("write");
+        write_film(
+            film.clone(),
+            final_image.clone(),
+            Some(filtered.clone()),
+            &path,
+            0.0,
+            &Metadata::default(),
+        )
+        .expect("write");
         let (w, h, read) = read_exr_channels(&path).expect("read");
         assert_eq!((w, h), (5, 3));
         let written = film_channels(film, final_image, Some(filtered));

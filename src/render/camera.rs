@@ -1,6 +1,6 @@
 //! Primary rays of a pinhole camera. Pixel (0, 0) is the top-left corner of the image.
 
-use glam::{Vec2, Vec3};
+use glam::{DMat4, DVec3, DVec4, Vec2, Vec3};
 
 use crate::accel::Ray;
 use crate::scene::Camera;
@@ -48,9 +48,85 @@ impl PinholeCamera {
     }
 }
 
+/// The near and far planes of [`exr_matrices`]' NDC depth, as pbrt-v4's perspective camera has.
+const NEAR: f64 = 1e-2;
+const FAR: f64 = 1e3;
+
+/// The camera's matrices as pbrt-v4 writes them into an EXR header (`worldToCamera` and
+/// `worldToNDC`): row-major, applied to column vectors (`M p`), in the scene file's world (the
+/// scene's `origin` added back in f64). Camera space has x towards the image's right, y up and
+/// z along the view (left-handed, as pbrt's); in NDC, after the division by w, x and y run over
+/// [0, 1] from the image's left and bottom edges, and z over [0, 1] from a near plane at 0.01
+/// to a far one at 1000.
+pub fn exr_matrices(camera: &Camera, origin: DVec3, width: u32, height: u32) -> ([f32; 16], [f32; 16]) {
+    let eye = origin + camera.position.as_dvec3();
+    let forward = (camera.look_at - camera.position).as_dvec3().normalize();
+    let right = forward.cross(camera.up.as_dvec3()).normalize();
+    let up = right.cross(forward);
+    // Rows: right, up, forward; then the eye moved to the origin.
+    let rotation =
+        DMat4::from_cols(right.extend(0.0), up.extend(0.0), forward.extend(0.0), DVec4::W).transpose();
+    let world_to_camera = rotation * DMat4::from_translation(-eye);
+    let t = (0.5 * (camera.fov as f64).to_radians()).tan();
+    let aspect = width as f64 / height as f64;
+    let ndc_from_camera = DMat4::from_cols_array(&[
+        0.5 / (t * aspect),
+        0.0,
+        0.5,
+        0.0,
+        0.0,
+        0.5 / t,
+        0.5,
+        0.0,
+        0.0,
+        0.0,
+        FAR / (FAR - NEAR),
+        -FAR * NEAR / (FAR - NEAR),
+        0.0,
+        0.0,
+        1.0,
+        0.0,
+    ])
+    .transpose();
+    let rows = |m: DMat4| m.transpose().to_cols_array().map(|v| v as f32);
+    (rows(world_to_camera), rows(ndc_from_camera * world_to_camera))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A point seen through a pixel's centre lands at that pixel in NDC; the eye is camera
+    /// space's origin and the view its +z; at 1e8 from the world's origin as at the origin.
+    #[test]
+    fn exr_matrices_map_pixels_to_ndc() {
+        let cam = Camera { position: Vec3::ZERO, look_at: Vec3::new(0.3, -0.2, 1.0), up: Vec3::Y, fov: 50.0 };
+        let (w, h) = (64u32, 48u32);
+        let pinhole = PinholeCamera::new(&cam, w, h);
+        for origin in [DVec3::ZERO, DVec3::new(1e3, -2e3, 5e2)] {
+            let (to_camera, to_ndc) = exr_matrices(&cam, origin, w, h);
+            let apply = |m: [f32; 16], p: DVec3| {
+                let m = DMat4::from_cols_array(&m.map(f64::from)).transpose();
+                m * p.extend(1.0)
+            };
+            let eye = apply(to_camera, origin);
+            assert!(eye.truncate().length() < 1e-3, "{eye}");
+            let ahead = apply(to_camera, origin + 2.0 * pinhole.forward().as_dvec3());
+            assert!((ahead.truncate() - DVec3::new(0.0, 0.0, 2.0)).length() < 1e-3, "{ahead}");
+            for (x, y) in [(0, 0), (63, 0), (10, 40), (32, 24)] {
+                let ray = pinhole.ray(x, y, Vec2::splat(0.5));
+                let p = origin + (ray.dir * 7.0).as_dvec3();
+                let q = apply(to_ndc, p);
+                let (nx, ny, nz) = (q.x / q.w, q.y / q.w, q.z / q.w);
+                let want = ((x as f64 + 0.5) / w as f64, 1.0 - (y as f64 + 0.5) / h as f64);
+                assert!(
+                    (nx - want.0).abs() < 1e-4 && (ny - want.1).abs() < 1e-4,
+                    "pixel ({x}, {y}): {nx} {ny}"
+                );
+                assert!(nz > 0.0 && nz < 1.0, "{nz}");
+            }
+        }
+    }
 
     #[test]
     fn centre_and_corners() {

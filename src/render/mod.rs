@@ -156,6 +156,8 @@ struct Guides {
     depth: f32,
     object: Option<u32>,
     same: u32,
+    /// Samples that hit a surface.
+    hits: u32,
 }
 
 /// A tile of the image and what it keeps between passes: the samples each pixel has taken and,
@@ -255,6 +257,7 @@ impl Sums {
                             depth: film.depth[at],
                             object: (object >= 0.0).then_some(object as u32),
                             same: film.coverage[at] as u32,
+                            hits: film.alpha[at] as u32,
                         }
                     })
                     .collect()
@@ -286,6 +289,7 @@ impl Sums {
                 film.depth[at] = g.depth;
                 film.object[at] = g.object.map_or(-1.0, |o| o as f32);
                 film.coverage[at] = g.same as f32;
+                film.alpha[at] = g.hits as f32;
             }
         }
     }
@@ -299,6 +303,7 @@ impl Sums {
                 g.object = s.object;
             }
             g.same += (s.object == g.object) as u32;
+            g.hits += s.object.is_some() as u32;
         }
         if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
             return false;
@@ -411,6 +416,7 @@ fn render_features<A: Accel, const F: u8>(
     // every pass is done, then their means.
     let mut film = Film::with_buffers(width, height, split, guides);
     film.coverage.fill(0.0);
+    film.alpha.fill(0.0);
     let shared = Mutex::new(film);
     let lock = || shared.lock().unwrap_or_else(|e| e.into_inner());
 
@@ -519,6 +525,7 @@ fn render_features<A: Accel, const F: u8>(
                 film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
                 film.depth[at] *= inv;
                 film.coverage[at] /= n as f32;
+                film.alpha[at] /= n as f32;
             }
             stats.samples += n as u64;
             stats.stopped_early += (n < spp) as u64;
