@@ -369,7 +369,7 @@ fn smaller_defects_of_item_10() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!o.stderr.contains(&0x1b) && !o.stderr.contains(&0), "raw control bytes: {:?}", stderr(&o));
     assert!(stderr(&o).contains("\\u{1b}[31mred\\u{0}"), "{}", stderr(&o));
-    for ext in ["ply", "gltf", "GLB"] {
+    for ext in ["gltf", "GLB"] {
         std::fs::write(d.join(format!("m.{ext}")), "ply\nformat ascii 1.0\n").expect("write");
         let text = format!("{SCENE}[[shape]]\ntype = \"mesh\"\nfile = \"m.{ext}\"\n");
         std::fs::write(d.join("mesh.toml"), text).expect("write");
@@ -501,4 +501,40 @@ fn a_stop_during_a_write_leaves_no_temporary() {
     assert!(!stale.exists(), "the stale temporary of o.exr is removed");
     assert!(live.exists(), "a running process's temporary is left alone");
     assert!(other.exists(), "another file's temporary is not this write's to remove");
+}
+
+/// Issue 19: a PLY mesh (binary) renders bit for bit as the same mesh from an OBJ.
+#[test]
+fn a_ply_mesh_renders_as_its_obj() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let corners =
+        [[-2.0f32, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0], [0.0, 1.5, 0.0]];
+    let faces = [[0u32, 1, 2, 3], [0, 4, 1, 1], [1, 4, 2, 2]];
+    let mut obj = String::new();
+    corners.iter().for_each(|c| obj.push_str(&format!("v {} {} {}\n", c[0], c[1], c[2])));
+    obj.push_str("f 1 2 3 4\nf 1 5 2\nf 2 5 3\n");
+    std::fs::write(d.join("m.obj"), obj).expect("write");
+    let mut ply =
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+property float z\nelement face 3\nproperty list uchar uint vertex_indices\nend_header\n"
+            .to_vec();
+    corners.iter().flatten().for_each(|x| ply.extend(x.to_le_bytes()));
+    for (k, f) in faces.iter().enumerate() {
+        let n = if k == 0 { 4 } else { 3 };
+        ply.push(n as u8);
+        f[..n].iter().for_each(|i| ply.extend(i.to_le_bytes()));
+    }
+    std::fs::write(d.join("m.ply"), ply).expect("write");
+    let render = |mesh: &str| -> Vec<u8> {
+        let text = SCENE.replace("[[shape]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 1\n", "")
+            + &format!("[[shape]]\ntype = \"mesh\"\nfile = \"{mesh}\"\n");
+        std::fs::write(d.join("s.toml"), text).expect("write");
+        let o = run_in(d, &["render", "s.toml", "-o", "x.pfm"]);
+        assert!(o.status.success(), "{mesh}: {}", stderr(&o));
+        std::fs::read(d.join("x.pfm")).expect("image")
+    };
+    let (a, b) = (render("m.obj"), render("m.ply"));
+    assert!(a.iter().skip(20).any(|&x| x != 0), "the mesh is lit");
+    assert_eq!(a, b);
 }

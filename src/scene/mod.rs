@@ -8,6 +8,7 @@ pub mod image;
 pub mod limits;
 pub mod noise;
 pub mod obj;
+pub mod ply;
 pub mod procedural;
 pub mod sky;
 pub mod teapot;

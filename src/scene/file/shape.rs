@@ -57,7 +57,7 @@ impl Typed for ShapeKind {
 
 /// Mesh formats that are not Wavefront OBJ, named in the error rather than read as an empty OBJ.
 const OTHER_MESH_FORMATS: &[&str] =
-    &["ply", "gltf", "glb", "fbx", "stl", "dae", "3ds", "usd", "usda", "usdc", "usdz", "abc", "blend"];
+    &["gltf", "glb", "fbx", "stl", "dae", "3ds", "usd", "usda", "usdc", "usdz", "abc", "blend"];
 
 impl ShapeKind {
     /// The file a mesh reads, as written (relative to the scene file).
@@ -251,20 +251,29 @@ pub(super) fn add(
             let path = dir.join(file);
             // Formats an OBJ reader would read as an OBJ without faces.
             let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-            if let Some(ext) = ext.filter(|e| OTHER_MESH_FORMATS.contains(&e.as_str())) {
+            if let Some(ext) = ext.as_deref().filter(|e| OTHER_MESH_FORMATS.contains(e)) {
                 return ctx.err(
                     span,
                     format!(
-                        "mesh `{file}`: .{ext} is not read; meshes are Wavefront OBJ files (.obj, with .mtl)"
+                        "mesh `{file}`: .{ext} is not read; meshes are Wavefront OBJ files (.obj, with .mtl) or PLY files (.ply)"
                     ),
                 );
             }
+            let ply = ext.as_deref() == Some("ply");
             let obj::Obj { parts, libraries } = crate::scene::limits::check_input_file(&path)
-                .and_then(|()| obj::load(&path))
+                .and_then(|()| match ply {
+                    true => {
+                        crate::scene::ply::load(&path).map(|parts| obj::Obj { parts, libraries: Vec::new() })
+                    }
+                    false => obj::load(&path),
+                })
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
             out.libraries.extend(libraries);
             if parts.is_empty() {
-                return ctx.err(span, format!("mesh `{file}` has no faces (meshes are Wavefront OBJ files)"));
+                return ctx.err(
+                    span,
+                    format!("mesh `{file}` has no faces (meshes are Wavefront OBJ or PLY files)"),
+                );
             }
             // Each OBJ object is a shape of its own (and an object of its own, unless the scene
             // file names one), with its .mtl material unless the scene file gives one.
