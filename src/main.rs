@@ -277,18 +277,9 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
     let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
     bar.finish_and_clear();
-    let (world_to_camera, world_to_ndc) =
-        render::camera::exr_matrices(&scene.camera, scene.origin, options.width, options.height);
     let meta = film::Metadata {
-        scene: Some(args.scene.to_string_lossy().into_owned()),
-        spp: Some(options.spp),
-        seed: Some(options.seed),
-        max_depth: Some(options.max_depth),
-        sampler: Some(options.sampler.name().to_string()),
-        render_seconds: Some(out.stats.seconds),
         filter: filter_label(&setting),
-        world_to_camera: Some(world_to_camera),
-        world_to_ndc: Some(world_to_ndc),
+        ..render::metadata(&scene, &options, out.stats.seconds)
     };
     let filter_seconds = args.out.write(out.film, &setting, &output, &meta)?;
 

@@ -421,15 +421,7 @@ fn reference(
     let out = render::render(scene, &options, &|n| report(Event::Samples(n)))
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     let image = out.film.raw.clone();
-    let meta = film::Metadata {
-        scene: Some(plan.scene_path.to_string_lossy().into_owned()),
-        spp: Some(options.spp),
-        seed: Some(options.seed),
-        max_depth: Some(options.max_depth),
-        sampler: Some(options.sampler.name().to_string()),
-        render_seconds: Some(out.stats.seconds),
-        ..Default::default()
-    };
+    let meta = render::metadata(scene, &options, out.stats.seconds);
     film::write_film(out.film, image.clone(), None, &cache, 0.0, &meta)
         .map_err(|e| ConvergeError::Failed(e.to_string()))?;
     Ok(image)

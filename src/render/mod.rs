@@ -60,6 +60,25 @@ pub struct RenderOptions {
     pub adaptive: Option<f32>,
 }
 
+/// What a file records of a render of `scene` with `options` that took `seconds`
+/// ([`film::Metadata`]): the scene file, the settings that reproduce it, its time and the
+/// camera's matrices. The filter, when there is one, is the caller's to add.
+pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::Metadata {
+    let (world_to_camera, world_to_ndc) =
+        camera::exr_matrices(&scene.camera, scene.origin, options.width, options.height);
+    film::Metadata {
+        scene: Some(scene.path.to_string_lossy().into_owned()),
+        spp: Some(options.spp),
+        seed: Some(options.seed),
+        max_depth: Some(options.max_depth),
+        sampler: Some(options.sampler.name().to_string()),
+        render_seconds: Some(seconds),
+        filter: None,
+        world_to_camera: Some(world_to_camera),
+        world_to_ndc: Some(world_to_ndc),
+    }
+}
+
 impl RenderOptions {
     /// The scene file's settings, and the features its analysis says a render with every
     /// layer needs.
