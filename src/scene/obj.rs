@@ -137,6 +137,7 @@ fn describe(path: &Path, bytes: &[u8], message: &str) -> String {
     // Defined so far: positions, texture coordinates, normals.
     let mut defined = [0i64; 3];
     const WHAT: [&str; 3] = ["vertices", "texture coordinates", "normals"];
+    const ONE: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     let at = |n: usize, detail: String| format!("{}:{}: {message} ({detail})", path.display(), n + 1);
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
@@ -154,7 +155,7 @@ fn describe(path: &Path, bytes: &[u8], message: &str) -> String {
                         let resolved =
                             index.parse::<i64>().ok().map(|k| if k < 0 { defined[i] + k } else { k - 1 });
                         if !matches!(resolved, Some(r) if (0..defined[i]).contains(&r)) {
-                            let which = ["vertex", "texture coordinate", "normal"][i];
+                            let which = ONE[i];
                             return at(
                                 n,
                                 format!("{which} `{index}` of `{w}` with {} {} defined", defined[i], WHAT[i]),
@@ -170,7 +171,7 @@ fn describe(path: &Path, bytes: &[u8], message: &str) -> String {
         let numbers: Vec<Option<f64>> =
             words.take(count).map(|w| w.parse::<f64>().ok().filter(|x| x.is_finite())).collect();
         if numbers.len() < count || numbers.iter().any(Option::is_none) {
-            let name = ["vertex", "texture coordinate", "normal"][kind];
+            let name = ONE[kind];
             return at(n, format!("{name} {} needs {count} finite numbers", defined[kind]));
         }
     }
