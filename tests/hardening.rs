@@ -464,7 +464,8 @@ fn a_stop_during_a_write_leaves_no_temporary() {
         let names = std::fs::read_dir(dir.path()).expect("read_dir").flatten();
         names.map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.contains(".tmp.")).collect()
     };
-    for (signal, number) in [("TERM", 15), ("INT", 2)] {
+    use rustix::process::{Pid, Signal};
+    for (signal, sig, number) in [("TERM", Signal::TERM, 15), ("INT", Signal::INT, 2)] {
         // A 1024x1024 EXR takes about half a second to write: the stop lands inside it.
         let mut child = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
             .args([OsStr::new("render"), scene.as_os_str(), OsStr::new("-o"), out.as_os_str()])
@@ -481,9 +482,7 @@ fn a_stop_during_a_write_leaves_no_temporary() {
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
         assert!(tmp.exists(), "the write was never seen under way");
-        let kill =
-            Command::new("kill").args(["-s", signal, &child.id().to_string()]).status().expect("kill runs");
-        assert!(kill.success());
+        rustix::process::kill_process(Pid::from_child(&child), sig).expect("the signal is sent");
         let status = child.wait().expect("waits");
         assert_eq!(status.code(), Some(128 + number), "SIG{signal}");
         assert_eq!(temporaries(), Vec::<String>::new(), "SIG{signal} left a temporary");
