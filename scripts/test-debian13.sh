@@ -4,7 +4,7 @@
 # The root lives outside the checkout and is reused when it exists.
 #
 #   scripts/test-debian13.sh            # build the root if needed, then test
-#   scripts/test-debian13.sh ARGS...    # the same, with ARGS added to `cargo test` (e.g. --test hardening)
+#   scripts/test-debian13.sh ARGS...    # the same, with ARGS added to `cargo test` (e.g. --test integration hardening::)
 #   LIGHTSPLIT_DEBIAN13_ROOT=DIR ...    # where the root lives (default /var/tmp/lightsplit-debian13)
 #   DEBIAN13_MIRROR=URL ...             # a Debian mirror for debootstrap (default: debootstrap's own)
 set -euo pipefail

@@ -1,6 +1,7 @@
-//! Renders with a known answer: a white furnace and a diffuse plane under a point light.
+//! Renders with a known answer: a white furnace (under a sky and under an environment map) and a
+//! diffuse plane under a point light and under an environment map.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
@@ -151,4 +152,84 @@ fn russian_roulette_leaves_the_mean_unchanged() {
     eprintln!("mean {mean:.4}, standard error {se:.4}");
     assert!(se > 0.0 && se < 0.1, "standard error {se}");
     assert!((mean - 10.0).abs() < 4.0 * se, "mean {mean}, expected 10 within 4 x {se}");
+}
+
+/// Writes a latitude-longitude map, given top row first, as a portable float map (whose rows
+/// run bottom to top) and returns its path.
+fn environment_file(dir: &Path, width: u32, height: u32, pixel: impl Fn(u32, u32) -> [f32; 3]) -> String {
+    let values: Vec<f32> = (0..height)
+        .rev()
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .flat_map(|(x, y)| pixel(x, y))
+        .collect();
+    let path = dir.join("env.pfm");
+    std::fs::write(&path, common::pfm(width, height, &values)).expect("write");
+    path.to_string_lossy().into_owned()
+}
+
+/// The furnace under an environment map: an albedo-1 sphere in a constant map reflects the map's
+/// radiance exactly, so the image mean is that radiance within its noise.
+#[test]
+fn white_furnace_in_a_constant_environment_map() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = environment_file(dir.path(), 32, 16, |_, _| [0.5, 1.0, 2.0]);
+    let text = format!(
+        "[camera]\nposition = [0, 0, -4]\nlook_at = [0, 0, 0]\nfov = 40\n[film]\nwidth = 32\nheight = 32\n\
+         [render]\nmax_depth = 16\n[[material]]\nname = \"white\"\ntype = \"diffuse\"\ncolor = [1, 1, 1]\n\
+         [[shape]]\ntype = \"sphere\"\nmaterial = \"white\"\nradius = 1\n\
+         [[light]]\ntype = \"environment\"\nfile = \"{file}\"\nrotate = 30\n"
+    );
+    let out = render_text(&text, 16);
+    let (mean, se) = common::mean_and_standard_error(&out.film.raw);
+    assert!((mean - 0.5).abs() <= 4.0 * se + 1e-4, "mean {mean} (standard error {se}) vs 0.5");
+    // The sphere covers the centre, which shows the map's radiance too.
+    let centre = out.film.raw.get(16, 16);
+    assert!((centre.z / centre.x - 4.0).abs() < 0.05, "centre pixel {centre}");
+}
+
+/// A diffuse plane facing up under a map with a small bright sun, a gradient sky and a bright
+/// ground below the horizon: each point of the plane reflects albedo / pi times the map's
+/// cosine-weighted integral over the upper hemisphere, summed exactly pixel by pixel (a pixel of
+/// row j spans polar angles theta_j to theta_j+1 and 2 pi / width in azimuth, and its cosine-
+/// weighted solid angle is (sin^2 theta_j+1 - sin^2 theta_j) pi / width). The tolerance is four
+/// standard errors of the pixels' spread.
+#[test]
+fn diffuse_plane_under_an_environment_map_reflects_its_cosine_integral() {
+    let (w, h) = (64u32, 32u32);
+    let radiance = |x: u32, y: u32| -> f32 {
+        if (10..12).contains(&x) && (4..6).contains(&y) {
+            3000.0
+        } else if y >= h / 2 {
+            5.0
+        } else {
+            0.3 + 0.4 * x as f32 / w as f32
+        }
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = environment_file(dir.path(), w, h, |x, y| [radiance(x, y); 3]);
+    let mut expected = 0.0f64;
+    for y in 0..h / 2 {
+        let s = |j: u32| (std::f64::consts::PI * j as f64 / h as f64).sin().powi(2);
+        let weight = (s(y + 1) - s(y)) * std::f64::consts::PI / w as f64;
+        expected += (0..w).map(|x| radiance(x, y) as f64 * weight).sum::<f64>();
+    }
+    let albedo = 0.5;
+    expected *= albedo / std::f64::consts::PI;
+    let text = format!(
+        "[camera]\nposition = [0, 1, 0.001]\nlook_at = [0, 0, 0]\nfov = 40\n[film]\nwidth = 32\nheight = 32\n\
+         [[material]]\nname = \"grey\"\ntype = \"diffuse\"\ncolor = [{albedo}, {albedo}, {albedo}]\n\
+         [[shape]]\ntype = \"quad\"\nmaterial = \"grey\"\n\
+         vertices = [[-100, 0, -100], [-100, 0, 100], [100, 0, 100], [100, 0, -100]]\n\
+         [[light]]\ntype = \"environment\"\nfile = \"{file}\"\nrotate = 90\n"
+    );
+    let out = render_text(&text, 16);
+    let (mean, se) = common::mean_and_standard_error(&out.film.raw);
+    assert!(
+        (mean - expected).abs() <= 4.0 * se + 1e-4 * expected,
+        "mean {mean} (standard error {se}) vs {expected}"
+    );
+    assert!(
+        se < 0.02 * expected,
+        "importance sampling keeps the noise low: standard error {se} of {expected}"
+    );
 }

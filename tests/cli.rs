@@ -1,7 +1,7 @@
 //! The command line as a user meets it: bad input is one clear error with exit status 2 and no
 //! panic; the README's render command makes a PNG that is not black; --json has its keys.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,7 +1,7 @@
 //! The paper's component split: the four components sum to the beauty, each lands where its
 //! light path says, and the guide buffers see the first diffuse vertex.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
@@ -121,6 +121,29 @@ fn diffuse_source_sky_light_is_indirect() {
     let f = film(&base.replace("radiance = [1, 1, 1]", "radiance = [1, 1, 1]\ndiffuse_source = false"), 4);
     assert_eq!(f.components[Indirect].pixels[bottom], Vec3::ZERO);
     assert!(f.components[Direct].pixels[bottom].x > 0.0);
+}
+
+/// An environment map's light is direct unless `diffuse_source` says it is a diffuse source (an
+/// HDRI often holds a sun, whose shadows must stay sharp); seen directly it is emitted.
+#[test]
+fn an_environment_is_direct_light_unless_a_diffuse_source() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let map = dir.path().join("env.pfm");
+    std::fs::write(&map, common::pfm(8, 4, &[1.0; 96])).expect("write");
+    let base = format!(
+        "[camera]\nposition = [0, 2, -6]\nlook_at = [0, 0.5, 0]\nfov = 40\n[film]\nwidth = 24\nheight = 24\n\
+         [[shape]]\ntype = \"quad\"\nvertices = [[-50, 0, -50], [-50, 0, 50], [50, 0, 50], [50, 0, -50]]\n\
+         [[light]]\ntype = \"environment\"\nfile = \"{}\"\n",
+        map.display()
+    );
+    let (bottom, top) = ((23 * 24 + 12) as usize, 12usize);
+    let f = film(&base, 4);
+    assert!(f.components[Direct].pixels[bottom].x > 0.0);
+    assert_eq!(f.components[Indirect].pixels[bottom], Vec3::ZERO);
+    assert_eq!(f.components[Emitted].pixels[top], Vec3::ONE);
+    let f = film(&format!("{base}diffuse_source = true\n"), 4);
+    assert_eq!(f.components[Direct].pixels[bottom], Vec3::ZERO);
+    assert!(f.components[Indirect].pixels[bottom].x > 0.0);
 }
 
 #[test]

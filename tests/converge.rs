@@ -1,7 +1,7 @@
 //! `lightsplit converge`: the files it writes, and a run killed half way that the same command
 //! finishes without losing or repeating a row.
 
-mod common;
+use crate::common;
 
 use std::collections::HashSet;
 use std::path::Path;

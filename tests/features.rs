@@ -4,7 +4,7 @@
 //! same too. Leaving out something the scene does need changes the image (so the flags do
 //! remove code), and the buffers a render skips are not allocated.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

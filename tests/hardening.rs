@@ -1,6 +1,8 @@
 //! Issue 18's defects, one test each: what a careless or hostile user found, checked so that it
 //! cannot come back. Each test failed before its fix.
 
+use crate::common::pfm;
+
 use std::ffi::OsStr;
 use std::os::unix::ffi::OsStrExt;
 use std::process::{Command, Output, Stdio};
@@ -387,13 +389,6 @@ fn smaller_defects_of_item_10() {
     let o = run_in(d, &["converge", "s.toml", "--reference", "bad.exr", "--out", "conv", "--spp", "1"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!d.join("conv").exists(), "an empty --out was left behind");
-}
-
-/// A portable float map (little-endian, scale -1) of `width` x `height` from its RGB values.
-fn pfm(width: u32, height: u32, values: &[f32]) -> Vec<u8> {
-    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
-    values.iter().for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
-    bytes
 }
 
 /// Worlds far from the origin: a scene (TOML and OBJ) moved by 1e8 renders bit for bit as at

@@ -3,7 +3,7 @@
 //! adversarial scene provokes it: a point light of 3e38 W/sr half a unit above a plane, whose
 //! irradiance overflows f32.
 
-mod common;
+use crate::common;
 
 use common::{lightsplit, render_text};
 

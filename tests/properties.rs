@@ -1,5 +1,6 @@
 //! Property tests (proptest): the scene parser never panics, whatever it reads, and a scene it
-//! accepts renders without panicking; the filters keep energy and symmetry.
+//! accepts renders without panicking; a damaged input file is refused, never a panic; the
+//! filters keep energy and symmetry.
 
 use std::path::Path;
 
@@ -265,4 +266,49 @@ fn the_base_scene_is_valid_and_mutations_often_parse() {
         })
         .count();
     assert!(ok > 20, "only {ok} of {} single mutations parse", VALUES.len() * 40);
+}
+
+/// Valid environment maps in each format a map may have (EXR, Radiance HDR, PFM), as bytes.
+fn environment_files() -> Vec<(&'static str, Vec<u8>)> {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let pixels = (0..32).map(|i| Vec3::new(i as f32, 0.5, 2.0)).collect();
+    let image = Image { width: 8, height: 4, pixels };
+    ["exr", "hdr", "pfm"]
+        .into_iter()
+        .map(|ext| {
+            let path = dir.path().join(format!("env.{ext}"));
+            lightsplit::film::write(&image, &path, 0.0).expect("writes");
+            (ext, std::fs::read(&path).expect("reads"))
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// A damaged environment map (cut short, or bytes overwritten) is read or refused with an
+    /// error, never a panic; a map it reads passes the map's own checks.
+    #[test]
+    fn a_damaged_environment_map_is_refused_not_a_panic(
+        format in 0usize..3,
+        cut in any::<prop::sample::Index>(),
+        edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..6),
+    ) {
+        let files = environment_files();
+        let (ext, mut bytes) = files[format].clone();
+        bytes.truncate(cut.index(bytes.len() + 1));
+        for (at, b) in edits {
+            if !bytes.is_empty() {
+                let i = at.index(bytes.len());
+                bytes[i] = b;
+            }
+        }
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join(format!("env.{ext}"));
+        std::fs::write(&path, &bytes).expect("write");
+        if let Ok(map) = lightsplit::scene::environment::EnvironmentMap::load(&path, 1.0, 0.0) {
+            prop_assert_eq!(map.image.width, 2 * map.image.height);
+            prop_assert!(map.image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+        }
+    }
 }

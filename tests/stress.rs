@@ -1,7 +1,7 @@
 //! `lightsplit stress`: every row of the numerical-stability table holds on both backends, each
 //! judged by its own figures (no row is excused), and the command prints the table and its JSON.
 
-mod common;
+use crate::common;
 
 use common::lightsplit;
 use lightsplit::accel::Backend;

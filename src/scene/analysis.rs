@@ -15,6 +15,7 @@ pub struct LightKinds {
     pub sun: usize,
     pub sky: usize,
     pub cloudy_sky: usize,
+    pub environment: usize,
     pub emissive_meshes: usize,
     pub emissive_spheres: usize,
 }
@@ -23,12 +24,17 @@ impl LightKinds {
     /// Lights that a path can hit (a sun's disc, a sky, an emissive shape): with only point and
     /// spot lights, BSDF sampling never finds a light and no MIS weight is needed.
     pub fn hittable(&self) -> usize {
-        self.sun + self.sky + self.cloudy_sky + self.emissive_meshes + self.emissive_spheres
+        self.sun
+            + self.sky
+            + self.cloudy_sky
+            + self.environment
+            + self.emissive_meshes
+            + self.emissive_spheres
     }
 
     /// Lights at infinity, which an escaping ray looks up.
     pub fn distant(&self) -> usize {
-        self.sun + self.sky + self.cloudy_sky
+        self.sun + self.sky + self.cloudy_sky + self.environment
     }
 
     pub fn total(&self) -> usize {
@@ -126,6 +132,9 @@ impl Analysis {
                 Light::Sun { radiance, .. } if bright(*radiance) => a.lights.sun += 1,
                 Light::Sky { radiance, .. } if bright(*radiance) => a.lights.sky += 1,
                 Light::CloudySky { .. } => a.lights.cloudy_sky += 1,
+                Light::Environment { map, .. } if map.image.pixels.iter().any(|p| bright(*p)) => {
+                    a.lights.environment += 1
+                }
                 _ => {}
             }
         }
@@ -170,6 +179,7 @@ impl fmt::Display for Analysis {
             counted(k.sun, "sun"),
             counted(k.sky, "uniform sky"),
             counted(k.cloudy_sky, "cloudy sky"),
+            counted(k.environment, "environment map"),
             counted(k.emissive_meshes, "emissive mesh"),
             counted(k.emissive_spheres, "emissive sphere"),
         ]

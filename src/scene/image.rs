@@ -132,6 +132,10 @@ fn read_pfm(path: &Path) -> Result<Image, String> {
 /// Reads an image as linear RGB: the `R`, `G`, `B` channels of an EXR, a Radiance HDR or a
 /// portable float map as it is, any other file (PNG) decoded from 8-bit sRGB.
 pub fn read(path: &Path) -> Result<Image, String> {
+    // A decoder says of an empty file only that it ended early.
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0) {
+        return Err(format!("{}: the file is empty (0 bytes)", path.display()));
+    }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("exr") => {

@@ -3,6 +3,7 @@
 //! [`file`] (TOML), [`obj`] (Wavefront OBJ meshes) and [`image`] (texture images).
 
 pub mod analysis;
+pub mod environment;
 pub mod file;
 pub mod image;
 pub mod limits;
@@ -155,6 +156,8 @@ pub enum Light {
     Sun { direction: Vec3, radiance: Vec3, one_minus_cos: f32, diffuse_source: bool },
     /// Constant radiance from every direction at infinity.
     Sky { radiance: Vec3, diffuse_source: bool },
+    /// Radiance at infinity from a latitude-longitude image (an HDRI).
+    Environment { map: Arc<environment::EnvironmentMap>, diffuse_source: bool },
     /// The paper's cloudy sky: CIE overcast with fBm clouds.
     CloudySky { sky: sky::CloudySky, diffuse_source: bool },
     /// A point that shines `intensity` (W/sr) along `direction` (unit), fading smoothly from

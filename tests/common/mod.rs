@@ -52,3 +52,11 @@ pub fn inward_cube(keys: &str) -> String {
     }
     text
 }
+
+/// A portable float map (RGB, little-endian) of `values`, three a pixel, in the file's order:
+/// the bottom row first.
+pub fn pfm(width: u32, height: u32, values: &[f32]) -> Vec<u8> {
+    let mut bytes = format!("PF\n{width} {height}\n-1.0\n").into_bytes();
+    values.iter().for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
+    bytes
+}

@@ -1,9 +1,12 @@
 //! The lights of a scene ready to sample: each [`Emitter`] samples a direction toward itself from
 //! a receiving point and gives the density of that choice for multiple importance sampling.
-//! Point and spot lights, the sun (a cone of directions), a uniform or cloudy sky, and emissive
+//! Point and spot lights, the sun (a cone of directions), a uniform or cloudy sky, an
+//! environment map, and emissive
 //! shapes (triangle meshes sampled by area, spheres by the cone they subtend).
 
 use std::f32::consts::PI;
+
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
@@ -12,6 +15,7 @@ use crate::math::{
     offset_ray_origin, one_minus_cos_between, sphere_magnitude, triangle_magnitude, uniform_cone,
     uniform_sphere, uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
 };
+use crate::scene::environment::EnvironmentMap;
 use crate::scene::sky::CloudySky;
 use crate::scene::{Geometry, Light, Mesh, Scene};
 
@@ -46,6 +50,13 @@ pub enum Emitter {
         sky: Box<CloudySky>,
         table: Box<Distribution2D>,
         radiance: Vec<Vec3>,
+    },
+    /// An environment map, sampled by its pixels' luminance times the solid angle each covers.
+    /// Light it sheds is the pixel's, constant over the pixel as the density is; what the eye
+    /// sees directly (or through mirrors) is interpolated between pixels.
+    Environment {
+        map: Arc<EnvironmentMap>,
+        table: Box<Distribution2D>,
     },
     Mesh {
         shape: u32,
@@ -127,6 +138,21 @@ impl Emitter {
                     light,
                 })
             }
+            Emitter::Environment { map, table } => {
+                let (uv, pdf) = table.sample(u);
+                let (wi, sin) = map.direction(uv);
+                if sin <= 0.0 || pdf <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    radiance: map.pixel(uv),
+                    wi,
+                    pdf: select * pdf / (2.0 * PI * PI * sin),
+                    delta: false,
+                    end: ShadowEnd::Infinite,
+                    light,
+                })
+            }
             Emitter::Mesh { shape, triangles, area, emission } => {
                 let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
                     return None;
@@ -195,6 +221,13 @@ impl Emitter {
                 let le = if seen { sky.radiance(dir) } else { sky_lookup(radiance, uv) };
                 (le, select * table.pdf(uv) / (2.0 * PI))
             }
+            Emitter::Environment { map, table } => {
+                let uv = map.uv(dir);
+                let sin = (1.0 - dir.y * dir.y).max(0.0).sqrt();
+                let le = if seen { map.smooth(uv) } else { map.pixel(uv) };
+                let pdf = if sin > 0.0 { select * table.pdf(uv) / (2.0 * PI * PI * sin) } else { 0.0 };
+                (le, pdf)
+            }
             Emitter::Sun { frame, radiance, one_minus_cos } => {
                 if one_minus_cos_between(dir, frame.n) <= *one_minus_cos {
                     (*radiance, select / (2.0 * PI * one_minus_cos))
@@ -216,6 +249,7 @@ impl Emitter {
             Emitter::CloudySky { sky, .. } => {
                 sky.zenith.max_element() <= 0.0 && sky.clear.max_element() <= 0.0
             }
+            Emitter::Environment { map, .. } => map.image.pixels.iter().all(|p| p.max_element() <= 0.0),
             Emitter::Mesh { emission, .. } | Emitter::Sphere { emission, .. } => {
                 emission.max_element() <= 0.0
             }

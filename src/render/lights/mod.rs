@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3};
 pub use emitter::{Emitter, LightSample, ShadowEnd};
 use sky_table::sky_table;
 
-use crate::math::{luminance, Distribution1D, Frame, FOUR_PI};
+use crate::math::{luminance, Distribution1D, Distribution2D, Frame, FOUR_PI};
 use crate::scene::{Geometry, Light, Scene};
 
 /// No light on this shape.
@@ -30,7 +30,7 @@ pub struct Lights {
     select: Option<Distribution1D>,
     /// For each shape, the index of its emitter, or NONE.
     shape_light: Vec<u32>,
-    /// The emitters at infinity (sun, sky), which a ray that escapes the scene sees.
+    /// The emitters at infinity (sun, sky, environment), which a ray that escapes the scene sees.
     pub distant: Vec<u32>,
 }
 
@@ -65,12 +65,30 @@ impl Lights {
                         Emitter::CloudySky { sky: Box::new(sky.clone()), table: Box::new(table), radiance };
                     (emitter, 2.0 * PI * disc * mean, diffuse_source)
                 }
+                Light::Environment { ref map, diffuse_source } => {
+                    let table = Distribution2D::new(
+                        &map.weights(map.uniform),
+                        map.image.width as usize,
+                        map.image.height as usize,
+                    );
+                    let Some(table) = table else {
+                        continue; // a black map
+                    };
+                    let emitter = Emitter::Environment { map: map.clone(), table: Box::new(table) };
+                    (emitter, FOUR_PI * disc * map.mean_luminance(), diffuse_source)
+                }
                 Light::Sky { radiance, diffuse_source } => {
                     (Emitter::Sky { radiance }, FOUR_PI * disc * luminance(radiance), diffuse_source)
                 }
             };
             if !emitter.is_dark() {
-                if matches!(emitter, Emitter::Sun { .. } | Emitter::Sky { .. } | Emitter::CloudySky { .. }) {
+                if matches!(
+                    emitter,
+                    Emitter::Sun { .. }
+                        | Emitter::Sky { .. }
+                        | Emitter::CloudySky { .. }
+                        | Emitter::Environment { .. }
+                ) {
                     lights.distant.push(lights.emitters.len() as u32);
                 }
                 lights.emitters.push(emitter);
@@ -333,6 +351,58 @@ mod tests {
         assert!(z < 4.0, "z = {z}");
         // The table follows the sky: NEE samples carry more light than uniform directions do.
         let mut s = Sampler::new(9, 9, 9);
+        let (mut sampled, mut uniform) = (0.0, 0.0);
+        for _ in 0..20_000 {
+            sampled += lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map_or(0.0, |l| l.radiance.x);
+            uniform += lights.distant(0, uniform_sphere(s.next_2d()), false).0.x;
+        }
+        assert!(sampled > 2.0 * uniform, "{sampled} vs {uniform}");
+    }
+
+    /// An environment map with a gradient, a bright small sun and a black band, turned: its
+    /// sampling follows the density MIS uses for a BSDF-sampled direction, and it follows the
+    /// light (NEE samples carry far more of it than uniform directions do). The sun is 100 times
+    /// the sky, not the 1e4 of a real one: the test's quadrature of the density over its bins is
+    /// not fine enough for a brighter one (at ten times this, z reached 4.4 in release builds and
+    /// 2.4 in debug ones: with most samples in a few bins, small errors of the quadrature at the
+    /// sun's edges decide the statistic).
+    #[test]
+    fn environment_sampling_matches_its_density() {
+        use crate::film::Image;
+        use crate::math::chi_square::z_score;
+        use crate::scene::environment::EnvironmentMap;
+        use std::sync::Arc;
+        let (w, h) = (64u32, 32u32);
+        let pixels = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if (20..23).contains(&x) && (5..7).contains(&y) {
+                    Vec3::new(50.0, 45.0, 40.0)
+                } else if y == 20 {
+                    Vec3::ZERO
+                } else {
+                    Vec3::new(0.2, 0.3, 0.5) * (1.0 + x as f32 / w as f32)
+                }
+            })
+            .collect();
+        let map = EnvironmentMap::new(Image { width: w, height: h, pixels }, 1.0, 37.0).expect("a map");
+        let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n";
+        let mut scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
+        scene.lights.push(Light::Environment { map: Arc::new(map), diffuse_source: false });
+        let lights = Lights::new(&scene);
+        let z = z_score(
+            |s| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi),
+            |d| lights.distant(0, d, false).1,
+        );
+        assert!(z < 4.0, "z = {z}");
+        // The density a sample reports is the one MIS looks up, and its radiance the pixel's.
+        let mut s = Sampler::new(4, 4, 4);
+        for _ in 0..1000 {
+            let l = lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).expect("a sample");
+            let (le, pdf) = lights.distant(0, l.wi, false);
+            assert!((pdf / l.pdf - 1.0).abs() < 1e-3, "{pdf} vs {}", l.pdf);
+            assert!((le - l.radiance).length() <= 1e-4 * le.length().max(1.0), "{le} vs {}", l.radiance);
+        }
         let (mut sampled, mut uniform) = (0.0, 0.0);
         for _ in 0..20_000 {
             sampled += lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map_or(0.0, |l| l.radiance.x);

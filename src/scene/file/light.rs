@@ -1,11 +1,15 @@
-//! `[[light]]`: the lights that are not shapes (point, spot, sun, sky and the paper's cloudy
-//! sky). An emissive shape is a `[[shape]]` with `emission`.
+//! `[[light]]`: the lights that are not shapes (point, spot, sun, sky, the paper's cloudy sky
+//! and an environment map). An emissive shape is a `[[shape]]` with `emission`.
+
+use std::path::Path;
+use std::sync::Arc;
 
 use glam::Vec3;
 use serde::Deserialize;
 
 use super::typed::{NoKeys, Table, Typed};
 use super::{dv3, v3, Ctx, F, V3};
+use crate::scene::environment::EnvironmentMap;
 use crate::scene::sky::CloudySky;
 use crate::scene::{Light, SceneError};
 
@@ -20,6 +24,17 @@ pub(super) enum LightKind {
     /// A `sky` with `zenith`.
     #[serde(rename = "cloudy sky")]
     CloudySky(Cloudy),
+    Environment(Environment),
+}
+
+impl LightKind {
+    /// The file an environment light reads, as written (relative to the scene file).
+    pub(super) fn file(&self) -> Option<&str> {
+        match self {
+            LightKind::Environment(e) => Some(&e.file),
+            _ => None,
+        }
+    }
 }
 
 impl Typed for LightKind {
@@ -100,8 +115,19 @@ pub(super) struct Cloudy {
     diffuse_source: Option<bool>,
 }
 
+/// A latitude-longitude map at infinity (an HDRI).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct Environment {
+    file: String,
+    scale: Option<F>,
+    rotate: Option<F>,
+    sampling: Option<String>,
+    diffuse_source: Option<bool>,
+}
+
 /// A light, checked: no negative power, directions that are not zero, angles in range.
-pub(super) fn light(ctx: &Ctx, l: &Table<LightKind>) -> Result<Light, SceneError> {
+pub(super) fn light(ctx: &Ctx, dir: &Path, l: &Table<LightKind>) -> Result<Light, SceneError> {
     let span = l.span.clone();
     let non_negative = |v: V3, key: &str| -> Result<Vec3, SceneError> {
         let v = v3(v);
@@ -156,6 +182,33 @@ pub(super) fn light(ctx: &Ctx, l: &Table<LightKind>) -> Result<Light, SceneError
             Ok(Light::CloudySky {
                 sky: CloudySky { zenith, clear, cover, scale, seed: c.seed.unwrap_or(0) },
                 diffuse_source: c.diffuse_source.unwrap_or(true),
+            })
+        }
+        LightKind::Environment(e) => {
+            let scale = e.scale.map_or(1.0, |s| s.0);
+            if scale < 0.0 {
+                return ctx.err(span, "an environment's `scale` must not be negative");
+            }
+            let path = dir.join(&e.file);
+            let uniform = match e.sampling.as_deref() {
+                None | Some("luminance") => false,
+                Some("uniform") => true,
+                Some(other) => {
+                    return ctx.err(
+                        span,
+                        format!("unknown environment `sampling` `{other}` (expected luminance or uniform)"),
+                    )
+                }
+            };
+            let mut map = crate::scene::limits::check_input_file(&path)
+                .and_then(|()| EnvironmentMap::load(&path, scale, e.rotate.map_or(0.0, |r| r.0)))
+                .or_else(|e| ctx.err(span, format!("environment light: {e}")))?;
+            map.uniform = uniform;
+            Ok(Light::Environment {
+                map: Arc::new(map),
+                // An HDRI often holds a sun, whose direct light must keep its sharp shadows: its
+                // light is direct unless the file says otherwise (a sky's is diffuse).
+                diffuse_source: e.diffuse_source.unwrap_or(false),
             })
         }
         LightKind::Sky(s) => Ok(Light::Sky {
@@ -217,6 +270,9 @@ mod tests {
         assert!(msg.contains("a sky light does not take `clear` (only cloudy sky lights do)"), "{msg}");
         let (_, msg) =
             error_line(&format!("{MINIMAL}[[light]]\ntype = \"cloudy sky\"\nzenith = [1, 1, 1]\n"));
-        assert!(msg.contains("unknown light type `cloudy sky` (expected point, spot, sun or sky;"), "{msg}");
+        assert!(
+            msg.contains("unknown light type `cloudy sky` (expected point, spot, sun, sky or environment;"),
+            "{msg}"
+        );
     }
 }

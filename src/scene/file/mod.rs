@@ -179,7 +179,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let textures_in = typed::tables::<texture::TextureKind>(&ctx, root)?;
     let materials = typed::tables::<material::MaterialKind>(&ctx, root)?;
     let shapes = typed::tables::<shape::ShapeKind>(&ctx, root)?;
-    let lights = typed::tables::<light::LightKind>(&ctx, root)?;
+    let lights_in = typed::tables::<light::LightKind>(&ctx, root)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
     let (camera, origin) = settings::camera(&ctx, &file.camera)?;
@@ -193,10 +193,11 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     for s in &shapes {
         shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
     }
-    let lights = lights.iter().map(|l| light::light(&ctx, l)).collect::<Result<Vec<_>, _>>()?;
+    let lights = lights_in.iter().map(|l| light::light(&ctx, &dir, l)).collect::<Result<Vec<_>, _>>()?;
     let inputs = std::iter::once(path.to_path_buf())
         .chain(textures_in.iter().filter_map(|t| t.of_type.file()).map(|f| dir.join(f)))
         .chain(shapes.iter().filter_map(|s| s.of_type.file()).map(|f| dir.join(f)))
+        .chain(lights_in.iter().filter_map(|l| l.of_type.file()).map(|f| dir.join(f)))
         .chain(builder.libraries)
         .collect();
     let filter = file.filter.map(|f| {

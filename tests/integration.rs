@@ -1,0 +1,21 @@
+//! The integration tests, one module a file, linked into one binary: with the release profile's
+//! fat LTO each test binary is a whole-program link, and one link instead of fourteen saves
+//! minutes of every test run. Run one file's tests with `cargo test --release --test integration
+//! hardening::`.
+
+mod common;
+
+mod adaptive;
+mod agreement;
+mod analytic;
+mod cli;
+mod components;
+mod converge;
+mod determinism;
+mod features;
+mod formats;
+mod hardening;
+mod nonfinite;
+mod properties;
+mod stress;
+mod variance;
