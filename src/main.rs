@@ -155,6 +155,9 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 /// scene, whether or not the command filters.
 fn load_scene(path: &Path) -> Result<(scene::Scene, Setting), Failure> {
     let scene = scene::load(path).map_err(Failure::input)?;
+    for note in &scene.notes {
+        eprintln!("note: {}: {note}", path.display());
+    }
     let filter = Setting::of_scene(&scene).map_err(Failure::input)?;
     Ok((scene, filter))
 }

@@ -56,3 +56,211 @@ fn bad_environment_maps_are_one_clear_error() {
     let (code, err) = render_in(d, &light("file = \"ok.pfm\""));
     assert_eq!(code, Some(0), "{err}");
 }
+
+use crate::common::GltfDoc;
+use glam::{DVec3, Vec3};
+use lightsplit::scene::{self, Geometry, Light};
+use serde_json::json;
+
+/// The vertices of shape `name` of a scene, and its first triangle's normal by winding.
+fn placed(s: &scene::Scene, name: &str) -> (Vec<Vec3>, Vec3, Vec3) {
+    let shape = s.shapes.iter().find(|x| x.name == name).unwrap_or_else(|| panic!("no shape {name}"));
+    let Geometry::Triangles(m) = &shape.geometry else { panic!("a mesh") };
+    let [a, b, c] = m.triangle(0);
+    let normals = m.normals.as_ref().expect("normals");
+    (m.positions.iter().map(|&p| p.into()).collect(), (b - a).cross(c - a).normalize(), normals[0])
+}
+
+/// The node hierarchy: transforms compose from the root down, a mesh used by two nodes appears
+/// in both places, a mirroring node keeps its faces' winding outward, and the first camera gives
+/// the view, its field of view and its aspect ratio.
+#[test]
+fn a_gltf_node_hierarchy_places_every_use_of_a_mesh() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    doc.node(json!({"name": "root", "translation": [10, 0, 0], "rotation": [0, h, 0, h], "scale": [2, 2, 2], "children": [1, 2]}), true);
+    doc.node(json!({"name": "A", "mesh": 0, "translation": [0, 1, 0]}), false);
+    doc.node(json!({"name": "B", "mesh": 0, "scale": [-1, 1, 1]}), false);
+    doc.node(json!({"name": "eye", "camera": 0, "translation": [0, 0, 5]}), true);
+    doc.json["cameras"] =
+        json!([{"type": "perspective", "perspective": {"yfov": 0.6, "znear": 0.1, "aspectRatio": 2.0}}]);
+    let path = doc.write_gltf(dir.path(), "m");
+    let s = scene::load(&path).expect("loads");
+    assert_eq!(s.origin, DVec3::new(0.0, 0.0, 5.0), "the camera's position is the origin");
+    assert!((s.camera.fov - 0.6f32.to_degrees()).abs() < 1e-4, "{}", s.camera.fov);
+    assert!((s.camera.look_at.normalize() - Vec3::NEG_Z).length() < 1e-6);
+    assert_eq!((s.film.width, s.film.height), (640, 320));
+    assert_eq!(s.shapes.len(), 2, "one mesh, two uses");
+    assert_eq!(s.inputs, vec![path.clone(), dir.path().join("m.bin")]);
+    // Corner (-0.5, -0.5, 0) under A: up 1, scaled 2, turned 90 degrees about y ((x, y, z) to
+    // (z, y, -x)), moved 10 along x: (10, 1, 1); less the origin. Under B: mirrored in x, then
+    // the same: (10, -1, -1).
+    let (a, a_winding, a_normal) = placed(&s, "m/A/quad/0");
+    assert!((a[0] - Vec3::new(10.0, 1.0, -4.0)).length() < 1e-5, "{}", a[0]);
+    let (b, b_winding, b_normal) = placed(&s, "m/B/quad/0");
+    assert!((b[0] - Vec3::new(10.0, -1.0, -6.0)).length() < 1e-5, "{}", b[0]);
+    for (winding, normal) in [(a_winding, a_normal), (b_winding, b_normal)] {
+        assert!((normal - Vec3::X).length() < 1e-5, "the quad's +z turns to +x: {normal}");
+        assert!(winding.dot(normal) > 0.999, "winding {winding} agrees with the normal {normal}");
+    }
+    // Each node is an object of its own.
+    assert_eq!(s.objects, vec!["m/A".to_string(), "m/B".to_string()]);
+}
+
+/// `KHR_lights_punctual`: point, spot and directional lights, placed and turned by their
+/// nodes, their photometric units turned into radiometric ones at 683 lm/W.
+#[test]
+fn gltf_punctual_lights_are_placed_and_converted() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.node(json!({"mesh": 0}), true);
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    doc.json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
+        {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 683.0},
+        {"type": "spot", "intensity": 1366.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.4}},
+        {"type": "directional", "intensity": 6830.0}
+    ]}});
+    let light = |k: usize| json!({"KHR_lights_punctual": {"light": k}});
+    doc.node(json!({"translation": [1, 2, 3], "extensions": light(0)}), true);
+    doc.node(json!({"translation": [0, 4, 0], "rotation": [-h, 0, 0, h], "extensions": light(1)}), true);
+    doc.node(json!({"extensions": light(2)}), true);
+    let path = doc.write_gltf(dir.path(), "lights");
+    let s = scene::load(&path).expect("loads");
+    assert!(s.notes.iter().all(|n| !n.contains("default environment")), "{:?}", s.notes);
+    let o = s.origin.as_vec3();
+    let near = |a: Vec3, b: Vec3| (a - b).length() < 1e-4;
+    let Light::Point { position, intensity } = s.lights[0] else { panic!("{:?}", s.lights[0]) };
+    assert!(near(position + o, Vec3::new(1.0, 2.0, 3.0)) && near(intensity, Vec3::new(1.0, 0.5, 0.25)));
+    let Light::Spot { position, direction, intensity, cos_total, cos_falloff_start } = s.lights[1] else {
+        panic!("{:?}", s.lights[1])
+    };
+    assert!(near(position + o, Vec3::new(0.0, 4.0, 0.0)) && near(direction, Vec3::NEG_Y), "{direction}");
+    assert!(near(intensity, Vec3::splat(2.0)));
+    assert!((cos_total - 0.4f32.cos()).abs() < 1e-6 && (cos_falloff_start - 0.2f32.cos()).abs() < 1e-6);
+    let Light::Sun { direction, radiance, one_minus_cos, .. } = s.lights[2] else {
+        panic!("{:?}", s.lights[2])
+    };
+    assert!(near(direction, Vec3::Z), "towards the light, against its -z: {direction}");
+    let irradiance = radiance.x * 2.0 * std::f32::consts::PI * one_minus_cos;
+    assert!((irradiance - 10.0).abs() < 1e-3, "{irradiance}");
+}
+
+/// The Embree Cornell box converted by obj2gltf (npm, `tests/data/embree-cornell.gltf`) renders as
+/// the OBJ does: the per-pixel differences of two renders at different seeds average to zero
+/// within four standard errors of their spread.
+#[test]
+fn the_cornell_box_from_gltf_renders_as_from_obj() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let obj = std::fs::read_to_string(data.join("scenes/embree-cornell.toml")).expect("read");
+    let gltf = obj.replace(
+        "type = \"mesh\"\nfile = \"embree-cornell.obj\"",
+        "type = \"gltf\"\nfile = \"../tests/data/embree-cornell.gltf\"",
+    );
+    assert_ne!(obj, gltf);
+    let render = |text: &str, seed: u64| {
+        let s = lightsplit::scene::file::parse(&data.join("scenes/x.toml"), text).expect("parses");
+        let mut options = lightsplit::render::RenderOptions::from_scene(&s);
+        (options.width, options.height, options.spp, options.seed) = (32, 32, 64, seed);
+        lightsplit::render::render(&s, &options, &|_| {}).expect("renders").film.raw
+    };
+    let (a, b) = (render(&obj, 1), render(&gltf, 2));
+    let d: Vec<f64> =
+        a.pixels.iter().zip(&b.pixels).map(|(p, q)| (p.x + p.y + p.z - q.x - q.y - q.z) as f64).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let se = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    assert!(mean.abs() < 4.0 * se, "mean difference {mean}, standard error {se}");
+    let level = a.mean();
+    assert!(level.min_element() > 0.05, "not black: {level}");
+}
+
+/// `lightsplit render model.glb` renders the file itself: without a camera it frames the bounds,
+/// without lights it is lit by the default environment, and both are said.
+#[test]
+fn a_glb_renders_directly_and_says_what_it_assumed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.node(json!({"mesh": 0}), true);
+    std::fs::write(dir.path().join("m.glb"), doc.glb()).expect("write");
+    let o = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+        .args(["render", "m.glb", "-o", "o.exr", "--spp", "4", "--width", "32", "--height", "24"])
+        .current_dir(dir.path())
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("note: m.glb: no camera: framing"), "{err}");
+    assert!(
+        err.contains("note: m.glb: no lights: lit by the default environment, a uniform white sky"),
+        "{err}"
+    );
+    let image = lightsplit::film::read_image(&dir.path().join("o.exr")).expect("reads");
+    // The sky around the quad is 1. The quad, in glTF's default material (a rough white metal,
+    // which at roughness 1 reflects about a third of the light from near its normal, the rest
+    // lost to GGX's single scattering), is lit and darker than the sky.
+    assert_eq!(image.get(0, 0), Vec3::ONE);
+    let centre = image.get(16, 12);
+    assert!(centre.x > 0.2 && centre.x < 0.6, "the quad is lit: {centre}");
+}
+
+/// Bad glTF files: each is one line, exit status 2, naming the file and what is wrong.
+#[test]
+fn bad_gltf_files_are_one_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let with_node = || {
+        let mut doc = GltfDoc::quad();
+        doc.node(json!({"mesh": 0}), true);
+        doc
+    };
+    let glb = with_node().glb();
+    std::fs::write(d.join("truncated.glb"), &glb[..glb.len() / 2]).expect("write");
+    std::fs::write(d.join("empty.glb"), b"").expect("write");
+    let missing = with_node().write_gltf(d, "missing");
+    std::fs::remove_file(d.join("missing.bin")).expect("remove");
+    let mut range = with_node();
+    let i = range.indices(&[0, 1, 7]);
+    range.json["meshes"][0]["primitives"][0]["indices"] = json!(i);
+    range.write_gltf(d, "range");
+    let mut required = with_node();
+    required.json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    required.json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    required.write_gltf(d, "required");
+    let mut nan = with_node();
+    let p = nan.floats(&[f32::NAN, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    nan.json["accessors"][p]["min"] = json!([0, 0, 0]);
+    nan.json["accessors"][p]["max"] = json!([1, 1, 0]);
+    nan.json["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(p);
+    nan.write_gltf(d, "nan");
+    assert!(missing.exists());
+    for (file, needles) in [
+        ("truncated.glb", vec!["not valid glTF"]),
+        ("empty.glb", vec!["empty (0 bytes)"]),
+        ("missing.gltf", vec!["buffer 0 `missing.bin`"]),
+        ("range.gltf", vec!["index 7 is out of range (4 vertices)"]),
+        ("required.gltf", vec!["KHR_draco_mesh_compression"]),
+        ("nan.gltf", vec!["position 0 is not finite"]),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+            .args(["render", file, "-o", "o.png"])
+            .current_dir(d)
+            .output()
+            .expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{file}: {err}");
+        assert_eq!(err.lines().count(), 1, "{file}: one line: {err}");
+        assert!(err.starts_with(&format!("error: {file}: ")), "{file}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{file}: `{n}` in {err}");
+        }
+    }
+    // In a scene file, the error names the shape's line.
+    let (code, err) = render_in(d, &format!("{CAMERA}[[shape]]\ntype = \"gltf\"\nfile = \"range.gltf\"\n"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.starts_with("error: s.toml:11: glTF `range.gltf`: mesh `quad` primitive 0: index 7"),
+        "{err}"
+    );
+}

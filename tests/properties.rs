@@ -312,3 +312,34 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// A damaged binary glTF (cut short, or bytes overwritten, in its JSON or its buffer) is read
+    /// or refused with an error, never a panic; what it reads has only finite positions and
+    /// indices in range.
+    #[test]
+    fn a_damaged_glb_is_refused_not_a_panic(
+        cut in any::<prop::sample::Index>(),
+        edits in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..6),
+    ) {
+        let mut doc = crate::common::GltfDoc::quad();
+        doc.node(serde_json::json!({"mesh": 0, "translation": [0, 1, 0]}), true);
+        let mut bytes = doc.glb();
+        bytes.truncate(cut.index(bytes.len() + 1).max(bytes.len() * 9 / 10));
+        for (at, b) in edits {
+            let i = at.index(bytes.len());
+            bytes[i] = b;
+        }
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("m.glb");
+        std::fs::write(&path, &bytes).expect("write");
+        if let Ok(g) = lightsplit::scene::gltf::load(&path) {
+            for part in &g.parts {
+                prop_assert!(part.positions.iter().all(|p| p.is_finite()));
+                prop_assert!(part.indices.iter().flatten().all(|&i| (i as usize) < part.positions.len()));
+            }
+        }
+    }
+}

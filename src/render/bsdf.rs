@@ -25,6 +25,11 @@ use crate::math::{cosine_hemisphere, luminance, Frame};
 /// density overflows f32 near the peak.
 pub const MIN_ALPHA: f32 = 1e-3;
 
+/// The roughness from which a metallic-roughness material's GGX lobe counts as a D vertex in the
+/// component split (its light then goes to the filtered indirect-diffuse component): chosen by
+/// measurement (see `docs/scene-format.md`, glTF).
+pub const DIFFUSE_ROUGHNESS: f32 = 0.5;
+
 /// GGX alpha of a perceptual roughness in [0, 1] (squared, as Burley's and glTF's models do).
 pub fn alpha(roughness: f32) -> f32 {
     (roughness * roughness).max(MIN_ALPHA)
@@ -272,12 +277,13 @@ impl Bsdf for Glossy {
 /// Evaluates `$body` with `$b` bound to (a reference to) the BSDF of the scene material
 /// `$material` at a shading point with normal `$n` (on the side the path arrived from),
 /// `$entering` when it arrived from the outside; `$color` maps a textured material's constant
-/// colour to its texture's. Each material's BSDF is its own type, so code generic over [`Bsdf`]
+/// colour to its texture's, `$metal_rough` a metallic-roughness material's factors (metallic,
+/// roughness) to the textured ones. Each material's BSDF is its own type, so code generic over [`Bsdf`]
 /// is compiled once per material and the material is chosen once, here. A new material is a
 /// new type above and one arm here.
 macro_rules! with_bsdf {
-    ($material:expr, $color:expr, $n:expr, $entering:expr, $b:ident => $body:expr) => {{
-        use $crate::render::bsdf::{Diffuse, Glass, Glossy, GlossyLobes, Mirror};
+    ($material:expr, $color:expr, $metal_rough:expr, $n:expr, $entering:expr, $b:ident => $body:expr) => {{
+        use $crate::render::bsdf::{Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr};
         use $crate::scene::Material;
         let (n, entering) = ($n, $entering);
         match *$material {
@@ -302,10 +308,68 @@ macro_rules! with_bsdf {
                 let $b = &Glossy { lobes, frame: $crate::math::Frame::new(n) };
                 $body
             }
+            Material::Pbr { base_color, metallic, roughness, diffuse_from } => {
+                let (metallic, roughness): (f32, f32) = ($metal_rough)(metallic, roughness);
+                let color: glam::Vec3 = base_color * ($color)(glam::Vec3::ONE);
+                let lobes = GlossyLobes {
+                    specular: glam::Vec3::splat(0.04).lerp(color, metallic),
+                    alpha: $crate::render::bsdf::alpha(roughness),
+                    base: color * (1.0 - metallic),
+                };
+                let glossy = Glossy { lobes, frame: $crate::math::Frame::new(n) };
+                let $b = &Pbr { glossy, rough: roughness >= diffuse_from };
+                $body
+            }
         }
     }};
 }
 pub(crate) use with_bsdf;
+
+/// glTF's metallic-roughness material: the glossy model (its reflectance and base already
+/// blended by metallic), whose GGX lobe is an S vertex, or a D vertex when `rough` (its
+/// roughness at least [`DIFFUSE_ROUGHNESS`] or the material's own limit).
+#[derive(Clone, Copy, Debug)]
+pub struct Pbr {
+    pub glossy: Glossy,
+    pub rough: bool,
+}
+
+impl Pbr {
+    /// The lobe a GGX sample makes in the split.
+    fn tag(&self, lobe: Lobe) -> Lobe {
+        if self.rough && lobe == Lobe::Specular {
+            Lobe::Diffuse
+        } else {
+            lobe
+        }
+    }
+}
+
+impl Bsdf for Pbr {
+    fn lobe(&self) -> Option<Lobe> {
+        self.rough.then_some(Lobe::Diffuse)
+    }
+
+    fn scatters(&self, wo: Vec3) -> bool {
+        self.glossy.scatters(wo)
+    }
+
+    fn albedo(&self, lobe: Lobe) -> Vec3 {
+        if self.rough {
+            self.glossy.lobes.base + self.glossy.lobes.specular
+        } else {
+            self.glossy.albedo(lobe)
+        }
+    }
+
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        self.glossy.sample(wo, u).map(|s| BsdfSample { lobe: self.tag(s.lobe), ..s })
+    }
+
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
+        self.glossy.eval_lobes(wo, wi, |lobe, f, pdf| each(self.tag(lobe), f, pdf));
+    }
+}
 
 /// The glossy model in the local shading frame (z along the normal): a GGX lobe with
 /// reflectance `specular` at normal incidence, over a diffuse `base`.
@@ -691,5 +755,37 @@ mod tests {
         assert!((sin_i - 1.5 * sin_t).abs() < 1e-5, "{wt}");
         assert!(wt.z < 0.0 && wt.x < 0.0, "goes through, on the far side of the normal: {wt}");
         assert!((reflect(wo, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
+    }
+
+    /// The metallic-roughness BSDF is the glossy one with its GGX lobe tagged by roughness: S
+    /// when smooth, D when rough, the values and densities unchanged either way.
+    #[test]
+    fn a_rough_pbr_lobe_is_diffuse_and_a_smooth_one_specular() {
+        let lobes = GlossyLobes { specular: Vec3::splat(0.3), alpha: alpha(0.7), base: Vec3::splat(0.5) };
+        let glossy = Glossy { lobes, frame: Frame::new(Vec3::Z) };
+        let (smooth, rough) = (Pbr { glossy, rough: false }, Pbr { glossy, rough: true });
+        check_through_the_interface("smooth pbr", &smooth, wo(35.0), Vec3::Z);
+        assert_eq!((smooth.lobe(), rough.lobe()), (None, Some(Lobe::Diffuse)));
+        let mut s = crate::render::sampler::Sampler::new(5, 2, 1);
+        let (mut specular, mut diffuse) = (0, 0);
+        for _ in 0..500 {
+            let mut t = s.clone();
+            let (a, b) = (smooth.sample(wo(35.0), &mut s), rough.sample(wo(35.0), &mut t));
+            let (Some(a), Some(b)) = (a, b) else { continue };
+            assert_eq!((a.wi, a.weight, a.pdf), (b.wi, b.weight, b.pdf));
+            assert_eq!(b.lobe, Lobe::Diffuse);
+            match a.lobe {
+                Lobe::Specular => specular += 1,
+                _ => diffuse += 1,
+            }
+            let (mut fa, mut fb) = (Vec3::ZERO, Vec3::ZERO);
+            smooth.eval_lobes(wo(35.0), a.wi, |_, f, _| fa += f);
+            rough.eval_lobes(wo(35.0), a.wi, |l, f, _| {
+                assert_eq!(l, Lobe::Diffuse);
+                fb += f
+            });
+            assert_eq!(fa, fb);
+        }
+        assert!(specular > 50 && diffuse > 50, "both lobes sampled: {specular} S, {diffuse} D");
     }
 }

@@ -400,7 +400,14 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         // Entering when the ray meets the outside, the side the geometric normal points to.
         let entering = s.ng.dot(wo) > 0.0;
         let material = &scene.materials[shape.material as usize];
-        with_bsdf!(material, textured, ns, entering, b => {
+        let metal_rough = |metallic: f32, roughness: f32| match maps.metal_rough {
+            Some(t) => {
+                let c = scene.textures[t as usize].color(s.p, s.uv);
+                (metallic * c.z, roughness * c.y)
+            }
+            None => (metallic, roughness),
+        };
+        with_bsdf!(material, textured, metal_rough, ns, entering, b => {
             self.scatter(b, out, path, &at, s, last, depth, sampler, rays)
         })
     }

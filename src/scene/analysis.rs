@@ -115,13 +115,19 @@ impl Analysis {
                 Material::Diffuse { .. } => a.lobes.diffuse = true,
                 Material::Mirror { .. } => a.lobes.mirror = true,
                 Material::Glass { .. } => a.lobes.glass = true,
+                Material::Pbr { .. } => {
+                    // Its lobes depend on textures and roughness: all of them, conservatively.
+                    a.lobes.glossy = true;
+                    a.lobes.glossy_base = true;
+                    a.lobes.diffuse = true;
+                }
                 Material::Glossy { base, .. } => {
                     a.lobes.glossy = true;
                     a.lobes.glossy_base |= base.max_element() > 0.0 || scene.maps(m as u32).color.is_some();
                 }
             }
             let maps = scene.maps(m as u32);
-            a.color_textures += maps.color.is_some() as usize;
+            a.color_textures += maps.color.is_some() as usize + maps.metal_rough.is_some() as usize;
             a.bump_maps += maps.bump.is_some() as usize;
         }
         for light in &scene.lights {

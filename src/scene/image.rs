@@ -161,19 +161,21 @@ pub fn read(path: &Path) -> Result<Image, String> {
         }
         _ => {
             let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb8();
-            let decode = |c: u8| {
-                let c = c as f32 / 255.0;
-                if c <= 0.04045 {
-                    c / 12.92
-                } else {
-                    ((c + 0.055) / 1.055).powf(2.4)
-                }
-            };
+            let decode = |c: u8| srgb_to_linear(c as f32 / 255.0);
             Ok(Image {
                 width: img.width(),
                 height: img.height(),
                 pixels: img.pixels().map(|p| Vec3::from(p.0.map(decode))).collect(),
             })
         }
+    }
+}
+
+/// The linear value of an sRGB-encoded one in [0, 1].
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
     }
 }

@@ -5,6 +5,7 @@
 pub mod analysis;
 pub mod environment;
 pub mod file;
+pub mod gltf;
 pub mod image;
 pub mod limits;
 pub mod noise;
@@ -21,7 +22,16 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec3A};
 
-pub use file::{load, FilterSection, KernelSpec};
+pub use file::{FilterSection, KernelSpec};
+
+/// Loads a scene: a glTF file (`.gltf`, `.glb`) as a whole scene, any other as a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("gltf" | "glb") => gltf::scene(path),
+        _ => file::load(path),
+    }
+}
 
 /// A bad scene file: one message naming the file and, where known, the line.
 #[derive(Debug, Clone, PartialEq)]
@@ -89,6 +99,11 @@ pub enum Material {
     /// [0, 1] (the renderer's GGX alpha is its square; an S vertex), over a diffuse `base` (a D
     /// vertex; black for none).
     Glossy { specular: Vec3, roughness: f32, base: Vec3 },
+    /// glTF's metallic-roughness material: a GGX lobe over a diffuse base, `metallic` blending
+    /// the lobe's reflectance at normal incidence from 0.04 (a dielectric) to `base_color` (a
+    /// conductor) and the base from `base_color` to black. The GGX lobe is an S vertex below
+    /// roughness `diffuse_from` and a D vertex from it up; the base is always D.
+    Pbr { base_color: Vec3, metallic: f32, roughness: f32, diffuse_from: f32 },
 }
 
 /// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex
@@ -166,6 +181,21 @@ pub enum Light {
 }
 
 impl Light {
+    /// A sun towards `direction` (need not be unit) giving `irradiance` on a surface facing it,
+    /// `angular_diameter` degrees across: its cone's 1 - cos(half angle) in f64, about 2e-5 for
+    /// the real sun, which f32 cannot hold as a difference from 1.
+    pub fn sun(direction: Vec3, irradiance: Vec3, angular_diameter: f64, diffuse_source: bool) -> Light {
+        let half = (angular_diameter / 2.0).to_radians();
+        let one_minus_cos = 2.0 * (half / 2.0).sin().powi(2);
+        let solid_angle = 2.0 * std::f64::consts::PI * one_minus_cos;
+        Light::Sun {
+            direction: direction.normalize_or_zero(),
+            radiance: irradiance / solid_angle as f32,
+            one_minus_cos: one_minus_cos as f32,
+            diffuse_source,
+        }
+    }
+
     /// The fraction of a spot light's intensity sent at angle `cos` (cosine) from its axis:
     /// 1 inside the inner cone, 0 outside the outer, a smoothstep between (as pbrt-v4 does).
     pub fn spot_falloff(cos: f32, cos_total: f32, cos_falloff_start: f32) -> f32 {
@@ -206,6 +236,9 @@ pub struct Scene {
     pub textures: Vec<texture::Texture>,
     /// For each material (by index; missing means none), the textures it reads.
     pub maps: Vec<Maps>,
+    /// What a user should know of how the scene was read (what was left out, what was assumed),
+    /// one line each: the commands print them.
+    pub notes: Vec<String>,
 }
 
 /// The textures a material reads instead of its constants.
@@ -215,6 +248,9 @@ pub struct Maps {
     pub color: Option<u32>,
     /// A solid texture read as a height field of this amplitude.
     pub bump: Option<(u32, f32)>,
+    /// A metallic-roughness material's texture: roughness in green, metallic in blue,
+    /// multiplying its factors.
+    pub metal_rough: Option<u32>,
 }
 
 impl Scene {

@@ -60,3 +60,119 @@ pub fn pfm(width: u32, height: u32, values: &[f32]) -> Vec<u8> {
     values.iter().for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
     bytes
 }
+
+/// A glTF document being built for a test: JSON and its binary buffer.
+pub struct GltfDoc {
+    pub json: serde_json::Value,
+    pub bin: Vec<u8>,
+}
+
+impl GltfDoc {
+    /// A document with one mesh: a unit quad in the xy plane facing +z (two triangles, with
+    /// normals and texture coordinates), no nodes yet.
+    pub fn quad() -> GltfDoc {
+        let mut doc = GltfDoc {
+            json: serde_json::json!({
+                "asset": {"version": "2.0"},
+                "scene": 0,
+                "scenes": [{"nodes": []}],
+                "nodes": [],
+                "bufferViews": [],
+                "accessors": [],
+            }),
+            bin: Vec::new(),
+        };
+        let p = doc.floats(&[-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0], "VEC3");
+        let n = doc.floats(&[0.0, 0.0, 1.0].repeat(4), "VEC3");
+        let t = doc.floats(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0], "VEC2");
+        let i = doc.indices(&[0, 1, 2, 0, 2, 3]);
+        doc.json["meshes"] = serde_json::json!([{"name": "quad", "primitives": [{
+            "attributes": {"POSITION": p, "NORMAL": n, "TEXCOORD_0": t}, "indices": i
+        }]}]);
+        doc
+    }
+
+    fn view(&mut self, bytes: &[u8]) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let views = self.json["bufferViews"].as_array_mut().expect("views");
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
+        self.bin.extend_from_slice(bytes);
+        views.len() - 1
+    }
+
+    /// An accessor of floats, `kind` VEC2 or VEC3 (min and max given for positions).
+    pub fn floats(&mut self, v: &[f32], kind: &str) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let width = if kind == "VEC2" { 2 } else { 3 };
+        let mut a = serde_json::json!({"bufferView": view, "componentType": 5126, "count": v.len() / width, "type": kind});
+        if kind == "VEC3" {
+            let at = |k: usize| v.iter().skip(k).step_by(3).copied();
+            let min: Vec<f32> = (0..3).map(|k| at(k).fold(f32::INFINITY, f32::min)).collect();
+            let max: Vec<f32> = (0..3).map(|k| at(k).fold(f32::NEG_INFINITY, f32::max)).collect();
+            a["min"] = serde_json::json!(min);
+            a["max"] = serde_json::json!(max);
+        }
+        let accessors = self.json["accessors"].as_array_mut().expect("accessors");
+        accessors.push(a);
+        accessors.len() - 1
+    }
+
+    /// An accessor of u32 indices.
+    pub fn indices(&mut self, v: &[u32]) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let accessors = self.json["accessors"].as_array_mut().expect("accessors");
+        accessors.push(serde_json::json!({"bufferView": view, "componentType": 5125, "count": v.len(), "type": "SCALAR"}));
+        accessors.len() - 1
+    }
+
+    /// Adds a node (a JSON object); a root node is listed in the scene. Returns its index.
+    pub fn node(&mut self, node: serde_json::Value, root: bool) -> usize {
+        let nodes = self.json["nodes"].as_array_mut().expect("nodes");
+        nodes.push(node);
+        let i = nodes.len() - 1;
+        if root {
+            self.json["scenes"][0]["nodes"].as_array_mut().expect("scene").push(serde_json::json!(i));
+        }
+        i
+    }
+
+    /// Writes `NAME.gltf` with its buffer in `NAME.bin` beside it; returns the glTF's path.
+    pub fn write_gltf(&self, dir: &Path, name: &str) -> std::path::PathBuf {
+        let mut json = self.json.clone();
+        json["buffers"] = serde_json::json!([{"uri": format!("{name}.bin"), "byteLength": self.bin.len()}]);
+        std::fs::write(dir.join(format!("{name}.bin")), &self.bin).expect("write");
+        let path = dir.join(format!("{name}.gltf"));
+        std::fs::write(&path, serde_json::to_vec_pretty(&json).expect("json")).expect("write");
+        path
+    }
+
+    /// The document as one binary glTF (`.glb`) file's bytes.
+    pub fn glb(&self) -> Vec<u8> {
+        let mut json = self.json.clone();
+        json["buffers"] = serde_json::json!([{"byteLength": self.bin.len()}]);
+        let mut j = serde_json::to_vec(&json).expect("json");
+        while !j.len().is_multiple_of(4) {
+            j.push(b' ');
+        }
+        let mut bin = self.bin.clone();
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
+        }
+        let total = 12 + 8 + j.len() + 8 + bin.len();
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&j);
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+        out
+    }
+}

@@ -32,6 +32,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
         filter: Default::default(),
         textures: vec![],
         maps: vec![],
+        notes: vec![],
     }
 }
 

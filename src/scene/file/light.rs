@@ -153,17 +153,7 @@ pub(super) fn light(ctx: &Ctx, dir: &Path, l: &Table<LightKind>) -> Result<Light
                 return ctx
                     .err(span, "a sun's `angular_diameter` must lie strictly between 0 and 180 degrees");
             }
-            // 1 - cos(half angle) = 2 sin^2(half angle / 2), in f64: about 1e-5 for the real sun,
-            // which f32 cannot hold as a difference from 1.
-            let half = (diameter as f64 / 2.0).to_radians();
-            let one_minus_cos = 2.0 * (half / 2.0).sin().powi(2);
-            let solid_angle = 2.0 * std::f64::consts::PI * one_minus_cos;
-            Ok(Light::Sun {
-                direction: direction.normalize(),
-                radiance: irradiance / solid_angle as f32,
-                one_minus_cos: one_minus_cos as f32,
-                diffuse_source: s.diffuse_source.unwrap_or(false),
-            })
+            Ok(Light::sun(direction, irradiance, diameter as f64, s.diffuse_source.unwrap_or(false)))
         }
         LightKind::CloudySky(c) => {
             let zenith = non_negative(c.zenith, "zenith")?;

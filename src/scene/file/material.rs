@@ -148,7 +148,7 @@ pub(super) fn materials(
         };
         out.ids.insert(c.name.clone(), out.materials.len() as u32);
         out.materials.push(material);
-        out.maps.push(Maps { color, bump });
+        out.maps.push(Maps { color, bump, ..Maps::default() });
     }
     Ok(out)
 }

@@ -141,6 +141,8 @@ struct Ctx<'a> {
     text: &'a str,
     /// The world position every point is stored relative to: the camera's.
     origin: DVec3,
+    /// `[render] diffuse_roughness`, which glTF shapes' materials take.
+    diffuse_roughness: f32,
 }
 
 impl Ctx<'_> {
@@ -171,7 +173,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// Parses scene text as if read from `path` (relative mesh paths resolve against its directory).
 pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
-    let ctx = Ctx { path, text, origin: DVec3::ZERO };
+    let ctx =
+        Ctx { path, text, origin: DVec3::ZERO, diffuse_roughness: crate::render::bsdf::DIFFUSE_ROUGHNESS };
     let doc = ImDocument::parse(text).map_err(|e| ctx.toml(e.span(), e.message()))?;
     let file = FileScene::deserialize(toml_edit::de::Deserializer::from(doc.clone()))
         .map_err(|e| ctx.toml(e.span(), e.message()))?;
@@ -183,17 +186,28 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
     let (camera, origin) = settings::camera(&ctx, &file.camera)?;
-    let ctx = Ctx { origin, ..ctx };
+    let diffuse_roughness = settings::diffuse_roughness(&ctx, file.render.as_ref())?;
+    let ctx = Ctx { origin, diffuse_roughness, ..ctx };
     let film = settings::film(&ctx, file.film.as_ref())?;
     let render = settings::render(&ctx, file.render.as_ref())?;
-    let (textures, texture_ids) = texture::textures(&ctx, &dir, &textures_in)?;
-    let material::Materials { mut materials, maps, ids: material_ids } =
+    let (mut textures, texture_ids) = texture::textures(&ctx, &dir, &textures_in)?;
+    let material::Materials { mut materials, mut maps, ids: material_ids } =
         material::materials(&ctx, &materials, &textures, &texture_ids)?;
     let mut builder = shape::Builder::default();
+    builder.textures_before = textures.len() as u32;
     for s in &shapes {
         shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
     }
-    let lights = lights_in.iter().map(|l| light::light(&ctx, &dir, l)).collect::<Result<Vec<_>, _>>()?;
+    let mut lights = lights_in.iter().map(|l| light::light(&ctx, &dir, l)).collect::<Result<Vec<_>, _>>()?;
+    // What glTF shapes brought.
+    lights.append(&mut builder.lights);
+    textures.append(&mut builder.textures);
+    for (m, mp) in std::mem::take(&mut builder.maps) {
+        if maps.len() <= m as usize {
+            maps.resize(m as usize + 1, Default::default());
+        }
+        maps[m as usize] = mp;
+    }
     let inputs = std::iter::once(path.to_path_buf())
         .chain(textures_in.iter().filter_map(|t| t.of_type.file()).map(|f| dir.join(f)))
         .chain(shapes.iter().filter_map(|s| s.of_type.file()).map(|f| dir.join(f)))
@@ -219,6 +233,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         shapes: builder.shapes,
         lights,
         objects: builder.objects,
+        notes: builder.notes,
     })
 }
 

@@ -36,6 +36,7 @@ pub(super) struct FileRender {
     max_depth: Option<Spanned<u32>>,
     seed: Option<u64>,
     sampler: Option<Spanned<String>>,
+    diffuse_roughness: Option<Spanned<F>>,
 }
 
 /// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient. With
@@ -108,6 +109,16 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
             None => SamplerKind::default(),
         },
     })
+}
+
+/// `diffuse_roughness`: the roughness from which a metallic-roughness material's GGX lobe is a D
+/// vertex in the split, in [0, 1] (above 1: never).
+pub(super) fn diffuse_roughness(ctx: &Ctx, r: Option<&FileRender>) -> Result<f32, SceneError> {
+    match r.and_then(|r| r.diffuse_roughness.as_ref()) {
+        Some(d) if d.get_ref().0 < 0.0 => ctx.err(d.span(), "`diffuse_roughness` must not be negative"),
+        Some(d) => Ok(d.get_ref().0),
+        None => Ok(crate::render::bsdf::DIFFUSE_ROUGHNESS),
+    }
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ use toml::Spanned;
 
 use super::typed::{Table, Typed};
 use super::{dv3, line_of, v3, Ctx, F, V3};
-use crate::scene::{obj, procedural, teapot, Geometry, Material, Mesh, SceneError, Shape};
+use crate::scene::{gltf, obj, procedural, teapot, Geometry, Material, Mesh, SceneError, Shape};
 
 /// The finest terrain: 2 x 4096^2, about 33.5 million triangles.
 const MAX_TERRAIN: u32 = 4096;
@@ -46,6 +46,7 @@ pub(super) enum ShapeKind {
     Quad(Quad),
     Box(BoxShape),
     Mesh(MeshFile),
+    Gltf(GltfFile),
     Terrain(Terrain),
     Teapot(Teapot),
 }
@@ -57,13 +58,13 @@ impl Typed for ShapeKind {
 
 /// Mesh formats that are not Wavefront OBJ, named in the error rather than read as an empty OBJ.
 const OTHER_MESH_FORMATS: &[&str] =
-    &["gltf", "glb", "fbx", "stl", "dae", "3ds", "usd", "usda", "usdc", "usdz", "abc", "blend"];
+    &["fbx", "stl", "dae", "3ds", "usd", "usda", "usdc", "usdz", "abc", "blend"];
 
 impl ShapeKind {
     /// The file a mesh reads, as written (relative to the scene file).
     pub(super) fn file(&self) -> Option<&str> {
         match self {
-            ShapeKind::Mesh(MeshFile { file }) => Some(file),
+            ShapeKind::Mesh(MeshFile { file }) | ShapeKind::Gltf(GltfFile { file }) => Some(file),
             _ => None,
         }
     }
@@ -99,6 +100,13 @@ pub(super) struct MeshFile {
     file: String,
 }
 
+/// A glTF file (`.gltf`, `.glb`): its meshes, materials and lights (not its camera).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct GltfFile {
+    file: String,
+}
+
 /// A procedural height field.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -122,8 +130,18 @@ pub(super) struct Builder {
     pub shapes: Vec<Shape>,
     pub objects: Vec<String>,
     object_ids: HashMap<String, u32>,
-    /// The material libraries the meshes read (inputs of the scene).
+    /// The material libraries the meshes read, and the files glTF shapes read (inputs of the
+    /// scene).
     pub libraries: Vec<std::path::PathBuf>,
+    /// The textures glTF shapes bring, numbered after the scene file's `textures_before`.
+    pub textures: Vec<crate::scene::texture::Texture>,
+    pub textures_before: u32,
+    /// The maps of the materials glTF shapes bring, by material index.
+    pub maps: Vec<(u32, crate::scene::Maps)>,
+    /// The lights glTF shapes bring.
+    pub lights: Vec<crate::scene::Light>,
+    /// What the user should know of how glTF shapes were read.
+    pub notes: Vec<String>,
 }
 
 impl Builder {
@@ -259,6 +277,12 @@ pub(super) fn add(
                     ),
                 );
             }
+            if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+                return ctx.err(
+                    span,
+                    format!("mesh `{file}`: a glTF file is a shape of its own, `type = \"gltf\"`"),
+                );
+            }
             let ply = ext.as_deref() == Some("ply");
             let obj::Obj { parts, libraries } = crate::scene::limits::check_input_file(&path)
                 .and_then(|()| match ply {
@@ -310,6 +334,56 @@ pub(super) fn add(
                     object,
                 });
             }
+            return Ok(());
+        }
+        ShapeKind::Gltf(GltfFile { file }) => {
+            let line = Some(line_of(ctx.text, span.start));
+            let path = dir.join(file);
+            let g = crate::scene::limits::check_input_file(&path)
+                .and_then(|()| gltf::load(&path))
+                .map_err(|e| SceneError::new(ctx.path, line, format!("glTF `{file}`: {e}")))?;
+            if material.is_some() || c.emission.is_some() {
+                return ctx
+                    .err(span, "a glTF shape has its own materials: it takes no `material` or `emission`");
+            }
+            out.libraries.extend(g.files.iter().cloned());
+            out.notes.extend(g.notes.iter().map(|n| format!("glTF `{file}`: {n}")));
+            if g.camera.is_some() {
+                out.notes.push(format!("glTF `{file}`: its camera is not used (the scene file has one)"));
+            }
+            let at = gltf::Placement {
+                linear: transform.linear,
+                translate: transform.translate,
+                origin: transform.origin,
+            };
+            let first_texture = out.textures_before + out.textures.len() as u32;
+            let first_material = materials.len() as u32;
+            let mut objects = std::mem::take(&mut out.objects);
+            let mut ids = std::mem::take(&mut out.object_ids);
+            let fixed = c.object.clone();
+            let mut object = |n: &str| -> u32 {
+                let n = fixed.clone().unwrap_or_else(|| n.to_string());
+                *ids.entry(n.clone()).or_insert_with(|| {
+                    objects.push(n);
+                    (objects.len() - 1) as u32
+                })
+            };
+            let placed = gltf::place(
+                &g,
+                &name,
+                &at,
+                first_material,
+                first_texture,
+                ctx.diffuse_roughness,
+                &mut object,
+            );
+            out.objects = objects;
+            out.object_ids = ids;
+            materials.extend(placed.materials);
+            out.textures.extend(placed.textures);
+            out.maps.extend(placed.maps);
+            out.lights.extend(placed.lights);
+            out.shapes.extend(placed.shapes);
             return Ok(());
         }
         ShapeKind::Terrain(t) => {

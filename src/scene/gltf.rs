@@ -1,0 +1,657 @@
+//! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), read with the `gltf` crate:
+//! the default scene's node hierarchy with its transforms, triangle meshes with indices, normals
+//! and texture coordinates, the metallic-roughness materials with their textures, emission, the
+//! first camera, and `KHR_lights_punctual` lights. Everything comes out in the glTF's world, in
+//! f64 where it is a point; [`crate::scene::file`] and [`scene`] place it in a scene.
+//!
+//! Not read (yet): normal maps, occlusion, alpha modes, texture transforms, emissive strength,
+//! skins, morph targets, animations, orthographic cameras, points and lines. Meshes used by
+//! several nodes are copied into each node's place (no instancing yet).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{DMat3, DMat4, DVec3, DVec4, Vec2, Vec3};
+
+use crate::scene::image::Image;
+use crate::scene::texture::Texture;
+use crate::scene::{
+    Camera, FilmSettings, Geometry, Light, Maps, Material, Mesh, RenderSettings, Scene, SceneError, Shape,
+};
+
+/// Photometric to radiometric units: glTF lights are in candela (point, spot) and lux
+/// (directional); a watt of light at 555 nm is 683 lumens, the ratio Blender's importer uses.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+/// One triangle mesh primitive placed by its node: positions in the glTF's world.
+#[derive(Clone, Debug)]
+pub struct Part {
+    /// `node/mesh/primitive` names, for messages and the object-ID buffer.
+    pub name: String,
+    /// The node's name (the object it belongs to).
+    pub node: String,
+    pub positions: Vec<DVec3>,
+    pub indices: Vec<[u32; 3]>,
+    pub normals: Option<Vec<Vec3>>,
+    /// Texture coordinates with v up (glTF's v runs down the image; it is flipped here).
+    pub uvs: Option<Vec<Vec2>>,
+    /// Index into [`Gltf::materials`]; `None` is glTF's default material.
+    pub material: Option<usize>,
+}
+
+/// A metallic-roughness material: factors, and textures as indices into [`Gltf::images`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PbrMaterial {
+    pub name: String,
+    pub base_color: Vec3,
+    /// Base colour texture, sRGB-decoded: multiplies `base_color`.
+    pub base_color_texture: Option<usize>,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// Linear: roughness in G, metallic in B, multiplying the factors.
+    pub metallic_roughness_texture: Option<usize>,
+    /// Emitted radiance: the factor times the mean of the emissive texture, if any.
+    pub emission: Vec3,
+}
+
+impl PbrMaterial {
+    /// Whether it is read as Lambertian: metallic 0 and roughness 1 exactly, untextured but for
+    /// a base colour texture under a white factor. It is what converters from diffuse-only
+    /// materials write (obj2gltf writes an OBJ's `Kd` so), and the glTF BRDF at these factors
+    /// differs from Lambert's only by a 4% rough specular layer; in a box of white walls that
+    /// layer compounds over the bounces to a visibly darker image than the same OBJ's.
+    pub fn is_lambertian(&self) -> bool {
+        self.metallic == 0.0
+            && self.roughness == 1.0
+            && self.metallic_roughness_texture.is_none()
+            && (self.base_color_texture.is_none() || self.base_color == Vec3::ONE)
+    }
+}
+
+impl Default for PbrMaterial {
+    /// glTF's default material: white, fully metallic and rough.
+    fn default() -> Self {
+        PbrMaterial {
+            name: "default".into(),
+            base_color: Vec3::ONE,
+            base_color_texture: None,
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
+            emission: Vec3::ZERO,
+        }
+    }
+}
+
+/// The first camera, placed by its node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GltfCamera {
+    pub position: DVec3,
+    pub forward: DVec3,
+    pub up: DVec3,
+    /// Vertical field of view, degrees.
+    pub fov: f32,
+    pub aspect: Option<f32>,
+}
+
+/// A `KHR_lights_punctual` light, placed by its node, in radiometric units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PunctualLight {
+    /// Irradiance (W/m^2) arriving along `direction` (the way the light travels).
+    Directional { direction: DVec3, irradiance: Vec3 },
+    /// Radiant intensity (W/sr).
+    Point { position: DVec3, intensity: Vec3 },
+    /// Radiant intensity (W/sr) inside the inner cone; angles in radians.
+    Spot { position: DVec3, direction: DVec3, intensity: Vec3, inner: f32, outer: f32 },
+}
+
+/// A glTF file read.
+#[derive(Clone, Debug)]
+pub struct Gltf {
+    pub parts: Vec<Part>,
+    pub materials: Vec<PbrMaterial>,
+    /// Images by texture use: `(image, srgb)` decoded to linear RGB.
+    pub images: Vec<Arc<Image>>,
+    pub camera: Option<GltfCamera>,
+    pub lights: Vec<PunctualLight>,
+    /// The external files it read (buffers, images), besides itself.
+    pub files: Vec<PathBuf>,
+    /// What was left out, one line each.
+    pub notes: Vec<String>,
+}
+
+/// Reads a glTF or GLB file. Every problem is one message: what is wrong, and where in the file
+/// (which buffer, accessor, mesh or primitive).
+pub fn load(path: &Path) -> Result<Gltf, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read it: {e}"))?;
+    if bytes.is_empty() {
+        return Err("the file is empty (0 bytes)".into());
+    }
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not valid glTF: {e}"))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut files = Vec::new();
+    // External files, checked first so that a missing one is named.
+    let external = |uri: &str, what: String, files: &mut Vec<PathBuf>| -> Result<(), String> {
+        if uri.starts_with("data:") {
+            return Ok(());
+        }
+        let decoded = urlencoding_decode(uri);
+        let file = base.join(&decoded);
+        crate::scene::limits::check_input_file(&file).map_err(|e| format!("{what}: {e}"))?;
+        files.push(file);
+        Ok(())
+    };
+    for b in document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = b.source() {
+            external(uri, format!("buffer {} `{uri}`", b.index()), &mut files)?;
+        }
+    }
+    for i in document.images() {
+        if let gltf::image::Source::Uri { uri, .. } = i.source() {
+            external(uri, format!("image {} `{uri}`", i.index()), &mut files)?;
+        }
+    }
+    let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| format!("buffers: {e}"))?;
+    let mut notes = Vec::new();
+
+    // Images: decoded once per colour space they are used in.
+    let mut images: Vec<Arc<Image>> = Vec::new();
+    let mut image_ids: HashMap<(usize, bool), usize> = HashMap::new();
+    let raw = if document.textures().len() > 0 {
+        gltf::import_images(&document, Some(base), &buffers).map_err(|e| format!("images: {e}"))?
+    } else {
+        Vec::new()
+    };
+    let mut image_of = |texture: gltf::Texture, srgb: bool| -> Result<(usize, Arc<Image>), String> {
+        let source = texture.source().index();
+        if let Some(&id) = image_ids.get(&(source, srgb)) {
+            return Ok((id, images[id].clone()));
+        }
+        let data =
+            raw.get(source).ok_or_else(|| format!("texture {}: no image {source}", texture.index()))?;
+        let image = decode(data, srgb).map_err(|e| format!("image {source}: {e}"))?;
+        let image = Arc::new(image);
+        images.push(image.clone());
+        image_ids.insert((source, srgb), images.len() - 1);
+        Ok((images.len() - 1, image))
+    };
+
+    let mut materials = Vec::new();
+    for m in document.materials() {
+        let pbr = m.pbr_metallic_roughness();
+        let [r, g, b, _] = pbr.base_color_factor();
+        let base_color_texture =
+            pbr.base_color_texture().map(|t| image_of(t.texture(), true).map(|i| i.0)).transpose()?;
+        let metallic_roughness_texture = pbr
+            .metallic_roughness_texture()
+            .map(|t| image_of(t.texture(), false).map(|i| i.0))
+            .transpose()?;
+        let mut emission = Vec3::from(m.emissive_factor());
+        if let Some(t) = m.emissive_texture() {
+            emission *= image_of(t.texture(), true)?.1.mean();
+        }
+        let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
+        let unit = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
+        if ![r, g, b, pbr.metallic_factor(), pbr.roughness_factor()].into_iter().all(unit) {
+            return Err(format!("material `{name}`: a colour, metallic or roughness factor outside [0, 1]"));
+        }
+        if !emission.is_finite() || emission.min_element() < 0.0 {
+            return Err(format!("material `{name}`: a negative or non-finite emissive factor"));
+        }
+        if m.normal_texture().is_some() {
+            notes.push(format!("material `{name}`: its normal map is not read yet"));
+        }
+        materials.push(PbrMaterial {
+            name,
+            base_color: Vec3::new(r, g, b),
+            base_color_texture,
+            metallic: pbr.metallic_factor(),
+            roughness: pbr.roughness_factor(),
+            metallic_roughness_texture,
+            emission,
+        });
+    }
+
+    let scene = document.default_scene().or_else(|| document.scenes().next()).ok_or("it has no scene")?;
+    let mut out =
+        Gltf { parts: Vec::new(), materials, images, camera: None, lights: Vec::new(), files, notes };
+    // Depth first, in the document's order (the stack holds what is left in reverse).
+    let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
+    stack.reverse();
+    let mut visited = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visited += 1;
+        if visited > 1 << 24 {
+            return Err("its node hierarchy does not end (a node is its own ancestor)".into());
+        }
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(|x| x as f64)));
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(format!("node {}: its transform is not finite", node.index()));
+        }
+        let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
+        if let Some(mesh) = node.mesh() {
+            add_mesh(&mut out, &buffers, &mesh, &world, &node_name)?;
+        }
+        if let (Some(camera), None) = (node.camera(), out.camera) {
+            match camera.projection() {
+                gltf::camera::Projection::Perspective(p) => {
+                    let at = |v: DVec4| world * v;
+                    out.camera = Some(GltfCamera {
+                        position: at(DVec4::W).truncate(),
+                        forward: at(DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero(),
+                        up: at(DVec4::Y).truncate().normalize_or_zero(),
+                        fov: p.yfov().to_degrees(),
+                        aspect: p.aspect_ratio(),
+                    })
+                }
+                gltf::camera::Projection::Orthographic(_) => {
+                    out.notes.push(format!("camera of node `{node_name}`: orthographic cameras are not read"))
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            out.lights
+                .push(punctual(&light, &world).map_err(|e| format!("light of node `{node_name}`: {e}"))?);
+        }
+        let first = stack.len();
+        stack.extend(node.children().map(|c| (c, world)));
+        stack[first..].reverse();
+    }
+    Ok(out)
+}
+
+/// A light in the world of its node.
+fn punctual(light: &gltf::khr_lights_punctual::Light, world: &DMat4) -> Result<PunctualLight, String> {
+    let power = Vec3::from(light.color()) * light.intensity() / LUMENS_PER_WATT;
+    if !power.is_finite() || power.min_element() < 0.0 {
+        return Err("a negative or non-finite colour or intensity".into());
+    }
+    let position = (*world * DVec4::W).truncate();
+    let direction = (*world * DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero();
+    Ok(match light.kind() {
+        gltf::khr_lights_punctual::Kind::Directional => {
+            PunctualLight::Directional { direction, irradiance: power }
+        }
+        gltf::khr_lights_punctual::Kind::Point => PunctualLight::Point { position, intensity: power },
+        gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+            if !(0.0..=std::f32::consts::FRAC_PI_2).contains(&outer_cone_angle)
+                || !(0.0..=outer_cone_angle).contains(&inner_cone_angle)
+            {
+                return Err("spot cone angles outside 0 <= inner <= outer <= pi / 2".into());
+            }
+            PunctualLight::Spot {
+                position,
+                direction,
+                intensity: power,
+                inner: inner_cone_angle,
+                outer: outer_cone_angle,
+            }
+        }
+    })
+}
+
+/// Adds a mesh's triangle primitives, placed by `world`, to `out`.
+fn add_mesh(
+    out: &mut Gltf,
+    buffers: &[gltf::buffer::Data],
+    mesh: &gltf::Mesh,
+    world: &DMat4,
+    node: &str,
+) -> Result<(), String> {
+    let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+    let normal_matrix = DMat3::from_mat4(*world).inverse().transpose();
+    // A mirroring transform turns the winding around: keep the geometric normals outward.
+    let mirrored = DMat3::from_mat4(*world).determinant() < 0.0;
+    for (k, primitive) in mesh.primitives().enumerate() {
+        let here = format!("mesh `{mesh_name}` primitive {k}");
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let positions: Vec<[f32; 3]> =
+            reader.read_positions().ok_or(format!("{here}: no positions"))?.collect();
+        if let Some(i) = positions.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+            return Err(format!("{here}: position {i} is not finite (NaN or infinite)"));
+        }
+        let n = positions.len();
+        let list: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..n as u32).collect(),
+        };
+        if let Some(&bad) = list.iter().find(|&&i| i as usize >= n) {
+            return Err(format!("{here}: index {bad} is out of range ({n} vertices)"));
+        }
+        let mut indices: Vec<[u32; 3]> = match primitive.mode() {
+            gltf::mesh::Mode::Triangles => list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            gltf::mesh::Mode::TriangleStrip => (2..list.len())
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [list[i - 2], list[i - 1], list[i]]
+                    } else {
+                        [list[i - 1], list[i - 2], list[i]]
+                    }
+                })
+                .collect(),
+            gltf::mesh::Mode::TriangleFan => {
+                (2..list.len()).map(|i| [list[0], list[i - 1], list[i]]).collect()
+            }
+            other => {
+                out.notes.push(format!("{here}: {other:?} are not rendered"));
+                continue;
+            }
+        };
+        if mirrored {
+            indices.iter_mut().for_each(|t| t.swap(1, 2));
+        }
+        let normals = match reader.read_normals() {
+            Some(ns) => {
+                let ns: Vec<[f32; 3]> = ns.collect();
+                if ns.len() != n || ns.iter().any(|v| !v.iter().all(|x| x.is_finite())) {
+                    return Err(format!("{here}: its normals are not one finite vector a vertex"));
+                }
+                Some(
+                    ns.iter()
+                        .map(|&v| (normal_matrix * Vec3::from(v).as_dvec3()).normalize_or_zero().as_vec3())
+                        .collect(),
+                )
+            }
+            None => None,
+        };
+        let uvs = match reader.read_tex_coords(0) {
+            Some(t) => {
+                let t: Vec<[f32; 2]> = t.into_f32().collect();
+                if t.len() != n || t.iter().any(|v| !v.iter().all(|x| x.is_finite())) {
+                    return Err(format!("{here}: its texture coordinates are not one finite pair a vertex"));
+                }
+                Some(t.iter().map(|&[u, v]| Vec2::new(u, 1.0 - v)).collect())
+            }
+            None => None,
+        };
+        let material = primitive.material().index();
+        if material.is_some_and(|m| m >= out.materials.len()) {
+            return Err(format!("{here}: no material {}", material.unwrap_or(0)));
+        }
+        out.parts.push(Part {
+            name: format!("{node}/{mesh_name}/{k}"),
+            node: node.to_string(),
+            positions: positions
+                .iter()
+                .map(|&p| (*world * Vec3::from(p).as_dvec3().extend(1.0)).truncate())
+                .collect(),
+            indices,
+            normals,
+            uvs,
+            material,
+        });
+    }
+    Ok(())
+}
+
+/// Decodes a glTF image to linear RGB: 8- and 16-bit values from sRGB when `srgb`, float ones
+/// as they are.
+fn decode(data: &gltf::image::Data, srgb: bool) -> Result<Image, String> {
+    use gltf::image::Format;
+    let (channels, bytes) = match data.format {
+        Format::R8 => (1, 1),
+        Format::R8G8 => (2, 1),
+        Format::R8G8B8 => (3, 1),
+        Format::R8G8B8A8 => (4, 1),
+        Format::R16 => (1, 2),
+        Format::R16G16 => (2, 2),
+        Format::R16G16B16 => (3, 2),
+        Format::R16G16B16A16 => (4, 2),
+        Format::R32G32B32FLOAT => (3, 4),
+        Format::R32G32B32A32FLOAT => (4, 4),
+    };
+    let n = data.width as usize * data.height as usize;
+    if data.pixels.len() < n * channels * bytes || n == 0 {
+        return Err("fewer pixels than its size".into());
+    }
+    let value = |i: usize| -> f32 {
+        let b = &data.pixels[i * bytes..(i + 1) * bytes];
+        let x = match bytes {
+            1 => b[0] as f32 / 255.0,
+            2 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
+            _ => return f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        };
+        if srgb {
+            crate::scene::image::srgb_to_linear(x)
+        } else {
+            x
+        }
+    };
+    let pixels = (0..n)
+        .map(|p| {
+            let c = |k: usize| value(p * channels + k.min(channels - 1));
+            // Grey and grey-alpha images are grey in every channel.
+            if channels <= 2 {
+                Vec3::splat(c(0))
+            } else {
+                Vec3::new(c(0), c(1), c(2))
+            }
+        })
+        .collect::<Vec<_>>();
+    if pixels.iter().any(|p| !p.is_finite()) {
+        return Err("a pixel is NaN or infinite".into());
+    }
+    Ok(Image { width: data.width, height: data.height, pixels })
+}
+
+/// Decodes a URI's `%XX` escapes (glTF URIs are percent-encoded).
+fn urlencoding_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Where a glTF's world goes in a scene: a linear map and a translation (in the scene file's
+/// world), and the scene's origin, subtracted before rounding to f32.
+#[derive(Clone, Copy, Debug)]
+pub struct Placement {
+    pub linear: DMat3,
+    pub translate: DVec3,
+    pub origin: DVec3,
+}
+
+impl Placement {
+    pub fn point(&self, p: DVec3) -> Vec3 {
+        (self.linear * p + self.translate - self.origin).as_vec3()
+    }
+
+    /// A direction (unit), turned.
+    pub fn direction(&self, d: DVec3) -> Vec3 {
+        (self.linear * d).normalize_or_zero().as_vec3()
+    }
+}
+
+/// A glTF's shapes, materials (with their maps), textures and lights, ready to append to a
+/// scene whose materials and textures so far number `first_material` and `first_texture`.
+#[derive(Default)]
+pub struct Placed {
+    pub shapes: Vec<Shape>,
+    pub materials: Vec<Material>,
+    /// Maps by material index in the scene.
+    pub maps: Vec<(u32, Maps)>,
+    pub textures: Vec<Texture>,
+    pub lights: Vec<Light>,
+}
+
+/// Places glTF `g` (named `name`) in a scene by `at`. `diffuse_from` is the roughness from which
+/// a metallic-roughness material's specular lobe counts as diffuse; `object` gives the
+/// object-ID of a node's name.
+pub fn place(
+    g: &Gltf,
+    name: &str,
+    at: &Placement,
+    first_material: u32,
+    first_texture: u32,
+    diffuse_from: f32,
+    object: &mut dyn FnMut(&str) -> u32,
+) -> Placed {
+    let textures = g.images.iter().map(|i| Texture::Image { image: i.clone(), repeat: Vec2::ONE }).collect();
+    let mut out = Placed { textures, ..Placed::default() };
+    let texture = |i: usize| first_texture + i as u32;
+    let default = PbrMaterial::default();
+    for (k, m) in g.materials.iter().chain(std::iter::once(&default)).enumerate() {
+        out.materials.push(if m.is_lambertian() {
+            Material::Diffuse { albedo: m.base_color }
+        } else {
+            Material::Pbr {
+                base_color: m.base_color,
+                metallic: m.metallic,
+                roughness: m.roughness,
+                diffuse_from,
+            }
+        });
+        let maps = Maps {
+            color: m.base_color_texture.map(texture),
+            metal_rough: m.metallic_roughness_texture.map(texture),
+            ..Maps::default()
+        };
+        if maps != Maps::default() {
+            out.maps.push((first_material + k as u32, maps));
+        }
+    }
+    let default_material = first_material + g.materials.len() as u32;
+    let normal_matrix = at.linear.inverse().transpose();
+    let mirrored = at.linear.determinant() < 0.0;
+    for part in &g.parts {
+        let material = part.material.map_or(default_material, |m| first_material + m as u32);
+        let mut indices = part.indices.clone();
+        if mirrored {
+            indices.iter_mut().for_each(|t| t.swap(1, 2));
+        }
+        out.shapes.push(Shape {
+            name: format!("{name}/{}", part.name),
+            geometry: Geometry::Triangles(Mesh {
+                positions: part.positions.iter().map(|&p| at.point(p).into()).collect(),
+                indices: indices.into(),
+                normals: part.normals.as_ref().map(|ns| {
+                    ns.iter().map(|&n| (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3()).collect()
+                }),
+                uvs: part.uvs.as_ref().map(|u| u.as_slice().into()),
+            }),
+            material,
+            emission: part.material.map_or(Vec3::ZERO, |m| g.materials[m].emission),
+            object: object(&format!("{name}/{}", part.node)),
+        });
+    }
+    for light in &g.lights {
+        out.lights.push(match *light {
+            PunctualLight::Directional { direction, irradiance } => {
+                Light::sun(-at.direction(direction), irradiance, 0.53, false)
+            }
+            PunctualLight::Point { position, intensity } => {
+                Light::Point { position: at.point(position), intensity }
+            }
+            PunctualLight::Spot { position, direction, intensity, inner, outer } => Light::Spot {
+                position: at.point(position),
+                direction: at.direction(direction),
+                intensity,
+                cos_total: outer.cos(),
+                cos_falloff_start: inner.cos(),
+            },
+        });
+    }
+    out
+}
+
+/// The default film of a glTF rendered directly: 640 pixels wide, as high as its camera's
+/// aspect ratio says (4:3 without one).
+const WIDTH: u32 = 640;
+
+/// A glTF file as a whole scene (`lightsplit render model.glb`): its camera, or one framing its
+/// bounds from the front (+z, glTF's forward) and a little above; its lights, or with none (and
+/// nothing emissive) a uniform white sky of radiance 1, said in [`Scene::notes`].
+pub fn scene(path: &Path) -> Result<Scene, SceneError> {
+    let error = |e: String| SceneError::new(path, None, e);
+    crate::scene::limits::check_input_file(path).map_err(error)?;
+    let g = load(path).map_err(error)?;
+    let mut notes = g.notes.clone();
+    let (lo, hi) = g
+        .parts
+        .iter()
+        .flat_map(|p| p.positions.iter())
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    if g.parts.is_empty() {
+        return Err(error("it has no triangles to render".into()));
+    }
+    let camera = g.camera.unwrap_or_else(|| {
+        let centre = 0.5 * (lo + hi);
+        let radius = (0.5 * (hi - lo).length()).max(1e-6);
+        let fov = 40.0f32;
+        let distance = radius / (0.5 * fov as f64).to_radians().sin();
+        let back = DVec3::new(0.0, 0.35, 1.0).normalize();
+        notes.push("no camera: framing the model's bounds from the front".into());
+        GltfCamera { position: centre + back * distance, forward: -back, up: DVec3::Y, fov, aspect: None }
+    });
+    if camera.forward == DVec3::ZERO || camera.up == DVec3::ZERO || !(camera.fov > 0.0 && camera.fov < 180.0)
+    {
+        return Err(error(
+            "its camera cannot be oriented (a zero axis or a field of view outside (0, 180))".into(),
+        ));
+    }
+    let origin = camera.position;
+    let height = camera
+        .aspect
+        .filter(|a| a.is_finite() && *a > 0.0)
+        .map_or(WIDTH * 3 / 4, |a| ((WIDTH as f32 / a).round() as u32).clamp(1, 8 * WIDTH));
+    let at = Placement { linear: DMat3::IDENTITY, translate: DVec3::ZERO, origin };
+    let mut objects: Vec<String> = Vec::new();
+    let mut object = |n: &str| -> u32 {
+        match objects.iter().position(|o| o == n) {
+            Some(i) => i as u32,
+            None => {
+                objects.push(n.to_string());
+                (objects.len() - 1) as u32
+            }
+        }
+    };
+    let stem = path.file_stem().map_or_else(|| "gltf".into(), |s| s.to_string_lossy().into_owned());
+    let placed = place(&g, &stem, &at, 0, 0, crate::render::bsdf::DIFFUSE_ROUGHNESS, &mut object);
+    let mut lights = placed.lights;
+    if lights.is_empty() && !placed.shapes.iter().any(Shape::is_emissive) {
+        notes.push("no lights: lit by the default environment, a uniform white sky of radiance 1".into());
+        lights.push(Light::Sky { radiance: Vec3::ONE, diffuse_source: true });
+    }
+    let mut maps = vec![Maps::default(); placed.materials.len()];
+    for (m, mp) in placed.maps {
+        maps[m as usize] = mp;
+    }
+    Ok(Scene {
+        path: path.to_path_buf(),
+        inputs: std::iter::once(path.to_path_buf()).chain(g.files.iter().cloned()).collect(),
+        origin,
+        camera: Camera {
+            position: Vec3::ZERO,
+            look_at: camera.forward.as_vec3(),
+            up: camera.up.as_vec3(),
+            fov: camera.fov,
+        },
+        film: FilmSettings { width: WIDTH, height, spp: 16 },
+        render: RenderSettings { max_depth: 8, seed: 0, sampler: Default::default() },
+        materials: placed.materials,
+        shapes: placed.shapes,
+        lights,
+        objects,
+        filter: None,
+        textures: placed.textures,
+        maps,
+        notes,
+    })
+}
