@@ -314,10 +314,14 @@ macro_rules! with_bsdf {
                 let lobes = GlossyLobes {
                     specular: glam::Vec3::splat(0.04).lerp(color, metallic),
                     alpha: $crate::render::bsdf::alpha(roughness),
-                    base: color * (1.0 - metallic),
+                    base: glam::Vec3::ZERO,
                 };
-                let glossy = Glossy { lobes, frame: $crate::math::Frame::new(n) };
-                let $b = &Pbr { glossy, rough: roughness >= diffuse_from };
+                let $b = &Pbr {
+                    lobes,
+                    base: color * (1.0 - metallic),
+                    frame: $crate::math::Frame::new(n),
+                    rough: roughness >= diffuse_from,
+                };
                 $body
             }
         }
@@ -325,23 +329,57 @@ macro_rules! with_bsdf {
 }
 pub(crate) use with_bsdf;
 
-/// glTF's metallic-roughness material: the glossy model (its reflectance and base already
-/// blended by metallic), whose GGX lobe is an S vertex, or a D vertex when `rough` (its
-/// roughness at least [`DIFFUSE_ROUGHNESS`] or the material's own limit).
+/// glTF's metallic-roughness material, layered as Blender's Principled BSDF and the glTF
+/// specification's dielectric layer are: the GGX lobe (reflectance `specular` at normal
+/// incidence, Schlick's Fresnel) over a Lambertian base that receives what the lobe does not
+/// reflect, `base / pi` times 1 - E(wo), E being the lobe's directional albedo (from
+/// [`SpecularAlbedo`]). The GGX lobe is an S vertex, or a D vertex when `rough` (its roughness at
+/// least the material's `diffuse_from`); the base is D.
 #[derive(Clone, Copy, Debug)]
 pub struct Pbr {
-    pub glossy: Glossy,
+    /// The GGX lobe (its `base` unused: the base is Lambertian here).
+    pub lobes: GlossyLobes,
+    pub base: Vec3,
+    pub frame: Frame,
     pub rough: bool,
 }
 
 impl Pbr {
     /// The lobe a GGX sample makes in the split.
-    fn tag(&self, lobe: Lobe) -> Lobe {
-        if self.rough && lobe == Lobe::Specular {
+    fn tag(&self) -> Lobe {
+        if self.rough {
             Lobe::Diffuse
         } else {
-            lobe
+            Lobe::Specular
         }
+    }
+
+    /// The base's weight seen from `wo` (local): 1 - the GGX lobe's directional albedo.
+    fn through(&self, wo: Vec3) -> Vec3 {
+        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
+        (Vec3::ONE - (self.lobes.specular * a + Vec3::splat(b))).max(Vec3::ZERO)
+    }
+
+    /// The probability of sampling the GGX lobe from `wo` (local): in proportion to what each
+    /// reflects.
+    fn specular_probability(&self, wo: Vec3) -> f32 {
+        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
+        let spec = luminance(self.lobes.specular * a + Vec3::splat(b));
+        let base = luminance(self.base * self.through(wo));
+        if base <= 0.0 {
+            1.0
+        } else if spec <= 0.0 {
+            0.0
+        } else {
+            spec / (spec + base)
+        }
+    }
+
+    fn eval_base(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        self.base * self.through(wo) * FRAC_1_PI
     }
 }
 
@@ -351,23 +389,107 @@ impl Bsdf for Pbr {
     }
 
     fn scatters(&self, wo: Vec3) -> bool {
-        self.glossy.scatters(wo)
+        self.frame.to_local(wo).z > 0.0
     }
 
     fn albedo(&self, lobe: Lobe) -> Vec3 {
         if self.rough {
-            self.glossy.lobes.base + self.glossy.lobes.specular
+            self.base + self.lobes.specular
+        } else if lobe == Lobe::Diffuse {
+            self.base
         } else {
-            self.glossy.albedo(lobe)
+            self.lobes.specular
         }
     }
 
     fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
-        self.glossy.sample(wo, u).map(|s| BsdfSample { lobe: self.tag(s.lobe), ..s })
+        let g = &self.lobes;
+        let wo_l = self.frame.to_local(wo);
+        let p_spec = self.specular_probability(wo_l);
+        let (wi_l, specular) = if u.get_1d(Dim::Lobe) < p_spec {
+            (g.sample_specular(wo_l, u.get_2d(Dim::Direction)), true)
+        } else {
+            (cosine_hemisphere(u.get_2d(Dim::Direction)), false)
+        };
+        if wi_l.z <= 0.0 {
+            return None;
+        }
+        let (weight, pdf, lobe) = if specular {
+            (g.specular_weight(wo_l, wi_l) / p_spec, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
+        } else {
+            let pdf = (1.0 - p_spec) * wi_l.z * FRAC_1_PI;
+            (self.eval_base(wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
+        };
+        Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe })
     }
 
     fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
-        self.glossy.eval_lobes(wo, wi, |lobe, f, pdf| each(self.tag(lobe), f, pdf));
+        let g = &self.lobes;
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        let p_spec = self.specular_probability(wo_l);
+        each(self.tag(), g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l));
+        each(Lobe::Diffuse, self.eval_base(wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
+    }
+}
+
+/// The directional albedo of a GGX lobe with Schlick's Fresnel, split as f0 A + B (the
+/// "split-sum" table of real-time rendering): A and B by the cosine of the view and the GGX
+/// alpha, 32 x 32 cells, integrated once by sampling visible normals (256 stratified points a
+/// cell) and read bilinearly.
+pub struct SpecularAlbedo {
+    table: Vec<(f32, f32)>,
+}
+
+impl SpecularAlbedo {
+    const N: usize = 32;
+
+    /// The table, built on first use.
+    pub fn get() -> &'static SpecularAlbedo {
+        static TABLE: std::sync::OnceLock<SpecularAlbedo> = std::sync::OnceLock::new();
+        TABLE.get_or_init(SpecularAlbedo::build)
+    }
+
+    fn build() -> SpecularAlbedo {
+        let n = Self::N;
+        let mut table = Vec::with_capacity(n * n);
+        for j in 0..n {
+            let alpha = (j as f32 / (n - 1) as f32).max(MIN_ALPHA);
+            for i in 0..n {
+                let cos = (i as f32 / (n - 1) as f32).max(1e-3);
+                let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                let g = GlossyLobes { specular: Vec3::ONE, alpha, base: Vec3::ZERO };
+                let (mut a, mut b) = (0.0f64, 0.0f64);
+                let k = 16;
+                for s in 0..k * k {
+                    let u = Vec2::new(((s % k) as f32 + 0.5) / k as f32, ((s / k) as f32 + 0.5) / k as f32);
+                    let wi = g.sample_specular(wo, u);
+                    if wi.z <= 0.0 {
+                        continue;
+                    }
+                    let h = (wo + wi).normalize_or_zero();
+                    let w = (g.g2(wo, wi) / g.g1(wo)) as f64;
+                    let m = (1.0 - wo.dot(h)).clamp(0.0, 1.0) as f64;
+                    let fresnel = m.powi(5);
+                    a += w * (1.0 - fresnel);
+                    b += w * fresnel;
+                }
+                let total = (k * k) as f64;
+                table.push(((a / total) as f32, (b / total) as f32));
+            }
+        }
+        SpecularAlbedo { table }
+    }
+
+    /// (A, B) at view cosine `cos` and alpha `alpha`, bilinearly.
+    pub fn at(&self, cos: f32, alpha: f32) -> (f32, f32) {
+        let n = Self::N;
+        let x = (cos.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let y = (alpha.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let (i, j) = (x as usize, y as usize);
+        let (fx, fy) = (x - i as f32, y - j as f32);
+        let t = |i: usize, j: usize| self.table[j * n + i];
+        let lerp = |p: (f32, f32), q: (f32, f32), f: f32| (p.0 + (q.0 - p.0) * f, p.1 + (q.1 - p.1) * f);
+        lerp(lerp(t(i, j), t(i + 1, j), fx), lerp(t(i, j + 1), t(i + 1, j + 1), fx), fy)
     }
 }
 
@@ -757,14 +879,18 @@ mod tests {
         assert!((reflect(wo, n) - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
     }
 
-    /// The metallic-roughness BSDF is the glossy one with its GGX lobe tagged by roughness: S
-    /// when smooth, D when rough, the values and densities unchanged either way.
+    /// The metallic-roughness BSDF samples what it evaluates; its GGX lobe is tagged S when
+    /// smooth and D when rough, the values and densities unchanged; and it conserves energy: a
+    /// white dielectric reflects all the light (the base takes what the lobe does not), within
+    /// the loss of GGX's single scattering.
     #[test]
-    fn a_rough_pbr_lobe_is_diffuse_and_a_smooth_one_specular() {
-        let lobes = GlossyLobes { specular: Vec3::splat(0.3), alpha: alpha(0.7), base: Vec3::splat(0.5) };
-        let glossy = Glossy { lobes, frame: Frame::new(Vec3::Z) };
-        let (smooth, rough) = (Pbr { glossy, rough: false }, Pbr { glossy, rough: true });
-        check_through_the_interface("smooth pbr", &smooth, wo(35.0), Vec3::Z);
+    fn the_pbr_bsdf_samples_its_density_tags_its_lobe_and_keeps_energy() {
+        let lobes = GlossyLobes { specular: Vec3::splat(0.04), alpha: alpha(0.7), base: Vec3::ZERO };
+        let pbr = |base: Vec3, rough: bool| Pbr { lobes, base, frame: Frame::new(Vec3::Z), rough };
+        let (smooth, rough) = (pbr(Vec3::splat(0.5), false), pbr(Vec3::splat(0.5), true));
+        for theta in [10.0, 45.0, 75.0] {
+            check_through_the_interface("smooth pbr", &smooth, wo(theta), Vec3::Z);
+        }
         assert_eq!((smooth.lobe(), rough.lobe()), (None, Some(Lobe::Diffuse)));
         let mut s = crate::render::sampler::Sampler::new(5, 2, 1);
         let (mut specular, mut diffuse) = (0, 0);
@@ -786,6 +912,16 @@ mod tests {
             });
             assert_eq!(fa, fb);
         }
-        assert!(specular > 50 && diffuse > 50, "both lobes sampled: {specular} S, {diffuse} D");
+        assert!(specular > 10 && diffuse > 100, "both lobes sampled: {specular} S, {diffuse} D");
+        // A white base under the dielectric lobe: the albedo (the mean sample weight) is one
+        // at every angle, the lobe's and the base's shares summing to it.
+        let white = pbr(Vec3::ONE, false);
+        for theta in [0.0, 40.0, 70.0, 85.0] {
+            let mut s = crate::render::sampler::Sampler::new(9, 1, 3);
+            let n = 40_000;
+            let total: f32 = (0..n).filter_map(|_| white.sample(wo(theta), &mut s)).map(|b| b.weight.x).sum();
+            let albedo = total / n as f32;
+            assert!((albedo - 1.0).abs() < 0.02, "albedo {albedo} at {theta} degrees");
+        }
     }
 }

@@ -444,7 +444,7 @@ mod tests {
 
     #[test]
     fn names_come_from_the_types() {
-        assert_eq!(names::<ShapeKind>(None), ["sphere", "quad", "box", "mesh", "terrain", "teapot"]);
+        assert_eq!(names::<ShapeKind>(None), ["sphere", "quad", "box", "mesh", "gltf", "terrain", "teapot"]);
         assert_eq!(names::<ShapeKind>(Some("sphere")), ["center", "radius"]);
         assert_eq!(names::<ShapeCommon>(None), ["name", "material", "object", "emission", "transform"]);
         assert_eq!(names::<LightKind>(Some("cloudy sky"))[0], "zenith");
@@ -474,12 +474,12 @@ mod tests {
         let shape = format!("{MINIMAL}[[shape]]\n");
         for (extra, line, needle) in [
             ("type = \"sphere\"\n", 4, "a sphere shape needs `radius`"),
-            ("radius = 1\n", 4, "a shape needs a `type` (sphere, quad, box, mesh, terrain or teapot)"),
+            ("radius = 1\n", 4, "a shape needs a `type` (sphere, quad, box, mesh, gltf, terrain or teapot)"),
             ("type = 3\n", 5, "`type` must be a string"),
             (
                 "type = \"torus\"\n",
                 5,
-                "unknown shape type `torus` (expected sphere, quad, box, mesh, terrain",
+                "unknown shape type `torus` (expected sphere, quad, box, mesh, gltf, terrain",
             ),
         ] {
             let (l, msg) = error_line(&format!("{shape}{extra}"));
