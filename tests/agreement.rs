@@ -35,9 +35,24 @@ struct Tally {
 /// units from an origin 500 units out, or on a triangle whose corners are 100 units away,
 /// carries the rounding of coordinates that large (an f32 ulp near 500 is 3e-5), whatever the
 /// length of the ray.
-fn same_t(ray: &Ray, a: f32, b: f32, coordinates: f32) -> bool {
+fn same_t(ray: &Ray, a: f32, b: f32, coordinates: f32, cos: f32) -> bool {
     let scale = a.abs().max(b.abs()) + (ray.origin.abs().max_element() + coordinates) / ray.dir.length();
-    (a - b).abs() <= 1e-5 * scale
+    // A hit point's rounding moves t by its size over the cosine of incidence: a ray that
+    // grazes a triangle meets its plane at a t that rounding moves further (seen: 2e-5 at an
+    // edge of a sphere's silhouette, the same triangle hit by both backends).
+    (a - b).abs() <= 1e-5 * scale / cos.max(1e-2)
+}
+
+/// The cosine between `ray` and the normal of the primitive `hit` found (1 for a sphere, which
+/// is intersected in closed form).
+fn incidence(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
+    match &scene.shapes[hit.shape as usize].geometry {
+        Geometry::Triangles(mesh) => {
+            let [a, b, c] = mesh.triangle(hit.prim);
+            (b - a).cross(c - a).normalize_or_zero().dot(ray.dir.normalize_or_zero()).abs()
+        }
+        Geometry::Sphere { .. } => 1.0,
+    }
 }
 
 /// The largest coordinate of the primitive hit (a triangle's corners; a sphere's centre and
@@ -57,7 +72,8 @@ fn compare(scene: &Scene, ray: &Ray, a: Option<Hit>, b: Option<Hit>, tally: &mut
         (None, None) => {}
         (Some(x), Some(y)) => {
             tally.hits += 1;
-            if !same_t(ray, x.t, y.t, coordinates(scene, &x).max(coordinates(scene, &y))) {
+            let cos = incidence(scene, ray, &x).min(incidence(scene, ray, &y));
+            if !same_t(ray, x.t, y.t, coordinates(scene, &x).max(coordinates(scene, &y)), cos) {
                 tally.disagreements += 1;
             } else if (x.shape, x.prim) != (y.shape, y.prim) {
                 tally.ties += 1;
@@ -196,7 +212,14 @@ fn rays_at_shared_edges_hit_on_both_backends() {
                 }
                 let (x, y) = (embree.intersect(&ray), bvh.intersect(&ray));
                 misses += x.is_none() as usize + y.is_none() as usize;
+                let before = tally.disagreements;
                 compare(&scene, &ray, x, y, &mut tally);
+                if tally.disagreements > before && std::env::var_os("AGREEMENT_DEBUG").is_some() {
+                    eprintln!(
+                        "  {ray:?} aimed at t = 1 ({}, {i}, {j})\n    embree {x:?}\n    bvh    {y:?}",
+                        shape.name
+                    );
+                }
             }
         }
         eprintln!(
