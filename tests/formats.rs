@@ -264,3 +264,63 @@ fn bad_gltf_files_are_one_clear_error() {
         "{err}"
     );
 }
+
+/// An OBJ's `.mtl` materials in a scene: a textured diffuse (`map_Kd`), a glossy (`Ks`, `Ns`)
+/// and a glass (`d`, `Ni`) become those materials, the texture is an input and is seen in the
+/// image, and an unread key is one note naming the library's line.
+#[test]
+fn obj_materials_are_read_and_unread_keys_are_noted() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    // A texture red on the left half, green on the right.
+    let mut img = image::RgbImage::new(2, 1);
+    img.put_pixel(0, 0, image::Rgb([255, 0, 0]));
+    img.put_pixel(1, 0, image::Rgb([0, 255, 0]));
+    img.save(d.join("rg.png")).expect("png");
+    std::fs::write(
+        d.join("m.mtl"),
+        "newmtl tex\nKd 1 1 1\nmap_Kd rg.png\nKa 0.2 0.2 0.2\nnewmtl shiny\nKd 0.2 0.2 0.2\nKs 0.5 0.5 0.5\nNs 50\n\
+         newmtl glass\nd 0.1\nNi 1.45\n",
+    )
+    .expect("write");
+    std::fs::write(
+        d.join("m.obj"),
+        "mtllib m.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         v 20 0 0\nv 21 0 0\nv 21 1 0\n\
+         o tex\nusemtl tex\nf 1/1 2/2 3/3 4/4\no shiny\nusemtl shiny\nf 5 6 7\no glass\nusemtl glass\nf 5 7 6\n",
+    )
+    .expect("write");
+    let text = "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 40\n[film]\nwidth = 16\nheight = 16\n\
+                [[shape]]\ntype = \"mesh\"\nfile = \"m.obj\"\n[[light]]\ntype = \"sky\"\nradiance = [1, 1, 1]\n";
+    std::fs::write(d.join("s.toml"), text).expect("write");
+    let s = lightsplit::scene::load(&d.join("s.toml")).expect("loads");
+    use lightsplit::scene::Material;
+    assert!(matches!(s.materials[0], Material::Diffuse { .. }), "{:?}", s.materials[0]);
+    assert!(s.maps(0).color.is_some());
+    assert!(
+        matches!(s.materials[1], Material::Glossy { roughness, .. } if (roughness - (2.0f32 / 52.0).sqrt().sqrt()).abs() < 1e-6)
+    );
+    assert!(matches!(s.materials[2], Material::Glass { ior, .. } if ior == 1.45), "{:?}", s.materials[2]);
+    assert!(s.inputs.contains(&d.join("rg.png")), "{:?}", s.inputs);
+    assert_eq!(s.notes, [format!("{}:4: `Ka` is not read", d.join("m.mtl").display())]);
+    // The textured quad seen from the front: the image's left half red, right half green (the
+    // camera looks down -z, so +x is on the right).
+    let out = crate::common::render_text(
+        &std::fs::read_to_string(d.join("s.toml"))
+            .expect("read")
+            .replace("m.obj", &d.join("m.obj").to_string_lossy()),
+        4,
+    );
+    let (left, right) = (out.film.raw.get(5, 8), out.film.raw.get(10, 8));
+    assert!(left.x > 2.0 * left.y && right.y > 2.0 * right.x, "left {left}, right {right}");
+    let o = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+        .args(["render", "s.toml", "-o", "o.png", "--spp", "1"])
+        .current_dir(d)
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && err.contains("note: s.toml: ") && err.contains("m.mtl:4: `Ka` is not read"),
+        "{err}"
+    );
+}

@@ -8,10 +8,38 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec2, Vec3};
 
 /// What the mesh's `.mtl` says about a part.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ObjMaterial {
+    /// `Kd`.
     pub diffuse: Vec3,
+    /// `Ke`.
     pub emission: Vec3,
+    /// `Ks` (zero without).
+    pub specular: Vec3,
+    /// The GGX roughness of `Ns`, by [`roughness_of_exponent`].
+    pub roughness: f32,
+    /// `map_Kd`, resolved against the material library's directory.
+    pub texture: Option<PathBuf>,
+    /// The index of refraction, when the material is a dielectric by [`is_dielectric`].
+    pub dielectric: Option<f32>,
+    /// `Tf`, the transmission filter of a dielectric (white without).
+    pub transmission: Vec3,
+}
+
+/// The roughness of a Phong exponent `Ns`: the Beckmann width that matches a Phong lobe of
+/// exponent n is sqrt(2 / (n + 2)) (Walter et al. 2007, section 5.2), taken as the GGX alpha,
+/// and the roughness is its square root (alpha = roughness²). Ns = 0 gives 1 (the roughest),
+/// Ns = 10 gives 0.64, Ns = 100 0.37, Ns = 1000 0.21.
+pub fn roughness_of_exponent(ns: f32) -> f32 {
+    (2.0 / (ns.max(0.0) + 2.0)).sqrt().sqrt().clamp(0.0, 1.0)
+}
+
+/// Whether a `.mtl` material is a dielectric (rendered as smooth glass): its illumination model
+/// is one of the MTL specification's refracting ones (4, 6, 7, 9), or it is partly transparent
+/// (`d` below 1, or `Tr` above 0) with an index of refraction `Ni` above 1. Transparency
+/// without refraction (a cut-out, alpha) is not read.
+pub fn is_dielectric(illum: Option<u8>, dissolve: f32, ior: Option<f32>) -> bool {
+    matches!(illum, Some(4 | 6 | 7 | 9)) || (dissolve < 1.0 && ior.is_some_and(|n| n > 1.0))
 }
 
 /// One OBJ object, re-indexed on its own vertices. Positions stay in f64, as written, until
@@ -27,11 +55,45 @@ pub struct ObjPart {
     pub material: Option<ObjMaterial>,
 }
 
-/// A loaded OBJ: its parts, and the material libraries (`mtllib`) it read.
+/// A loaded OBJ: its parts, the material libraries (`mtllib`) it read, and what of them was
+/// not read (one note a key a library, naming its first line).
 #[derive(Clone, Debug)]
 pub struct Obj {
     pub parts: Vec<ObjPart>,
     pub libraries: Vec<PathBuf>,
+    pub notes: Vec<String>,
+}
+
+/// The `.mtl` keys lightsplit reads.
+const READ_KEYS: &[&str] = &["newmtl", "Kd", "Ke", "Ks", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd"];
+
+/// One note for each key of a material library that is not read: its first line and how many
+/// lines have it.
+fn unread_keys(library: &Path) -> Vec<String> {
+    let Ok(bytes) = std::fs::read(library) else { return Vec::new() };
+    let text = String::from_utf8_lossy(&bytes);
+    let mut seen: Vec<(String, usize, usize)> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let Some(key) = line.split_whitespace().next() else { continue };
+        if key.starts_with('#') || READ_KEYS.contains(&key) {
+            continue;
+        }
+        match seen.iter_mut().find(|(k, _, _)| k == key) {
+            Some(entry) => entry.2 += 1,
+            None => seen.push((key.to_string(), n + 1, 1)),
+        }
+    }
+    seen.into_iter()
+        .map(|(key, line, count)| {
+            let more = if count > 1 { format!(" (on {count} lines)") } else { String::new() };
+            let why = if matches!(key.as_str(), "map_Bump" | "map_bump" | "bump") {
+                ": bump maps from images are not read yet"
+            } else {
+                ""
+            };
+            format!("{}:{line}: `{key}` is not read{more}{why}", library.display())
+        })
+        .collect()
 }
 
 fn triple(values: &[f64]) -> DVec3 {
@@ -69,28 +131,80 @@ pub fn load(path: &Path) -> Result<Obj, String> {
         Some(why) => format!("{}: material library: {why}", path.display()),
         None => format!("{}: material library: {e}", path.display()),
     })?;
-    let materials: Vec<ObjMaterial> = materials
-        .iter()
-        .map(|m| ObjMaterial {
-            diffuse: m.diffuse.map_or(Vec3::splat(0.8), |d| Vec3::from_array(d.map(|x| x as f32))),
-            emission: m.emissive.map_or(Vec3::ZERO, |e| Vec3::from_array(e.map(|x| x as f32))),
-        })
-        .collect();
+    let libraries = libraries.into_inner();
+    let three = |v: Option<[f64; 3]>| v.map(|v| Vec3::from_array(v.map(|x| x as f32)));
+    let mut read = Vec::new();
     for m in &materials {
-        if !(m.diffuse.is_finite() && m.emission.is_finite()) {
-            return Err(format!("{}: material library: a Kd or Ke value is not finite", path.display()));
+        let bad = |what: &str| format!("{}: material `{}`: {what}", path.display(), m.name);
+        let number = |key: &str| -> Result<Option<f32>, String> {
+            match m.unknown_param.get(key) {
+                None => Ok(None),
+                Some(v) => v
+                    .split_whitespace()
+                    .next()
+                    .and_then(|x| x.parse::<f32>().ok())
+                    .map(Some)
+                    .ok_or_else(|| bad(&format!("`{key} {v}` is not a number"))),
+            }
+        };
+        let tf = match m.unknown_param.get("Tf") {
+            None => Vec3::ONE,
+            Some(v) => {
+                let x: Vec<f32> = v.split_whitespace().filter_map(|x| x.parse().ok()).collect();
+                match x[..] {
+                    [g] => Vec3::splat(g),
+                    [r, g, b, ..] => Vec3::new(r, g, b),
+                    _ => return Err(bad(&format!("`Tf {v}` is not a colour"))),
+                }
+            }
+        };
+        let dissolve = match (m.dissolve, number("Tr")?) {
+            (Some(d), _) => d as f32,
+            (None, Some(tr)) => 1.0 - tr,
+            (None, None) => 1.0,
+        };
+        let ior = m.optical_density.map(|n| n as f32);
+        let material = ObjMaterial {
+            diffuse: three(m.diffuse).unwrap_or(Vec3::splat(0.8)),
+            emission: three(m.emissive).unwrap_or(Vec3::ZERO),
+            specular: three(m.specular).unwrap_or(Vec3::ZERO),
+            roughness: roughness_of_exponent(m.shininess.unwrap_or(0.0) as f32),
+            texture: m.diffuse_texture.as_ref().map(|t| {
+                // Relative to the library that names it: the first library's directory where
+                // it is found, else the first's (so that a missing file is named there).
+                let t = t.replace('\\', "/");
+                let dirs: Vec<&Path> = libraries.iter().filter_map(|l| l.parent()).collect();
+                dirs.iter()
+                    .map(|d| d.join(&t))
+                    .find(|p| p.is_file())
+                    .unwrap_or_else(|| dirs.first().unwrap_or(&dir.as_path()).join(&t))
+            }),
+            dielectric: is_dielectric(m.illumination_model, dissolve, ior)
+                .then(|| ior.filter(|&n| n > 1.0).unwrap_or(1.5)),
+            transmission: tf,
+        };
+        let finite = [material.diffuse, material.emission, material.specular, material.transmission]
+            .iter()
+            .all(|v| v.is_finite())
+            && dissolve.is_finite()
+            && m.shininess.is_none_or(f64::is_finite)
+            && ior.is_none_or(f32::is_finite);
+        if !finite {
+            return Err(bad("a Kd, Ke, Ks, Ns, Ni, d, Tr or Tf value is not finite"));
         }
-        if m.diffuse.min_element() < 0.0
-            || m.diffuse.max_element() > 1.0
-            || m.emission.min_element() < 0.0
-            || m.emission.max_element() > crate::scene::limits::MAX_EMISSION
+        let unit = |v: Vec3| v.min_element() >= 0.0 && v.max_element() <= 1.0;
+        if !(unit(material.diffuse) && unit(material.specular) && unit(material.transmission)) {
+            return Err(bad("Kd, Ks and Tf must lie in [0, 1]"));
+        }
+        if material.emission.min_element() < 0.0
+            || material.emission.max_element() > crate::scene::limits::MAX_EMISSION
         {
-            return Err(format!(
-                "{}: material library: Kd must lie in [0, 1] and Ke in [0, 1e12]",
-                path.display()
-            ));
+            return Err(bad("Ke must lie in [0, 1e12]"));
         }
+        read.push(material);
     }
+    let materials = read;
+    let notes = libraries.iter().flat_map(|l| unread_keys(l)).collect();
 
     let mut parts = Vec::new();
     for model in models {
@@ -123,10 +237,10 @@ pub fn load(path: &Path) -> Result<Obj, String> {
             normals,
             uvs,
             indices,
-            material: mesh.material_id.and_then(|i| materials.get(i).copied()),
+            material: mesh.material_id.and_then(|i| materials.get(i).cloned()),
         });
     }
-    Ok(Obj { parts, libraries: libraries.into_inner() })
+    Ok(Obj { parts, libraries, notes })
 }
 
 /// Names the OBJ line that explains `message`, when one can be found: a `v`, `vt` or `vn` line
@@ -202,9 +316,53 @@ mod tests {
         let parts = loaded.parts;
         assert_eq!(parts.len(), 1);
         assert_eq!(parts[0].indices.len(), 2);
-        let m = parts[0].material.expect("material");
+        let m = parts[0].material.as_ref().expect("material");
         assert_eq!(m.diffuse, Vec3::splat(0.5));
         assert_eq!(m.emission, Vec3::new(10.0, 9.0, 8.0));
+    }
+
+    /// The `.mtl` keys beyond Kd and Ke: Ks and Ns a glossy lobe, map_Kd a texture beside the
+    /// library, d/Tr with Ni or a refracting illum a dielectric, Tf its tint; every other key
+    /// one note naming its first line and how many lines have it.
+    #[test]
+    fn mtl_materials_and_notes_on_what_is_not_read() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        std::fs::create_dir(dir.path().join("lib")).expect("mkdir");
+        write(
+            &dir.path().join("lib"),
+            "m.mtl",
+            "# materials\nnewmtl shiny\nKa 0.1 0.1 0.1\nKd 0.5 0.4 0.3\nKs 0.2 0.2 0.2\nNs 100\nmap_Kd wood.png\n\
+             newmtl glass\nKa 0 0 0\nd 0.2\nNi 1.33\nTf 0.9 1 0.9\nnewmtl cutout\nTr 0.5\nillum 2\n\
+             newmtl window\nillum 7\nmap_Bump b.png\n",
+        );
+        let text = "mtllib lib/m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\n";
+        let faces =
+            ["shiny", "glass", "cutout", "window"].map(|m| format!("o {m}\nusemtl {m}\nf 1 2 3\n")).concat();
+        let obj = write(dir.path(), "m.obj", &format!("{text}{faces}"));
+        let loaded = load(&obj).expect("loads");
+        let m: Vec<&ObjMaterial> =
+            loaded.parts.iter().map(|p| p.material.as_ref().expect("material")).collect();
+        assert_eq!(m[0].specular, Vec3::splat(0.2));
+        assert!((m[0].roughness - (2.0f32 / 102.0).sqrt().sqrt()).abs() < 1e-6, "{}", m[0].roughness);
+        assert_eq!(m[0].texture, Some(dir.path().join("lib").join("wood.png")));
+        assert_eq!(
+            (m[0].dielectric, m[1].dielectric, m[2].dielectric, m[3].dielectric),
+            (None, Some(1.33), None, Some(1.5))
+        );
+        assert_eq!(m[1].transmission, Vec3::new(0.9, 1.0, 0.9));
+        let lib = dir.path().join("lib").join("m.mtl");
+        assert_eq!(
+            loaded.notes,
+            [
+                format!("{}:3: `Ka` is not read (on 2 lines)", lib.display()),
+                format!(
+                    "{}:18: `map_Bump` is not read: bump maps from images are not read yet",
+                    lib.display()
+                ),
+            ]
+        );
+        assert_eq!(roughness_of_exponent(0.0), 1.0);
+        assert!(roughness_of_exponent(1e6) < 0.05);
     }
 
     #[test]

@@ -284,11 +284,13 @@ pub(super) fn add(
                 );
             }
             let ply = ext.as_deref() == Some("ply");
-            let obj::Obj { parts, libraries } = crate::scene::limits::check_input_file(&path)
+            let obj::Obj { parts, libraries, notes } = crate::scene::limits::check_input_file(&path)
                 .and_then(|()| match ply {
-                    true => {
-                        crate::scene::ply::load(&path).map(|parts| obj::Obj { parts, libraries: Vec::new() })
-                    }
+                    true => crate::scene::ply::load(&path).map(|parts| obj::Obj {
+                        parts,
+                        libraries: Vec::new(),
+                        notes: Vec::new(),
+                    }),
                     false => obj::load(&path),
                 })
                 .map_err(|e| SceneError::new(ctx.path, line, format!("mesh `{file}`: {e}")))?;
@@ -299,23 +301,54 @@ pub(super) fn add(
                     format!("mesh `{file}` has no faces (meshes are Wavefront OBJ or PLY files)"),
                 );
             }
+            out.notes.extend(notes);
             // Each OBJ object is a shape of its own (and an object of its own, unless the scene
             // file names one), with its .mtl material unless the scene file gives one.
+            let mut images: HashMap<std::path::PathBuf, u32> = HashMap::new();
             for part in parts {
-                let part_material = match material {
-                    Some(id) => id,
-                    None => match part.material {
-                        Some(m) => {
-                            materials.push(Material::Diffuse { albedo: m.diffuse });
-                            (materials.len() - 1) as u32
+                let part_material = match (material, &part.material) {
+                    (Some(id), _) => id,
+                    (None, Some(m)) => {
+                        materials.push(match m.dielectric {
+                            Some(ior) => Material::Glass { ior, color: m.transmission },
+                            None if m.specular.max_element() > 0.0 => Material::Glossy {
+                                specular: m.specular,
+                                roughness: m.roughness,
+                                base: m.diffuse,
+                            },
+                            None => Material::Diffuse { albedo: m.diffuse },
+                        });
+                        let id = (materials.len() - 1) as u32;
+                        if let (Some(t), None) = (&m.texture, m.dielectric) {
+                            let texture = match images.get(t) {
+                                Some(&k) => k,
+                                None => {
+                                    let image = super::texture::colour_image(t).map_err(|e| {
+                                        SceneError::new(ctx.path, line, format!("mesh `{file}`: map_Kd: {e}"))
+                                    })?;
+                                    out.textures.push(crate::scene::texture::Texture::Image {
+                                        image,
+                                        repeat: Vec2::ONE,
+                                    });
+                                    out.libraries.push(t.clone());
+                                    let k = out.textures_before + out.textures.len() as u32 - 1;
+                                    images.insert(t.clone(), k);
+                                    k
+                                }
+                            };
+                            out.maps.push((
+                                id,
+                                crate::scene::Maps { color: Some(texture), ..Default::default() },
+                            ));
                         }
-                        None => default_material(materials),
-                    },
+                        id
+                    }
+                    (None, None) => default_material(materials),
                 };
                 let part_emission = if c.emission.is_some() {
                     emission
                 } else {
-                    part.material.map_or(Vec3::ZERO, |m| m.emission)
+                    part.material.as_ref().map_or(Vec3::ZERO, |m| m.emission)
                 };
                 let positions: Vec<Vec3> = part.positions.iter().map(|&p| transform.point(p)).collect();
                 let normals = part.normals.map(|n| transform.normals(&n));

@@ -101,6 +101,19 @@ pub(super) fn textures(
     Ok((textures, ids))
 }
 
+/// An image read as a colour (a texture file, an `.mtl`'s `map_Kd`): refused if a pixel is NaN
+/// or infinite (with the count), its values clamped to [0, 1] as a material's colour (a value of
+/// 100 would multiply the light it reflects).
+pub(super) fn colour_image(path: &Path) -> Result<Arc<crate::scene::image::Image>, String> {
+    let mut image = crate::scene::limits::check_input_file(path).and_then(|()| image::read(path))?;
+    let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
+    if bad > 0 {
+        return Err(format!("{bad} of its {} pixels are NaN or infinite", image.pixels.len()));
+    }
+    image.pixels.iter_mut().for_each(|p| *p = p.clamp(Vec3::ZERO, Vec3::ONE));
+    Ok(Arc::new(image))
+}
+
 /// A texture, checked: colours in [0, 1] as a material's are, sizes and frequencies positive;
 /// an image read, refused if a pixel is NaN or infinite, its values clamped to [0, 1].
 fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, SceneError> {
@@ -125,29 +138,13 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             return Ok(Texture::Checker { a, b, size, origin: ctx.origin });
         }
         TextureKind::Image(i) => {
-            let path = dir.join(&i.file);
-            let mut image =
-                crate::scene::limits::check_input_file(&path)
-                    .and_then(|()| image::read(&path))
-                    .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
-            let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
-            if bad > 0 {
-                return ctx.err(
-                    span,
-                    format!(
-                        "texture `{}`: {bad} of its {} pixels are NaN or infinite",
-                        t.common.name,
-                        image.pixels.len()
-                    ),
-                );
-            }
-            // A colour, as a material's: a value of 100 would multiply the light it reflects.
-            image.pixels.iter_mut().for_each(|p| *p = p.clamp(Vec3::ZERO, Vec3::ONE));
+            let image = colour_image(&dir.join(&i.file))
+                .or_else(|e| ctx.err(span.clone(), format!("texture `{}`: {e}", t.common.name)))?;
             let repeat = i.repeat.map_or(Vec2::ONE, |Exact([u, v])| Vec2::new(u.0 as f32, v.0 as f32));
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");
             }
-            return Ok(Texture::Image { image: Arc::new(image), repeat });
+            return Ok(Texture::Image { image, repeat });
         }
         TextureKind::Perlin(n) => (Pattern::Perlin, n),
         TextureKind::Fbm(n) => (Pattern::Fbm, n),
