@@ -324,3 +324,52 @@ fn obj_materials_are_read_and_unread_keys_are_noted() {
         "{err}"
     );
 }
+
+/// A glTF normal map bends the shading normal in the frame of the texture coordinates: a quad
+/// facing +z, lit by a directional light 40 degrees toward +x, is brightest with its normals
+/// tilted 45 degrees toward +x (its u direction), darker flat, darkest tilted toward -x, the
+/// three in the ratios of their cosines to the light (within the noise of 64 samples).
+#[test]
+fn a_gltf_normal_map_bends_the_shading_normal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let render = |tilt: Option<f32>| -> f32 {
+        let mut doc = GltfDoc::quad();
+        doc.node(json!({"mesh": 0}), true);
+        let (s, c) = 20f64.to_radians().sin_cos();
+        doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+        doc.json["extensions"] =
+            json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 683.0}]}});
+        doc.node(
+            json!({"rotation": [0, s, 0, c], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+            true,
+        );
+        let mut material = json!({"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 1.0}});
+        if let Some(t) = tilt {
+            let m = Vec3::new(t.sin(), 0.0, t.cos());
+            let byte = |x: f32| ((x + 1.0) * 0.5 * 255.0).round() as u8;
+            let mut png = Vec::new();
+            image::RgbImage::from_pixel(2, 2, image::Rgb([byte(m.x), byte(m.y), byte(m.z)]))
+                .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+                .expect("png");
+            material["normalTexture"] = json!({"index": doc.texture(&png)});
+        }
+        doc.json["materials"] = json!([material]);
+        doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+        std::fs::write(dir.path().join("n.glb"), doc.glb()).expect("write");
+        let text = format!(
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 10\n[film]\nwidth = 4\nheight = 4\n\
+             [[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
+            dir.path().join("n.glb").display()
+        );
+        let out = crate::common::render_text(&text, 64);
+        out.film.raw.mean().x
+    };
+    let (toward, flat, away) =
+        (render(Some(45f32.to_radians())), render(None), render(Some(-45f32.to_radians())));
+    let cos = |deg: f32| deg.to_radians().cos();
+    assert!(toward > flat && flat > away, "{toward} {flat} {away}");
+    // The diffuse base dominates a rough dielectric: brightness follows the cosine to within
+    // the specular layer's share (a few percent) and the 8-bit rounding of the map.
+    assert!((flat / toward - cos(40.0) / cos(5.0)).abs() < 0.05, "{}", flat / toward);
+    assert!((away / toward - cos(85.0) / cos(5.0)).abs() < 0.05, "{}", away / toward);
+}

@@ -14,7 +14,7 @@ use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::{Dim, Sampler};
-use super::surface::{surface_with, FaceNormals, Surface};
+use super::surface::{apply_normal_map, surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::scene::{Scene, Shape};
@@ -390,6 +390,12 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
         if let Some((t, height)) = maps.bump {
             ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
+        }
+        if let Some((t, scale)) = maps.normal {
+            let c = scene.textures[t as usize].color(s.p, s.uv) * 2.0 - Vec3::ONE;
+            let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
+            // A normal bent below the surface would reflect from under it: kept above.
+            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         let textured = |constant: Vec3| match maps.color {
             Some(t) => scene.textures[t as usize].color(s.p, s.uv),

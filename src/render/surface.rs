@@ -22,6 +22,10 @@ pub struct Surface {
     pub uv: Vec2,
     /// The largest absolute coordinate `p` was computed from, for [`offset_ray_origin`].
     pub magnitude: f32,
+    /// dp/du and dp/dv of the triangle's texture coordinates, only where the material has a
+    /// normal map (zero elsewhere).
+    pub dpdu: Vec3,
+    pub dpdv: Vec3,
 }
 
 impl Surface {
@@ -72,6 +76,28 @@ impl FaceNormals {
     }
 }
 
+/// dp/du and dp/dv of a triangle with corners `p` and texture coordinates `t`: zero when its
+/// texture coordinates are degenerate.
+pub fn uv_derivatives(p: [Vec3; 3], t: [Vec2; 3]) -> (Vec3, Vec3) {
+    let (d1, d2) = (t[1] - t[0], t[2] - t[0]);
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let det = d1.x * d2.y - d1.y * d2.x;
+    if det.abs() < 1e-20 || !det.is_finite() {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    ((e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det)
+}
+
+/// The shading normal `n` (unit) bent by a tangent-space normal `m` (x along dp/du, y along
+/// dp/dv, z along `n`, as glTF's normal maps are): the frame is dp/du made orthogonal to `n`, and
+/// the bitangent on the side dp/dv is. `n` itself when the derivatives are degenerate.
+pub fn apply_normal_map(n: Vec3, dpdu: Vec3, dpdv: Vec3, m: Vec3) -> Vec3 {
+    let Some(t) = (dpdu - n * n.dot(dpdu)).try_normalize() else { return n };
+    let b = n.cross(t);
+    let b = if b.dot(dpdv) < 0.0 { -b } else { b };
+    (t * m.x + b * m.y + n * m.z).try_normalize().unwrap_or(n)
+}
+
 /// The unit normal of a triangle by its winding, `None` when it is degenerate.
 fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> Option<Vec3> {
     (b - a).cross(c - a).try_normalize()
@@ -115,6 +141,8 @@ fn surface_from(
                 ns: n,
                 uv,
                 magnitude: sphere_magnitude(*center, *radius),
+                dpdu: Vec3::ZERO,
+                dpdv: Vec3::ZERO,
             }
         }
         Geometry::Triangles(mesh) => {
@@ -137,7 +165,14 @@ fn surface_from(
                 Some(uvs) => uvs[ia] * (1.0 - u - v) + uvs[ib] * u + uvs[ic] * v,
                 None => Vec2::new(u, v),
             };
-            Surface { p, ng, ns, uv, magnitude }
+            let shape = &scene.shapes[hit.shape as usize];
+            let (dpdu, dpdv) = match &mesh.uvs {
+                Some(uvs) if scene.maps(shape.material).normal.is_some() => {
+                    uv_derivatives([a, b, c], [uvs[ia], uvs[ib], uvs[ic]])
+                }
+                _ => (Vec3::ZERO, Vec3::ZERO),
+            };
+            Surface { p, ng, ns, uv, magnitude, dpdu, dpdv }
         }
     }
 }

@@ -4,7 +4,7 @@
 //! first camera, and `KHR_lights_punctual` lights. Everything comes out in the glTF's world, in
 //! f64 where it is a point; [`crate::scene::file`] and [`scene`] place it in a scene.
 //!
-//! Not read (yet): normal maps, occlusion, alpha modes, texture transforms, emissive strength,
+//! Not read (yet): occlusion, alpha modes, texture transforms, emissive strength,
 //! skins, morph targets, animations, orthographic cameras, points and lines. Meshes used by
 //! several nodes are copied into each node's place (no instancing yet).
 
@@ -53,6 +53,8 @@ pub struct PbrMaterial {
     pub metallic_roughness_texture: Option<usize>,
     /// Emitted radiance: the factor times the mean of the emissive texture, if any.
     pub emission: Vec3,
+    /// A tangent-space normal map (linear) and its scale.
+    pub normal_texture: Option<(usize, f32)>,
 }
 
 impl PbrMaterial {
@@ -65,6 +67,7 @@ impl PbrMaterial {
         self.metallic == 0.0
             && self.roughness == 1.0
             && self.metallic_roughness_texture.is_none()
+            && self.normal_texture.is_none()
             && (self.base_color_texture.is_none() || self.base_color == Vec3::ONE)
     }
 }
@@ -80,6 +83,7 @@ impl Default for PbrMaterial {
             roughness: 1.0,
             metallic_roughness_texture: None,
             emission: Vec3::ZERO,
+            normal_texture: None,
         }
     }
 }
@@ -200,9 +204,19 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         if !emission.is_finite() || emission.min_element() < 0.0 {
             return Err(format!("material `{name}`: a negative or non-finite emissive factor"));
         }
-        if m.normal_texture().is_some() {
-            notes.push(format!("material `{name}`: its normal map is not read yet"));
-        }
+        let normal_texture = match m.normal_texture() {
+            Some(t) if t.tex_coord() != 0 => {
+                notes.push(format!(
+                    "material `{name}`: its normal map's second texture coordinates are not read"
+                ));
+                None
+            }
+            Some(t) if !t.scale().is_finite() => {
+                return Err(format!("material `{name}`: a normal map scale that is not finite"))
+            }
+            Some(t) => Some((image_of(t.texture(), false)?.0, t.scale())),
+            None => None,
+        };
         materials.push(PbrMaterial {
             name,
             base_color: Vec3::new(r, g, b),
@@ -211,6 +225,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             roughness: pbr.roughness_factor(),
             metallic_roughness_texture,
             emission,
+            normal_texture,
         });
     }
 
@@ -519,6 +534,7 @@ pub fn place(
         let maps = Maps {
             color: m.base_color_texture.map(texture),
             metal_rough: m.metallic_roughness_texture.map(texture),
+            normal: m.normal_texture.map(|(t, scale)| (texture(t), scale)),
             ..Maps::default()
         };
         if maps != Maps::default() {

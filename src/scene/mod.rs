@@ -251,6 +251,9 @@ pub struct Maps {
     /// A metallic-roughness material's texture: roughness in green, metallic in blue,
     /// multiplying its factors.
     pub metal_rough: Option<u32>,
+    /// A tangent-space normal map (linear RGB, +x along the texture's u, +y along its v) and
+    /// the scale of its x and y.
+    pub normal: Option<(u32, f32)>,
 }
 
 impl Scene {

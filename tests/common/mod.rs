@@ -129,6 +129,21 @@ impl GltfDoc {
         accessors.len() - 1
     }
 
+    /// Adds an image (PNG bytes) in the buffer and a texture of it; returns the texture's index.
+    pub fn texture(&mut self, png: &[u8]) -> usize {
+        let view = self.view(png);
+        let images =
+            self.json.as_object_mut().expect("object").entry("images").or_insert(serde_json::json!([]));
+        let images = images.as_array_mut().expect("images");
+        images.push(serde_json::json!({"bufferView": view, "mimeType": "image/png"}));
+        let image = images.len() - 1;
+        let textures =
+            self.json.as_object_mut().expect("object").entry("textures").or_insert(serde_json::json!([]));
+        let textures = textures.as_array_mut().expect("textures");
+        textures.push(serde_json::json!({"source": image}));
+        textures.len() - 1
+    }
+
     /// Adds a node (a JSON object); a root node is listed in the scene. Returns its index.
     pub fn node(&mut self, node: serde_json::Value, root: bool) -> usize {
         let nodes = self.json["nodes"].as_array_mut().expect("nodes");
