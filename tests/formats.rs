@@ -373,3 +373,42 @@ fn a_gltf_normal_map_bends_the_shading_normal() {
     assert!((flat / toward - cos(40.0) / cos(5.0)).abs() < 0.05, "{}", flat / toward);
     assert!((away / toward - cos(85.0) / cos(5.0)).abs() < 0.05, "{}", away / toward);
 }
+
+/// An OBJ's `map_Bump` height image bends the shading normal: a floor whose height rises along
+/// +x (a linear ramp image, read as data without the sRGB curve, `-bm` scaling it) faces a little toward -x, so a sun low in the -x sky
+/// lights it more, and one low in the +x sky less, than it lights the flat floor.
+#[test]
+fn an_obj_bump_map_tilts_the_floor_toward_its_slope() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let ramp = image::GrayImage::from_fn(64, 4, |x, _| image::Luma([(x * 4) as u8]));
+    ramp.save(d.join("ramp.png")).expect("png");
+    std::fs::write(
+        d.join("m.obj"),
+        "mtllib m.mtl\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nv -1 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3 4/4\n",
+    )
+    .expect("write");
+    let render = |bump: bool, sun_x: f32| -> f32 {
+        let mtl = if bump {
+            "newmtl m\nKd 0.5 0.5 0.5\nmap_Bump -bm 0.3 ramp.png\n"
+        } else {
+            "newmtl m\nKd 0.5 0.5 0.5\n"
+        };
+        std::fs::write(d.join("m.mtl"), mtl).expect("write");
+        let text = format!(
+            "[camera]\nposition = [0, 3, 0.001]\nlook_at = [0, 0, 0]\nfov = 20\n[film]\nwidth = 8\nheight = 8\n\
+             [[shape]]\ntype = \"mesh\"\nfile = \"{}\"\n[[light]]\ntype = \"sun\"\ndirection = [{sun_x}, 1, 0]\nirradiance = [1, 1, 1]\n",
+            d.join("m.obj").display()
+        );
+        crate::common::render_text(&text, 16).film.raw.mean().x
+    };
+    let (flat_west, flat_east) = (render(false, -1.0), render(false, 1.0));
+    assert!((flat_west - flat_east).abs() < 1e-3 * flat_west, "{flat_west} {flat_east}");
+    let (west, east) = (render(true, -1.0), render(true, 1.0));
+    // The slope is 0.3 (height) over 2 (the floor's width in u): the normal tilts by
+    // atan(0.15) = 8.5 degrees toward -x; a sun at 45 degrees then gives cos(36.5) against
+    // cos(53.5), ratios of 1.14 and 0.84 to the flat floor's cos(45).
+    let cos = |deg: f32| deg.to_radians().cos();
+    assert!((west / flat_west - cos(45.0 - 8.53) / cos(45.0)).abs() < 0.03, "{}", west / flat_west);
+    assert!((east / flat_east - cos(45.0 + 8.53) / cos(45.0)).abs() < 0.03, "{}", east / flat_east);
+}

@@ -8,13 +8,13 @@
 //!
 //! [`Features`]: super::features::Features
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::sampler::{Dim, Sampler};
-use super::surface::{apply_normal_map, surface_with, FaceNormals, Surface};
+use super::surface::{apply_height, apply_normal_map, surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::scene::{Scene, Shape};
@@ -390,6 +390,16 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
         if let Some((t, height)) = maps.bump {
             ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
+        }
+        if let Some((t, scale)) = maps.height {
+            // Central differences of the height, half a texel (at most 1/1024) either side: the
+            // bilinear lookup is linear within a texel, so this is the local slope.
+            let texture = &scene.textures[t as usize];
+            let d = texture.texel().min(1.0 / 1024.0);
+            let h = |du: f32, dv: f32| scale * texture.scalar(s.p, s.uv + Vec2::new(du, dv));
+            let (dhdu, dhdv) = ((h(d, 0.0) - h(-d, 0.0)) / (2.0 * d), (h(0.0, d) - h(0.0, -d)) / (2.0 * d));
+            let bent = apply_height(ns, s.dpdu, s.dpdv, dhdu, dhdv);
+            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         if let Some((t, scale)) = maps.normal {
             let c = scene.textures[t as usize].color(s.p, s.uv) * 2.0 - Vec3::ONE;

@@ -98,6 +98,19 @@ pub fn apply_normal_map(n: Vec3, dpdu: Vec3, dpdv: Vec3, m: Vec3) -> Vec3 {
     (t * m.x + b * m.y + n * m.z).try_normalize().unwrap_or(n)
 }
 
+/// The shading normal `n` (unit) of a surface displaced along it by the height field `h` of the
+/// texture coordinates: the normal of dp/du + n dh/du and dp/dv + n dh/dv (pbrt's bump mapping,
+/// the normal's own change left out), turned to `n`'s side. `n` itself when the derivatives are
+/// degenerate.
+pub fn apply_height(n: Vec3, dpdu: Vec3, dpdv: Vec3, dhdu: f32, dhdv: f32) -> Vec3 {
+    let bent = (dpdu + n * dhdu).cross(dpdv + n * dhdv);
+    match bent.try_normalize() {
+        Some(b) if dpdu.cross(dpdv).dot(n) >= 0.0 => b,
+        Some(b) => -b,
+        None => n,
+    }
+}
+
 /// The unit normal of a triangle by its winding, `None` when it is degenerate.
 fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> Option<Vec3> {
     (b - a).cross(c - a).try_normalize()
@@ -167,7 +180,12 @@ fn surface_from(
             };
             let shape = &scene.shapes[hit.shape as usize];
             let (dpdu, dpdv) = match &mesh.uvs {
-                Some(uvs) if scene.maps(shape.material).normal.is_some() => {
+                Some(uvs)
+                    if {
+                        let maps = scene.maps(shape.material);
+                        maps.normal.is_some() || maps.height.is_some()
+                    } =>
+                {
                     uv_derivatives([a, b, c], [uvs[ia], uvs[ib], uvs[ic]])
                 }
                 _ => (Vec3::ZERO, Vec3::ZERO),

@@ -128,7 +128,9 @@ impl Analysis {
             }
             let maps = scene.maps(m as u32);
             a.color_textures += maps.color.is_some() as usize + maps.metal_rough.is_some() as usize;
-            a.bump_maps += maps.bump.is_some() as usize + maps.normal.is_some() as usize;
+            a.bump_maps += maps.bump.is_some() as usize
+                + maps.normal.is_some() as usize
+                + maps.height.is_some() as usize;
         }
         for light in &scene.lights {
             let bright = |v: glam::Vec3| v.max_element() > 0.0;

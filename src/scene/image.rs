@@ -132,6 +132,16 @@ fn read_pfm(path: &Path) -> Result<Image, String> {
 /// Reads an image as linear RGB: the `R`, `G`, `B` channels of an EXR, a Radiance HDR or a
 /// portable float map as it is, any other file (PNG) decoded from 8-bit sRGB.
 pub fn read(path: &Path) -> Result<Image, String> {
+    read_with(path, true)
+}
+
+/// Reads an image as data rather than colour: as [`read`] does, but 8-bit files (PNG) as their
+/// values over 255, without the sRGB curve (a height map).
+pub fn read_linear(path: &Path) -> Result<Image, String> {
+    read_with(path, false)
+}
+
+fn read_with(path: &Path, srgb: bool) -> Result<Image, String> {
     // A decoder says of an empty file only that it ended early.
     if std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0) {
         return Err(format!("{}: the file is empty (0 bytes)", path.display()));
@@ -161,7 +171,7 @@ pub fn read(path: &Path) -> Result<Image, String> {
         }
         _ => {
             let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb8();
-            let decode = |c: u8| srgb_to_linear(c as f32 / 255.0);
+            let decode = |c: u8| if srgb { srgb_to_linear(c as f32 / 255.0) } else { c as f32 / 255.0 };
             Ok(Image {
                 width: img.width(),
                 height: img.height(),

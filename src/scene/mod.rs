@@ -254,6 +254,9 @@ pub struct Maps {
     /// A tangent-space normal map (linear RGB, +x along the texture's u, +y along its v) and
     /// the scale of its x and y.
     pub normal: Option<(u32, f32)>,
+    /// An image read as a height field over the texture coordinates (its luminance, times the
+    /// scale, in scene units): an OBJ's `map_Bump`.
+    pub height: Option<(u32, f32)>,
 }
 
 impl Scene {

@@ -24,6 +24,29 @@ pub struct ObjMaterial {
     pub dielectric: Option<f32>,
     /// `Tf`, the transmission filter of a dielectric (white without).
     pub transmission: Vec3,
+    /// `map_Bump` or `bump`: a height image (its luminance) and its `-bm` multiplier, the
+    /// height in scene units of a white texel.
+    pub bump: Option<(PathBuf, f32)>,
+}
+
+/// The file and `-bm` multiplier of a `map_Bump` line's arguments (other options are skipped
+/// with their values; the file is the last word).
+fn bump_option(args: &str) -> Result<(String, f32), String> {
+    let words: Vec<&str> = args.split_whitespace().collect();
+    let Some((file, options)) = words.split_last() else { return Err("`map_Bump` names no file".into()) };
+    let mut multiplier = 1.0;
+    let mut k = 0;
+    while k < options.len() {
+        if options[k] == "-bm" {
+            multiplier = options
+                .get(k + 1)
+                .and_then(|v| v.parse::<f32>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or("`map_Bump -bm` takes a finite number")?;
+        }
+        k += 1;
+    }
+    Ok((file.to_string(), multiplier))
 }
 
 /// The roughness of a Phong exponent `Ns`: the Beckmann width that matches a Phong lobe of
@@ -65,7 +88,10 @@ pub struct Obj {
 }
 
 /// The `.mtl` keys lightsplit reads.
-const READ_KEYS: &[&str] = &["newmtl", "Kd", "Ke", "Ks", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd"];
+const READ_KEYS: &[&str] = &[
+    "newmtl", "Kd", "Ke", "Ks", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd", "map_Bump", "map_bump",
+    "bump",
+];
 
 /// One note for each key of a material library that is not read: its first line and how many
 /// lines have it.
@@ -86,12 +112,7 @@ fn unread_keys(library: &Path) -> Vec<String> {
     seen.into_iter()
         .map(|(key, line, count)| {
             let more = if count > 1 { format!(" (on {count} lines)") } else { String::new() };
-            let why = if matches!(key.as_str(), "map_Bump" | "map_bump" | "bump") {
-                ": bump maps from images are not read yet"
-            } else {
-                ""
-            };
-            format!("{}:{line}: `{key}` is not read{more}{why}", library.display())
+            format!("{}:{line}: `{key}` is not read{more}", library.display())
         })
         .collect()
 }
@@ -133,6 +154,16 @@ pub fn load(path: &Path) -> Result<Obj, String> {
     })?;
     let libraries = libraries.into_inner();
     let three = |v: Option<[f64; 3]>| v.map(|v| Vec3::from_array(v.map(|x| x as f32)));
+    // A file a library names, relative to that library: the first library's directory where
+    // it is found, else the first's (so that a missing file is named there).
+    let locate = |t: &str| -> PathBuf {
+        let t = t.replace('\\', "/");
+        let dirs: Vec<&Path> = libraries.iter().filter_map(|l| l.parent()).collect();
+        dirs.iter()
+            .map(|d| d.join(&t))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| dirs.first().unwrap_or(&dir.as_path()).join(&t))
+    };
     let mut read = Vec::new();
     for m in &materials {
         let bad = |what: &str| format!("{}: material `{}`: {what}", path.display(), m.name);
@@ -169,16 +200,12 @@ pub fn load(path: &Path) -> Result<Obj, String> {
             emission: three(m.emissive).unwrap_or(Vec3::ZERO),
             specular: three(m.specular).unwrap_or(Vec3::ZERO),
             roughness: roughness_of_exponent(m.shininess.unwrap_or(0.0) as f32),
-            texture: m.diffuse_texture.as_ref().map(|t| {
-                // Relative to the library that names it: the first library's directory where
-                // it is found, else the first's (so that a missing file is named there).
-                let t = t.replace('\\', "/");
-                let dirs: Vec<&Path> = libraries.iter().filter_map(|l| l.parent()).collect();
-                dirs.iter()
-                    .map(|d| d.join(&t))
-                    .find(|p| p.is_file())
-                    .unwrap_or_else(|| dirs.first().unwrap_or(&dir.as_path()).join(&t))
-            }),
+            texture: m.diffuse_texture.as_ref().map(|t| locate(t)),
+            bump: match m.normal_texture.as_deref().map(bump_option) {
+                Some(Ok((file, multiplier))) => Some((locate(&file), multiplier)),
+                Some(Err(e)) => return Err(bad(&e)),
+                None => None,
+            },
             dielectric: is_dielectric(m.illumination_model, dissolve, ior)
                 .then(|| ior.filter(|&n| n > 1.0).unwrap_or(1.5)),
             transmission: tf,
@@ -322,8 +349,9 @@ mod tests {
     }
 
     /// The `.mtl` keys beyond Kd and Ke: Ks and Ns a glossy lobe, map_Kd a texture beside the
-    /// library, d/Tr with Ni or a refracting illum a dielectric, Tf its tint; every other key
-    /// one note naming its first line and how many lines have it.
+    /// library, d/Tr with Ni or a refracting illum a dielectric, Tf its tint, map_Bump a height
+    /// image with its -bm multiplier; every other key one note naming its first line and how
+    /// many lines have it.
     #[test]
     fn mtl_materials_and_notes_on_what_is_not_read() {
         let dir = tempfile::tempdir().expect("tempdir");
@@ -333,7 +361,7 @@ mod tests {
             "m.mtl",
             "# materials\nnewmtl shiny\nKa 0.1 0.1 0.1\nKd 0.5 0.4 0.3\nKs 0.2 0.2 0.2\nNs 100\nmap_Kd wood.png\n\
              newmtl glass\nKa 0 0 0\nd 0.2\nNi 1.33\nTf 0.9 1 0.9\nnewmtl cutout\nTr 0.5\nillum 2\n\
-             newmtl window\nillum 7\nmap_Bump b.png\n",
+             newmtl window\nillum 7\nmap_Bump -bm 0.5 b.png\n",
         );
         let text = "mtllib lib/m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\n";
         let faces =
@@ -351,16 +379,8 @@ mod tests {
         );
         assert_eq!(m[1].transmission, Vec3::new(0.9, 1.0, 0.9));
         let lib = dir.path().join("lib").join("m.mtl");
-        assert_eq!(
-            loaded.notes,
-            [
-                format!("{}:3: `Ka` is not read (on 2 lines)", lib.display()),
-                format!(
-                    "{}:18: `map_Bump` is not read: bump maps from images are not read yet",
-                    lib.display()
-                ),
-            ]
-        );
+        assert_eq!(loaded.notes, [format!("{}:3: `Ka` is not read (on 2 lines)", lib.display())]);
+        assert_eq!(m[3].bump, Some((dir.path().join("lib").join("b.png"), 0.5)));
         assert_eq!(roughness_of_exponent(0.0), 1.0);
         assert!(roughness_of_exponent(1e6) < 0.05);
     }

@@ -71,6 +71,16 @@ fn turbulence(seed: u32, p: Vec3, octaves: u32) -> f32 {
 
 impl Texture {
     /// The scalar in [0, 1] of a pattern texture at `p`, or the luminance of a colour.
+    /// Half the size of a texel in texture coordinates (an image's; 1 for anything else).
+    pub fn texel(&self) -> f32 {
+        match self {
+            Texture::Image { image, repeat } => {
+                0.5 / (image.width.max(image.height) as f32 * repeat.max_element().max(1e-6)).max(1.0)
+            }
+            _ => 1.0,
+        }
+    }
+
     pub fn scalar(&self, p: Vec3, uv: Vec2) -> f32 {
         match self {
             Texture::Checker { size, origin, .. } => {

@@ -304,7 +304,7 @@ pub(super) fn add(
             out.notes.extend(notes);
             // Each OBJ object is a shape of its own (and an object of its own, unless the scene
             // file names one), with its .mtl material unless the scene file gives one.
-            let mut images: HashMap<std::path::PathBuf, u32> = HashMap::new();
+            let mut images: HashMap<(std::path::PathBuf, bool), u32> = HashMap::new();
             for part in parts {
                 let part_material = match (material, &part.material) {
                     (Some(id), _) => id,
@@ -319,27 +319,35 @@ pub(super) fn add(
                             None => Material::Diffuse { albedo: m.diffuse },
                         });
                         let id = (materials.len() - 1) as u32;
-                        if let (Some(t), None) = (&m.texture, m.dielectric) {
-                            let texture = match images.get(t) {
-                                Some(&k) => k,
-                                None => {
-                                    let image = super::texture::colour_image(t).map_err(|e| {
-                                        SceneError::new(ctx.path, line, format!("mesh `{file}`: map_Kd: {e}"))
-                                    })?;
-                                    out.textures.push(crate::scene::texture::Texture::Image {
-                                        image,
-                                        repeat: Vec2::ONE,
-                                    });
-                                    out.libraries.push(t.clone());
-                                    let k = out.textures_before + out.textures.len() as u32 - 1;
-                                    images.insert(t.clone(), k);
-                                    k
+                        let mut image_texture =
+                            |t: &std::path::PathBuf, key: &str, linear: bool| -> Result<u32, SceneError> {
+                                if let Some(&k) = images.get(&(t.clone(), linear)) {
+                                    return Ok(k);
                                 }
+                                let read = if linear {
+                                    super::texture::data_image
+                                } else {
+                                    super::texture::colour_image
+                                };
+                                let image = read(t).map_err(|e| {
+                                    SceneError::new(ctx.path, line, format!("mesh `{file}`: {key}: {e}"))
+                                })?;
+                                out.textures
+                                    .push(crate::scene::texture::Texture::Image { image, repeat: Vec2::ONE });
+                                out.libraries.push(t.clone());
+                                let k = out.textures_before + out.textures.len() as u32 - 1;
+                                images.insert((t.clone(), linear), k);
+                                Ok(k)
                             };
-                            out.maps.push((
-                                id,
-                                crate::scene::Maps { color: Some(texture), ..Default::default() },
-                            ));
+                        let mut maps = crate::scene::Maps::default();
+                        if let (Some(t), None) = (&m.texture, m.dielectric) {
+                            maps.color = Some(image_texture(t, "map_Kd", false)?);
+                        }
+                        if let Some((t, scale)) = &m.bump {
+                            maps.height = Some((image_texture(t, "map_Bump", true)?, *scale));
+                        }
+                        if maps != crate::scene::Maps::default() {
+                            out.maps.push((id, maps));
                         }
                         id
                     }

@@ -105,7 +105,20 @@ pub(super) fn textures(
 /// or infinite (with the count), its values clamped to [0, 1] as a material's colour (a value of
 /// 100 would multiply the light it reflects).
 pub(super) fn colour_image(path: &Path) -> Result<Arc<crate::scene::image::Image>, String> {
-    let mut image = crate::scene::limits::check_input_file(path).and_then(|()| image::read(path))?;
+    checked_image(path, image::read)
+}
+
+/// An image read as data (8-bit values without the sRGB curve: a height map), checked and
+/// clamped as [`colour_image`] does.
+pub(super) fn data_image(path: &Path) -> Result<Arc<crate::scene::image::Image>, String> {
+    checked_image(path, image::read_linear)
+}
+
+fn checked_image(
+    path: &Path,
+    read: fn(&Path) -> Result<crate::scene::image::Image, String>,
+) -> Result<Arc<crate::scene::image::Image>, String> {
+    let mut image = crate::scene::limits::check_input_file(path).and_then(|()| read(path))?;
     let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
     if bad > 0 {
         return Err(format!("{bad} of its {} pixels are NaN or infinite", image.pixels.len()));
@@ -186,7 +199,7 @@ mod tests {
         assert!(matches!(s.textures[0], Texture::Noise { pattern: Pattern::Marble, frequency: 2.0, .. }));
         assert_eq!(
             s.maps(0),
-            Maps { color: Some(0), bump: Some((0, 0.02)), metal_rough: None, normal: None }
+            Maps { color: Some(0), bump: Some((0, 0.02)), metal_rough: None, normal: None, height: None }
         );
         assert_eq!(s.maps(7), Maps::default());
         let image = "[[texture]]\nname = \"i\"\ntype = \"image\"\nfile = \"nowhere.png\"\n";
