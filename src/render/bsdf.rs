@@ -356,18 +356,23 @@ impl Pbr {
         }
     }
 
+    /// The GGX lobe's directional albedo seen from `wo` (local).
+    fn specular_albedo(&self, wo: Vec3) -> Vec3 {
+        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
+        self.lobes.specular * a + Vec3::splat(b)
+    }
+
     /// The base's weight seen from `wo` (local): 1 - the GGX lobe's directional albedo.
     fn through(&self, wo: Vec3) -> Vec3 {
-        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
-        (Vec3::ONE - (self.lobes.specular * a + Vec3::splat(b))).max(Vec3::ZERO)
+        (Vec3::ONE - self.specular_albedo(wo)).max(Vec3::ZERO)
     }
 
     /// The probability of sampling the GGX lobe from `wo` (local): in proportion to what each
     /// reflects.
     fn specular_probability(&self, wo: Vec3) -> f32 {
-        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
-        let spec = luminance(self.lobes.specular * a + Vec3::splat(b));
-        let base = luminance(self.base * self.through(wo));
+        let e = self.specular_albedo(wo);
+        let spec = luminance(e);
+        let base = luminance(self.base * (Vec3::ONE - e).max(Vec3::ZERO));
         if base <= 0.0 {
             1.0
         } else if spec <= 0.0 {

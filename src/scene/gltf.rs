@@ -141,7 +141,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         if uri.starts_with("data:") {
             return Ok(());
         }
-        let decoded = urlencoding_decode(uri);
+        let decoded = String::from_utf8_lossy(&urlencoding::decode_binary(uri.as_bytes())).into_owned();
         let file = base.join(&decoded);
         crate::scene::limits::check_input_file(&file).map_err(|e| format!("{what}: {e}"))?;
         files.push(file);
@@ -452,26 +452,6 @@ fn decode(data: &gltf::image::Data, srgb: bool) -> Result<Image, String> {
     Ok(Image { width: data.width, height: data.height, pixels })
 }
 
-/// Decodes a URI's `%XX` escapes (glTF URIs are percent-encoded).
-fn urlencoding_decode(uri: &str) -> String {
-    let b = uri.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        let hex = |c: u8| (c as char).to_digit(16);
-        if b[i] == b'%' && i + 2 < b.len() {
-            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
-                out.push((h * 16 + l) as u8);
-                i += 3;
-                continue;
-            }
-        }
-        out.push(b[i]);
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
 /// Where a glTF's world goes in a scene: a linear map and a translation (in the scene file's
 /// world), and the scene's origin, subtracted before rounding to f32.
 #[derive(Clone, Copy, Debug)]
@@ -628,15 +608,14 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
         .filter(|a| a.is_finite() && *a > 0.0)
         .map_or(WIDTH * 3 / 4, |a| ((WIDTH as f32 / a).round() as u32).clamp(1, 8 * WIDTH));
     let at = Placement { linear: DMat3::IDENTITY, translate: DVec3::ZERO, origin };
+    // Object IDs by name (a HashMap: a file may have thousands of nodes).
     let mut objects: Vec<String> = Vec::new();
+    let mut ids: HashMap<String, u32> = HashMap::new();
     let mut object = |n: &str| -> u32 {
-        match objects.iter().position(|o| o == n) {
-            Some(i) => i as u32,
-            None => {
-                objects.push(n.to_string());
-                (objects.len() - 1) as u32
-            }
-        }
+        *ids.entry(n.to_string()).or_insert_with(|| {
+            objects.push(n.to_string());
+            (objects.len() - 1) as u32
+        })
     };
     let stem = path.file_stem().map_or_else(|| "gltf".into(), |s| s.to_string_lossy().into_owned());
     let placed = place(&g, &stem, &at, 0, 0, crate::render::bsdf::DIFFUSE_ROUGHNESS, &mut object);

@@ -399,16 +399,7 @@ pub(super) fn add(
             };
             let first_texture = out.textures_before + out.textures.len() as u32;
             let first_material = materials.len() as u32;
-            let mut objects = std::mem::take(&mut out.objects);
-            let mut ids = std::mem::take(&mut out.object_ids);
-            let fixed = c.object.clone();
-            let mut object = |n: &str| -> u32 {
-                let n = fixed.clone().unwrap_or_else(|| n.to_string());
-                *ids.entry(n.clone()).or_insert_with(|| {
-                    objects.push(n);
-                    (objects.len() - 1) as u32
-                })
-            };
+            let mut object = |n: &str| out.object(c.object.as_deref().unwrap_or(n));
             let placed = gltf::place(
                 &g,
                 &name,
@@ -418,8 +409,6 @@ pub(super) fn add(
                 ctx.diffuse_roughness,
                 &mut object,
             );
-            out.objects = objects;
-            out.object_ids = ids;
             materials.extend(placed.materials);
             out.textures.extend(placed.textures);
             out.maps.extend(placed.maps);
