@@ -595,6 +595,7 @@ fn add_mesh(scene: &mut Scene, name: &str, triangles: &[[Vec3; 3]], emission: Ve
             indices: indices.into(),
             normals: None,
             uvs: None,
+            instance: None,
         }),
         material,
         emission,

@@ -62,13 +62,19 @@ use glam::{DVec3, Vec3};
 use lightsplit::scene::{self, Geometry, Light};
 use serde_json::json;
 
-/// The vertices of shape `name` of a scene, and its first triangle's normal by winding.
-fn placed(s: &scene::Scene, name: &str) -> (Vec<Vec3>, Vec3, Vec3) {
+/// The first vertex of shape `name` of a scene as placed, its first triangle's normal by
+/// winding, the first vertex's shading normal as placed, and whether the shape is an instance.
+fn placed(s: &scene::Scene, name: &str) -> (Vec3, Vec3, Vec3, bool) {
     let shape = s.shapes.iter().find(|x| x.name == name).unwrap_or_else(|| panic!("no shape {name}"));
     let Geometry::Triangles(m) = &shape.geometry else { panic!("a mesh") };
+    assert_eq!(m.indices[0][0], 0, "triangle 0 starts at vertex 0");
     let [a, b, c] = m.triangle(0);
     let normals = m.normals.as_ref().expect("normals");
-    (m.positions.iter().map(|&p| p.into()).collect(), (b - a).cross(c - a).normalize(), normals[0])
+    let normal = match &m.instance {
+        Some(i) => (i.normals * normals[0]).normalize(),
+        None => normals[0],
+    };
+    (a, (b - a).cross(c - a).normalize(), normal, m.instance.is_some())
 }
 
 /// The node hierarchy: transforms compose from the root down, a mesh used by two nodes appears
@@ -96,10 +102,13 @@ fn a_gltf_node_hierarchy_places_every_use_of_a_mesh() {
     // Corner (-0.5, -0.5, 0) under A: up 1, scaled 2, turned 90 degrees about y ((x, y, z) to
     // (z, y, -x)), moved 10 along x: (10, 1, 1); less the origin. Under B: mirrored in x, then
     // the same: (10, -1, -1).
-    let (a, a_winding, a_normal) = placed(&s, "m/A/quad/0");
-    assert!((a[0] - Vec3::new(10.0, 1.0, -4.0)).length() < 1e-5, "{}", a[0]);
-    let (b, b_winding, b_normal) = placed(&s, "m/B/quad/0");
-    assert!((b[0] - Vec3::new(10.0, -1.0, -6.0)).length() < 1e-5, "{}", b[0]);
+    // A places the shared mesh as an instance; B mirrors, so it gets its own copy with the
+    // winding turned.
+    let (a, a_winding, a_normal, a_instance) = placed(&s, "m/A/quad/0");
+    assert!((a - Vec3::new(10.0, 1.0, -4.0)).length() < 1e-5, "{a}");
+    let (b, b_winding, b_normal, b_instance) = placed(&s, "m/B/quad/0");
+    assert!((b - Vec3::new(10.0, -1.0, -6.0)).length() < 1e-5, "{b}");
+    assert!(a_instance && !b_instance, "A is an instance ({a_instance}), mirrored B a copy ({b_instance})");
     for (winding, normal) in [(a_winding, a_normal), (b_winding, b_normal)] {
         assert!((normal - Vec3::X).length() < 1e-5, "the quad's +z turns to +x: {normal}");
         assert!(winding.dot(normal) > 0.999, "winding {winding} agrees with the normal {normal}");

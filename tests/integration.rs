@@ -15,6 +15,7 @@ mod determinism;
 mod features;
 mod formats;
 mod hardening;
+mod instancing;
 mod nonfinite;
 mod properties;
 mod stress;

@@ -336,9 +336,13 @@ proptest! {
         let path = dir.path().join("m.glb");
         std::fs::write(&path, &bytes).expect("write");
         if let Ok(g) = lightsplit::scene::gltf::load(&path) {
+            for p in &g.primitives {
+                prop_assert!(p.positions.iter().all(|p| p.is_finite()));
+                prop_assert!(p.indices.iter().flatten().all(|&i| (i as usize) < p.positions.len()));
+            }
             for part in &g.parts {
-                prop_assert!(part.positions.iter().all(|p| p.is_finite()));
-                prop_assert!(part.indices.iter().flatten().all(|&i| (i as usize) < part.positions.len()));
+                prop_assert!(part.primitive < g.primitives.len());
+                prop_assert!(part.positions(&g).all(|p| p.is_finite()));
             }
         }
     }

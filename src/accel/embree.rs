@@ -147,7 +147,8 @@ impl Device {
         if raw.is_null() {
             return Err(EmbreeError::Device("rtcNewScene returned null".into()));
         }
-        let scene = SceneBuilder { raw, device: self.inner.clone(), meshes: Vec::new() };
+        let scene =
+            SceneBuilder { raw, device: self.inner.clone(), meshes: Vec::new(), prototypes: Vec::new() };
         // SAFETY: `raw` is a live scene; these are plain setters.
         unsafe {
             let flags = if settings.robust { sys::RTC_SCENE_FLAG_ROBUST } else { sys::RTC_SCENE_FLAG_NONE };
@@ -217,6 +218,7 @@ pub struct SceneBuilder {
     raw: sys::RTCScene,
     device: Arc<DeviceInner>,
     meshes: Vec<SharedMesh>,
+    prototypes: Vec<Arc<CommittedScene>>,
 }
 
 impl Drop for SceneBuilder {
@@ -318,6 +320,44 @@ impl SceneBuilder {
         self.attach(geometry, id)
     }
 
+    /// Adds an instance of `prototype` (a committed scene of the same device) with geometry ID
+    /// `id`, placed by `to_world`. Its hits report `id` as their shape (the instance's ID, not
+    /// the geometry's within the prototype) and the prototype's primitive index.
+    pub fn add_instance(
+        &mut self,
+        id: u32,
+        prototype: &Arc<CommittedScene>,
+        to_world: glam::Affine3A,
+    ) -> Result<(), EmbreeError> {
+        if !Arc::ptr_eq(&prototype._device, &self.device) {
+            return Err(EmbreeError::Device("an instance of a scene of another device".into()));
+        }
+        let geometry = self.new_geometry(sys::RTC_GEOMETRY_TYPE_INSTANCE)?;
+        // Column-major 3x4: the linear part's columns, then the translation.
+        let m = to_world.matrix3;
+        let t = to_world.translation;
+        let columns: [f32; 12] = [
+            m.x_axis.x, m.x_axis.y, m.x_axis.z, m.y_axis.x, m.y_axis.y, m.y_axis.z, m.z_axis.x, m.z_axis.y,
+            m.z_axis.z, t.x, t.y, t.z,
+        ];
+        // SAFETY: `geometry` is a live instance geometry; the prototype is a committed scene of
+        // this device, kept alive by `self.prototypes` (and the committed scene after) for as
+        // long as this scene lives; Embree copies the 12 floats of the transform, which are
+        // read from a live local array in the format named.
+        unsafe {
+            sys::rtcSetGeometryInstancedScene(geometry, prototype.raw);
+            sys::rtcSetGeometryTimeStepCount(geometry, 1);
+            sys::rtcSetGeometryTransform(
+                geometry,
+                0,
+                sys::RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                columns.as_ptr() as *const c_void,
+            );
+        }
+        self.prototypes.push(prototype.clone());
+        self.attach(geometry, id)
+    }
+
     /// Builds the BVH and returns the scene, now immutable and shareable across threads.
     pub fn commit(mut self) -> Result<CommittedScene, EmbreeError> {
         // SAFETY: `raw` is a live scene with all geometry attached.
@@ -333,6 +373,7 @@ impl SceneBuilder {
             packets: native8 != 0,
             _device: self.device.clone(),
             _meshes: std::mem::take(&mut self.meshes),
+            _prototypes: std::mem::take(&mut self.prototypes),
         })
     }
 }
@@ -345,6 +386,8 @@ pub struct CommittedScene {
     packets: bool,
     _device: Arc<DeviceInner>,
     _meshes: Vec<SharedMesh>,
+    /// The scenes this one instances.
+    _prototypes: Vec<Arc<CommittedScene>>,
 }
 
 // SAFETY: a committed Embree scene is never modified again (no method takes &mut or rebuilds it),
@@ -357,6 +400,17 @@ impl Drop for CommittedScene {
     fn drop(&mut self) {
         // SAFETY: `raw` is the scene handed over by commit, released exactly once here.
         unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+/// The shape of a hit: the instance's geometry ID when the hit is inside one, else the
+/// geometry's.
+#[inline(always)]
+fn shape_of(instance: u32, geometry: u32) -> u32 {
+    if instance != INVALID_ID {
+        instance
+    } else {
+        geometry
     }
 }
 
@@ -417,7 +471,7 @@ impl CommittedScene {
             for (j, hit) in hits.iter_mut().enumerate() {
                 *hit = (h.geomID[j] != INVALID_ID).then_some(Hit {
                     t: packet.ray.tfar[j],
-                    shape: h.geomID[j],
+                    shape: shape_of(h.instID[0][j], h.geomID[j]),
                     prim: h.primID[j],
                     u: h.u[j],
                     v: h.v[j],
@@ -439,7 +493,7 @@ impl CommittedScene {
         intersect1(self.raw, &mut rayhit, coherence);
         (rayhit.hit.geomID != INVALID_ID).then_some(Hit {
             t: rayhit.ray.tfar,
-            shape: rayhit.hit.geomID,
+            shape: shape_of(rayhit.hit.instID[0], rayhit.hit.geomID),
             prim: rayhit.hit.primID,
             u: rayhit.hit.u,
             v: rayhit.hit.v,

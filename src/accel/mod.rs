@@ -127,14 +127,30 @@ pub fn build_embree_with(
     let config = device_config(threads);
     let device = embree::Device::with_config(&config)?;
     let mut builder = device.scene_with(settings)?;
+    // One scene per shared mesh, instanced by every shape that places it.
+    let mut prototypes: std::collections::HashMap<(usize, usize), std::sync::Arc<embree::CommittedScene>> =
+        std::collections::HashMap::new();
     for (id, shape) in scene.shapes.iter().enumerate() {
         match &shape.geometry {
             Geometry::Sphere { center, radius } => {
                 builder.add_spheres(id as u32, &[center.extend(*radius)])?;
             }
-            Geometry::Triangles(mesh) => {
-                builder.add_triangles(id as u32, mesh.positions.clone(), mesh.indices.clone())?;
-            }
+            Geometry::Triangles(mesh) => match &mesh.instance {
+                None => builder.add_triangles(id as u32, mesh.positions.clone(), mesh.indices.clone())?,
+                Some(instance) => {
+                    let prototype = match prototypes.get(&mesh.arrays()) {
+                        Some(p) => p.clone(),
+                        None => {
+                            let mut one = device.scene_with(settings)?;
+                            one.add_triangles(0, mesh.positions.clone(), mesh.indices.clone())?;
+                            let p = std::sync::Arc::new(one.commit()?);
+                            prototypes.insert(mesh.arrays(), p.clone());
+                            p
+                        }
+                    };
+                    builder.add_instance(id as u32, &prototype, instance.to_world)?;
+                }
+            },
         }
     }
     builder.commit()

@@ -54,7 +54,11 @@ impl FaceNormals {
             .shapes
             .iter()
             .map(|shape| match &shape.geometry {
-                Geometry::Triangles(mesh) if mesh.indices.len() <= Self::MAX_TRIANGLES => {
+                // An instance's triangles are shared with other shapes: a table per shape would
+                // copy what instancing saves.
+                Geometry::Triangles(mesh)
+                    if mesh.indices.len() <= Self::MAX_TRIANGLES && mesh.instance.is_none() =>
+                {
                     (0..mesh.indices.len() as u32)
                         .into_par_iter()
                         .map(|prim| {
@@ -165,12 +169,19 @@ fn surface_from(
             // which the ray-origin offset relies on.
             let p = a * (1.0 - u - v) + b * u + c * v;
             let (ng, magnitude) = face(a, b, c, hit.prim);
+            let magnitude = match &mesh.instance {
+                None => magnitude,
+                Some(i) => magnitude.max(i.magnitude(mesh.local_triangle(hit.prim))),
+            };
             let ng = ng.unwrap_or_else(fallback);
             let [ia, ib, ic] = mesh.indices[hit.prim as usize].map(|i| i as usize);
             let ns = match &mesh.normals {
                 Some(normals) => {
                     let n = normals[ia] * (1.0 - u - v) + normals[ib] * u + normals[ic] * v;
-                    n.normalize_or(ng)
+                    match &mesh.instance {
+                        None => n.normalize_or(ng),
+                        Some(i) => (i.normals * n).normalize_or(ng),
+                    }
                 }
                 None => ng,
             };

@@ -69,7 +69,13 @@ pub struct Analysis {
     pub color_textures: usize,
     /// Materials (used by shapes) that read a bump map.
     pub bump_maps: usize,
+    /// Triangles in the scene, each instance's counted.
     pub triangles: usize,
+    /// Triangles held in memory: a mesh shared by several instances counted once.
+    pub stored_triangles: usize,
+    /// Shapes that place a shared mesh, and how many distinct meshes they place.
+    pub instances: usize,
+    pub shared_meshes: usize,
     pub spheres: usize,
     /// Shapes (Embree geometries).
     pub shapes: usize,
@@ -84,9 +90,27 @@ impl Analysis {
             color_textures: 0,
             bump_maps: 0,
             triangles: scene.triangle_count(),
+            stored_triangles: 0,
+            instances: 0,
+            shared_meshes: 0,
             spheres: 0,
             shapes: scene.shapes.len(),
         };
+        let mut shared = std::collections::HashSet::new();
+        for shape in &scene.shapes {
+            if let Geometry::Triangles(mesh) = &shape.geometry {
+                match mesh.instance {
+                    None => a.stored_triangles += mesh.indices.len(),
+                    Some(_) => {
+                        a.instances += 1;
+                        if shared.insert(mesh.arrays()) {
+                            a.stored_triangles += mesh.indices.len();
+                            a.shared_meshes += 1;
+                        }
+                    }
+                }
+            }
+        }
         for shape in &scene.shapes {
             if let Some(u) = used.get_mut(shape.material as usize) {
                 *u = true;
@@ -167,7 +191,15 @@ impl fmt::Display for Analysis {
             }
         };
         let l = &self.lobes;
-        writeln!(f, "geometry: {} triangles, {} spheres", self.triangles, self.spheres)?;
+        write!(f, "geometry: {} triangles, {} spheres", self.triangles, self.spheres)?;
+        if self.instances > 0 {
+            write!(
+                f,
+                " ({} instances of {} shared meshes; {} triangles stored)",
+                self.instances, self.shared_meshes, self.stored_triangles
+            )?;
+        }
+        writeln!(f)?;
         writeln!(
             f,
             "material lobes: {}",

@@ -1,43 +1,66 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), read with the `gltf` crate:
 //! the default scene's node hierarchy with its transforms, triangle meshes with indices, normals
 //! and texture coordinates, the metallic-roughness materials with their textures, emission, the
-//! first camera, and `KHR_lights_punctual` lights. Everything comes out in the glTF's world, in
-//! f64 where it is a point; [`crate::scene::file`] and [`scene`] place it in a scene.
+//! first camera, and `KHR_lights_punctual` lights. Meshes come out in their own coordinates,
+//! read once, with each node's transform into the glTF's world (f64); the rest comes out in that
+//! world. [`crate::scene::file`] and [`scene`] place it in a scene, where a mesh that several
+//! nodes use is shared (instanced), not copied.
 //!
 //! Not read (yet): occlusion, alpha modes, texture transforms, emissive strength,
-//! skins, morph targets, animations, orthographic cameras, points and lines. Meshes used by
-//! several nodes are copied into each node's place (no instancing yet).
+//! skins, morph targets, animations, orthographic cameras, points and lines.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{DMat3, DMat4, DVec3, DVec4, Vec2, Vec3};
+use glam::{DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 
 use crate::scene::image::Image;
 use crate::scene::texture::Texture;
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Light, Maps, Material, Mesh, RenderSettings, Scene, SceneError, Shape,
+    Camera, FilmSettings, Geometry, Instance, Light, Maps, Material, Mesh, RenderSettings, Scene, SceneError,
+    Shape,
 };
 
 /// Photometric to radiometric units: glTF lights are in candela (point, spot) and lux
 /// (directional); a watt of light at 555 nm is 683 lumens, the ratio Blender's importer uses.
 pub const LUMENS_PER_WATT: f32 = 683.0;
 
-/// One triangle mesh primitive placed by its node: positions in the glTF's world.
+/// One triangle mesh primitive in its mesh's own coordinates, read once however many nodes use
+/// it.
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    /// `mesh/primitive`, for messages and shape names.
+    pub name: String,
+    pub positions: Arc<[Vec3A]>,
+    pub indices: Arc<[[u32; 3]]>,
+    pub normals: Option<Arc<[Vec3]>>,
+    /// Texture coordinates with v up (glTF's v runs down the image; it is flipped here).
+    pub uvs: Option<Arc<[Vec2]>>,
+    /// Index into [`Gltf::materials`]; `None` is glTF's default material.
+    pub material: Option<usize>,
+    /// How many nodes place it.
+    pub uses: usize,
+}
+
+/// A primitive placed by a node.
 #[derive(Clone, Debug)]
 pub struct Part {
     /// `node/mesh/primitive` names, for messages and the object-ID buffer.
     pub name: String,
     /// The node's name (the object it belongs to).
     pub node: String,
-    pub positions: Vec<DVec3>,
-    pub indices: Vec<[u32; 3]>,
-    pub normals: Option<Vec<Vec3>>,
-    /// Texture coordinates with v up (glTF's v runs down the image; it is flipped here).
-    pub uvs: Option<Vec<Vec2>>,
-    /// Index into [`Gltf::materials`]; `None` is glTF's default material.
-    pub material: Option<usize>,
+    /// Index into [`Gltf::primitives`].
+    pub primitive: usize,
+    /// The node's transform into the glTF's world.
+    pub world: DMat4,
+}
+
+impl Part {
+    /// The part's vertices in the glTF's world.
+    pub fn positions<'a>(&'a self, g: &'a Gltf) -> impl Iterator<Item = DVec3> + 'a {
+        g.primitives[self.primitive].positions.iter().map(|p| self.world.transform_point3(p.as_dvec3()))
+    }
 }
 
 /// A metallic-roughness material: factors, and textures as indices into [`Gltf::images`].
@@ -113,6 +136,7 @@ pub enum PunctualLight {
 /// A glTF file read.
 #[derive(Clone, Debug)]
 pub struct Gltf {
+    pub primitives: Vec<Primitive>,
     pub parts: Vec<Part>,
     pub materials: Vec<PbrMaterial>,
     /// Images by texture use: `(image, srgb)` decoded to linear RGB.
@@ -230,8 +254,18 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     }
 
     let scene = document.default_scene().or_else(|| document.scenes().next()).ok_or("it has no scene")?;
-    let mut out =
-        Gltf { parts: Vec::new(), materials, images, camera: None, lights: Vec::new(), files, notes };
+    let mut out = Gltf {
+        primitives: Vec::new(),
+        parts: Vec::new(),
+        materials,
+        images,
+        camera: None,
+        lights: Vec::new(),
+        files,
+        notes,
+    };
+    // Each mesh's primitives, read the first time a node uses it.
+    let mut read: HashMap<usize, std::ops::Range<usize>> = HashMap::new();
     // Depth first, in the document's order (the stack holds what is left in reverse).
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
@@ -248,7 +282,24 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         }
         let node_name = node.name().map_or_else(|| format!("node{}", node.index()), str::to_string);
         if let Some(mesh) = node.mesh() {
-            add_mesh(&mut out, &buffers, &mesh, &world, &node_name)?;
+            let range = match read.get(&mesh.index()) {
+                Some(r) => r.clone(),
+                None => {
+                    let first = out.primitives.len();
+                    add_mesh(&mut out, &buffers, &mesh)?;
+                    read.insert(mesh.index(), first..out.primitives.len());
+                    first..out.primitives.len()
+                }
+            };
+            for p in range {
+                out.primitives[p].uses += 1;
+                out.parts.push(Part {
+                    name: format!("{node_name}/{}", out.primitives[p].name),
+                    node: node_name.clone(),
+                    primitive: p,
+                    world,
+                });
+            }
         }
         if let (Some(camera), None) = (node.camera(), out.camera) {
             match camera.projection() {
@@ -308,18 +359,9 @@ fn punctual(light: &gltf::khr_lights_punctual::Light, world: &DMat4) -> Result<P
     })
 }
 
-/// Adds a mesh's triangle primitives, placed by `world`, to `out`.
-fn add_mesh(
-    out: &mut Gltf,
-    buffers: &[gltf::buffer::Data],
-    mesh: &gltf::Mesh,
-    world: &DMat4,
-    node: &str,
-) -> Result<(), String> {
+/// Adds a mesh's triangle primitives, in its own coordinates, to `out.primitives`.
+fn add_mesh(out: &mut Gltf, buffers: &[gltf::buffer::Data], mesh: &gltf::Mesh) -> Result<(), String> {
     let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
-    let normal_matrix = DMat3::from_mat4(*world).inverse().transpose();
-    // A mirroring transform turns the winding around: keep the geometric normals outward.
-    let mirrored = DMat3::from_mat4(*world).determinant() < 0.0;
     for (k, primitive) in mesh.primitives().enumerate() {
         let here = format!("mesh `{mesh_name}` primitive {k}");
         let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -336,7 +378,7 @@ fn add_mesh(
         if let Some(&bad) = list.iter().find(|&&i| i as usize >= n) {
             return Err(format!("{here}: index {bad} is out of range ({n} vertices)"));
         }
-        let mut indices: Vec<[u32; 3]> = match primitive.mode() {
+        let indices: Vec<[u32; 3]> = match primitive.mode() {
             gltf::mesh::Mode::Triangles => list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
             gltf::mesh::Mode::TriangleStrip => (2..list.len())
                 .map(|i| {
@@ -355,20 +397,13 @@ fn add_mesh(
                 continue;
             }
         };
-        if mirrored {
-            indices.iter_mut().for_each(|t| t.swap(1, 2));
-        }
         let normals = match reader.read_normals() {
             Some(ns) => {
                 let ns: Vec<[f32; 3]> = ns.collect();
                 if ns.len() != n || ns.iter().any(|v| !v.iter().all(|x| x.is_finite())) {
                     return Err(format!("{here}: its normals are not one finite vector a vertex"));
                 }
-                Some(
-                    ns.iter()
-                        .map(|&v| (normal_matrix * Vec3::from(v).as_dvec3()).normalize_or_zero().as_vec3())
-                        .collect(),
-                )
+                Some(ns.iter().map(|&v| Vec3::from(v).normalize_or_zero()).collect())
             }
             None => None,
         };
@@ -386,17 +421,14 @@ fn add_mesh(
         if material.is_some_and(|m| m >= out.materials.len()) {
             return Err(format!("{here}: no material {}", material.unwrap_or(0)));
         }
-        out.parts.push(Part {
-            name: format!("{node}/{mesh_name}/{k}"),
-            node: node.to_string(),
-            positions: positions
-                .iter()
-                .map(|&p| (*world * Vec3::from(p).as_dvec3().extend(1.0)).truncate())
-                .collect(),
-            indices,
+        out.primitives.push(Primitive {
+            name: format!("{mesh_name}/{k}"),
+            positions: positions.iter().map(|&p| Vec3A::from(p)).collect(),
+            indices: indices.into(),
             normals,
             uvs,
             material,
+            uses: 0,
         });
     }
     Ok(())
@@ -522,26 +554,14 @@ pub fn place(
         }
     }
     let default_material = first_material + g.materials.len() as u32;
-    let normal_matrix = at.linear.inverse().transpose();
-    let mirrored = at.linear.determinant() < 0.0;
     for part in &g.parts {
-        let material = part.material.map_or(default_material, |m| first_material + m as u32);
-        let mut indices = part.indices.clone();
-        if mirrored {
-            indices.iter_mut().for_each(|t| t.swap(1, 2));
-        }
+        let primitive = &g.primitives[part.primitive];
+        let material = primitive.material.map_or(default_material, |m| first_material + m as u32);
         out.shapes.push(Shape {
             name: format!("{name}/{}", part.name),
-            geometry: Geometry::Triangles(Mesh {
-                positions: part.positions.iter().map(|&p| at.point(p).into()).collect(),
-                indices: indices.into(),
-                normals: part.normals.as_ref().map(|ns| {
-                    ns.iter().map(|&n| (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3()).collect()
-                }),
-                uvs: part.uvs.as_ref().map(|u| u.as_slice().into()),
-            }),
+            geometry: Geometry::Triangles(part_mesh(primitive, part, at)),
             material,
-            emission: part.material.map_or(Vec3::ZERO, |m| g.materials[m].emission),
+            emission: primitive.material.map_or(Vec3::ZERO, |m| g.materials[m].emission),
             object: object(&format!("{name}/{}", part.node)),
         });
     }
@@ -565,6 +585,46 @@ pub fn place(
     out
 }
 
+/// A part's mesh in the scene. A primitive that several nodes place is shared: its arrays, in
+/// the mesh's coordinates, and an [`Instance`] placing them (the scene's origin subtracted in
+/// f64 before the placement is rounded to f32). A primitive placed once, or by a mirroring
+/// transform (whose winding must turn around to keep geometric normals outward), is copied
+/// into the scene's coordinates, in f64 before rounding.
+fn part_mesh(primitive: &Primitive, part: &Part, at: &Placement) -> Mesh {
+    let linear = at.linear * DMat3::from_mat4(part.world);
+    let translate = at.linear * part.world.w_axis.truncate() + at.translate - at.origin;
+    if primitive.uses > 1 && linear.determinant() > 0.0 {
+        let to_world = glam::Affine3A::from_mat3_translation(linear.as_mat3(), translate.as_vec3());
+        if let Some(instance) = Instance::new(to_world) {
+            return Mesh {
+                positions: primitive.positions.clone(),
+                indices: primitive.indices.clone(),
+                normals: primitive.normals.clone(),
+                uvs: primitive.uvs.clone(),
+                instance: Some(Box::new(instance)),
+            };
+        }
+    }
+    let normal_matrix = linear.inverse().transpose();
+    let mut indices = primitive.indices.to_vec();
+    if linear.determinant() < 0.0 {
+        indices.iter_mut().for_each(|t| t.swap(1, 2));
+    }
+    Mesh {
+        positions: primitive
+            .positions
+            .iter()
+            .map(|p| (linear * p.as_dvec3() + translate).as_vec3a())
+            .collect(),
+        indices: indices.into(),
+        normals: primitive.normals.as_ref().map(|ns| {
+            ns.iter().map(|&n| (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3()).collect()
+        }),
+        uvs: primitive.uvs.clone(),
+        instance: None,
+    }
+}
+
 /// The default film of a glTF rendered directly: 640 pixels wide, as high as its camera's
 /// aspect ratio says (4:3 without one).
 const WIDTH: u32 = 640;
@@ -580,8 +640,8 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
     let (lo, hi) = g
         .parts
         .iter()
-        .flat_map(|p| p.positions.iter())
-        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), &p| {
+        .flat_map(|p| p.positions(&g))
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
             (lo.min(p), hi.max(p))
         });
     if g.parts.is_empty() {

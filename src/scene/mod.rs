@@ -20,7 +20,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 
 pub use file::{FilterSection, KernelSpec};
 
@@ -116,17 +116,115 @@ pub struct Mesh {
     pub normals: Option<Arc<[Vec3]>>,
     /// Per-vertex texture coordinates (quads have them; OBJ files may).
     pub uvs: Option<Arc<[Vec2]>>,
+    /// For a mesh shared by several shapes (a glTF mesh used by several nodes): the vertices
+    /// above are in the mesh's own coordinates, and this places them in the scene. The
+    /// accelerators trace the mesh once, in its own coordinates (Embree instances, the BVH's
+    /// second level); [`Mesh::triangle`] gives the placed corners.
+    pub instance: Option<Box<Instance>>,
+}
+
+/// Where a shared mesh is placed: an affine map from its own coordinates into the scene's that
+/// does not mirror (a mirrored placement gets its own copy, so geometric normals stay outward).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    pub to_world: Affine3A,
+    pub to_local: Affine3A,
+    /// The map of normals (the inverse transpose of the linear part).
+    pub normals: Mat3A,
+    /// How much the map magnifies rounding error: the product of the largest row sums of the
+    /// absolute linear part and of its inverse (1 for a rotation with a uniform scale, up to
+    /// rounding; more when the map shears or stretches).
+    pub condition: f32,
+}
+
+impl Instance {
+    /// The placement by `to_world`, or `None` when it mirrors, is singular or is not finite.
+    pub fn new(to_world: Affine3A) -> Option<Instance> {
+        let m = to_world.matrix3;
+        let det = m.determinant();
+        if !to_world.is_finite() || det <= 0.0 || !det.is_normal() {
+            return None;
+        }
+        let to_local = to_world.inverse();
+        if !to_local.is_finite() {
+            return None;
+        }
+        let norm = |m: Mat3A| {
+            let t = m.transpose();
+            t.x_axis.abs().element_sum().max(t.y_axis.abs().element_sum()).max(t.z_axis.abs().element_sum())
+        };
+        Some(Instance {
+            to_world,
+            to_local,
+            normals: m.inverse().transpose(),
+            condition: (norm(m) * norm(to_local.matrix3)).max(1.0),
+        })
+    }
+
+    /// The error magnitude (see [`crate::math::offset_ray_origin`]) of a point computed from
+    /// these local corners: what the placed corners' coordinates are made of, magnified by the
+    /// trip of the next ray back into the mesh's coordinates.
+    pub fn magnitude(&self, local: [Vec3; 3]) -> f32 {
+        let m = self.to_world.matrix3;
+        let abs = Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs());
+        let corner = |p: Vec3| abs * Vec3A::from(p.abs()) + self.to_world.translation.abs();
+        let most = corner(local[0]).max(corner(local[1])).max(corner(local[2])).max_element();
+        most * self.condition
+    }
 }
 
 impl Mesh {
-    /// The three corners of triangle `prim`.
+    /// A mesh of these triangles, in the scene's coordinates.
+    pub fn new(
+        positions: Arc<[Vec3A]>,
+        indices: Arc<[[u32; 3]]>,
+        normals: Option<Arc<[Vec3]>>,
+        uvs: Option<Arc<[Vec2]>>,
+    ) -> Mesh {
+        Mesh { positions, indices, normals, uvs, instance: None }
+    }
+
+    /// The three corners of triangle `prim`, placed in the scene.
+    #[inline]
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        let local = self.local_triangle(prim);
+        match &self.instance {
+            None => local,
+            Some(i) => local.map(|p| i.to_world.transform_point3(p)),
+        }
+    }
+
+    /// The three corners of triangle `prim` in the mesh's own coordinates (the scene's, unless
+    /// the mesh is an instance).
+    #[inline]
+    pub fn local_triangle(&self, prim: u32) -> [Vec3; 3] {
         let [a, b, c] = self.indices[prim as usize];
         [
             self.positions[a as usize].into(),
             self.positions[b as usize].into(),
             self.positions[c as usize].into(),
         ]
+    }
+
+    /// The error magnitude of a point on triangle `prim` (see
+    /// [`crate::math::offset_ray_origin`]), from its placed corners.
+    #[inline]
+    pub fn magnitude(&self, prim: u32, placed: [Vec3; 3]) -> f32 {
+        let [a, b, c] = placed;
+        let own = crate::math::triangle_magnitude(a, b, c);
+        match &self.instance {
+            None => own,
+            Some(i) => own.max(i.magnitude(self.local_triangle(prim))),
+        }
+    }
+
+    /// Which vertex and triangle arrays the mesh holds: equal for meshes that share them (the
+    /// accelerators build one structure for all instances of a mesh).
+    pub fn arrays(&self) -> (usize, usize) {
+        (
+            Arc::as_ptr(&self.positions) as *const Vec3A as usize,
+            Arc::as_ptr(&self.indices) as *const [u32; 3] as usize,
+        )
     }
 
     /// Twice the area of each triangle would do for sampling; this is the area itself.
@@ -289,9 +387,13 @@ impl Scene {
                     hi = hi.max(*center + Vec3::splat(*radius));
                 }
                 Geometry::Triangles(mesh) => {
+                    let place = |p: Vec3A| match &mesh.instance {
+                        None => Vec3::from(p),
+                        Some(i) => i.to_world.transform_point3a(p).into(),
+                    };
                     for p in mesh.positions.iter() {
-                        lo = lo.min(Vec3::from(*p));
-                        hi = hi.max(Vec3::from(*p));
+                        lo = lo.min(place(*p));
+                        hi = hi.max(place(*p));
                     }
                 }
             }

@@ -57,26 +57,29 @@ impl Tree {
 }
 
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
-    use rayon::prelude::*;
     if prims.is_empty() {
-        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[], &[]) };
+        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[], &[]), instances: None };
     }
-    let mut items: Vec<Item> = prims
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let bounds = prim_bounds(p);
-            Item::new(bounds, i as u32)
-        })
-        .collect();
-    let tree = build_node(&mut items, 0, &options, 0);
+    let (nodes, order) = tree(prims.len(), |i| prim_bounds(&prims[i]), options);
+    let ordered: Vec<Prim> = order.iter().map(|&i| prims[i as usize]).collect();
+    let wide = Bvh4::collapse(&nodes, &ordered);
+    Bvh { nodes, prims: ordered, wide, instances: None }
+}
 
+/// The binary tree over `n` boxes (`bounds(i)` the `i`th; at least one): its flattened nodes,
+/// and the order of the boxes in its leaves (leaf ranges index that order).
+pub(super) fn tree(
+    n: usize,
+    bounds: impl Fn(usize) -> Aabb + Sync,
+    options: BuildOptions,
+) -> (Vec<Node>, Vec<u32>) {
+    use rayon::prelude::*;
+    let mut items: Vec<Item> = (0..n).into_par_iter().map(|i| Item::new(bounds(i), i as u32)).collect();
+    let tree = build_node(&mut items, 0, &options, 0);
     let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
-    let ordered: Vec<Prim> = items.iter().map(|it| prims[it.index()]).collect();
-    let wide = Bvh4::collapse(&nodes, &ordered);
-    Bvh { nodes, prims: ordered, wide }
+    (nodes, items.iter().map(|it| it.index() as u32).collect())
 }
 
 fn placeholder() -> Node {

@@ -5,6 +5,7 @@
 //! ray/box test (Ize 2013), so no ray slips through a shared edge.
 
 mod build;
+mod instances;
 mod intersect;
 pub mod wide;
 
@@ -78,6 +79,8 @@ pub struct Bvh {
     nodes: Vec<Node>,
     prims: Vec<Prim>,
     wide: wide::Bvh4,
+    /// Shapes that place a shared mesh: the second level.
+    instances: Option<Box<instances::Instances>>,
 }
 
 /// A scene with more primitives than the BVH's 28-bit primitive references can name.
@@ -117,6 +120,8 @@ impl Bvh {
                         prims.push(Prim::Sphere { center: *center, radius: *radius, shape: s as u32 });
                     }
                 }
+                // Instances go to the second level.
+                Geometry::Triangles(mesh) if mesh.instance.is_some() => {}
                 Geometry::Triangles(mesh) => {
                     for t in 0..mesh.indices.len() as u32 {
                         let v = mesh.triangle(t);
@@ -134,12 +139,18 @@ impl Bvh {
         }
         let options =
             BuildOptions { max_leaf: options.max_leaf.clamp(1, wide::MAX_LEAF as usize), ..options };
-        Ok(build::build(prims, options))
+        let instances = instances::Instances::new(scene, options)?.map(Box::new);
+        Ok(Bvh { instances, ..build::build(prims, options) })
     }
 
-    /// Number of binary nodes, of wide nodes and of primitives.
+    /// Number of binary nodes, of wide nodes and of primitives (of the first level).
     pub fn size(&self) -> (usize, usize, usize) {
         (self.nodes.len(), self.wide.node_count(), self.prims.len())
+    }
+
+    /// How many shapes place a shared mesh, and how many distinct meshes they place.
+    pub fn instance_counts(&self) -> (usize, usize) {
+        self.instances.as_ref().map_or((0, 0), |i| i.counts())
     }
 
     /// Checks the tree's invariants: every primitive in exactly one leaf, children inside their
@@ -224,12 +235,16 @@ impl RayBox {
 impl Bvh {
     /// Closest hit along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.wide.intersect(ray)
+        let hit = self.wide.intersect(ray);
+        match &self.instances {
+            None => hit,
+            Some(instances) => instances.intersect(ray, hit),
+        }
     }
 
     /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.wide.occluded(ray)
+        self.wide.occluded(ray) || self.instances.as_ref().is_some_and(|i| i.occluded(ray))
     }
 
     /// Closest hit by the binary tree (the reference the wide tree is tested against).

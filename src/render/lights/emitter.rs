@@ -12,8 +12,8 @@ use glam::{Vec2, Vec3};
 
 use super::sky_table::{sky_direction, sky_lookup};
 use crate::math::{
-    offset_ray_origin, one_minus_cos_between, sphere_magnitude, triangle_magnitude, uniform_cone,
-    uniform_sphere, uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
+    offset_ray_origin, one_minus_cos_between, sphere_magnitude, uniform_cone, uniform_sphere,
+    uniform_triangle, Distribution1D, Distribution2D, Frame, FOUR_PI,
 };
 use crate::scene::environment::EnvironmentMap;
 use crate::scene::sky::CloudySky;
@@ -293,7 +293,7 @@ fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3, f32) {
     let bary = uniform_triangle(u);
     let q = a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y;
     let n = (b - a).cross(c - a).normalize_or_zero();
-    (q, n, triangle_magnitude(a, b, c))
+    (q, n, mesh.magnitude(t, [a, b, c]))
 }
 
 /// Turns an area sample `q` (normal `n`, coordinates of `magnitude`, one-sided emission

@@ -369,6 +369,7 @@ pub(super) fn add(
                         indices: part.indices.into(),
                         normals,
                         uvs: part.uvs.map(Into::into),
+                        instance: None,
                     }),
                     material: part_material,
                     emission: part_emission,
@@ -464,6 +465,7 @@ fn mesh(p: &[Vec3], indices: &[[u32; 3]]) -> Mesh {
         indices: indices.into(),
         normals: None,
         uvs: None,
+        instance: None,
     }
 }
 

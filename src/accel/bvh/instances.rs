@@ -1,0 +1,210 @@
+//! The BVH's second level: meshes shared by several shapes (instances) are built once, in their
+//! own coordinates, and a binary tree over the instances' boxes in the scene leads rays to them,
+//! turned into each mesh's coordinates. A ray's parameter `t` is the same in both coordinates
+//! (its direction is mapped, not normalised), so hits compare across levels directly.
+
+use std::collections::HashMap;
+
+use glam::{Affine3A, Vec3A};
+
+use super::{build, Aabb, BuildOptions, Bvh, Node, Prim, RayBox, TooLarge, STACK};
+use crate::accel::{Hit, Ray};
+use crate::scene::{Geometry, Scene};
+
+/// One placed mesh.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    to_local: Affine3A,
+    /// The shape the hits report.
+    shape: u32,
+    /// Index into [`Instances::meshes`].
+    mesh: u32,
+}
+
+/// The instanced shapes of a scene.
+pub(super) struct Instances {
+    /// The binary tree over the instances' boxes (leaves index `placed`).
+    nodes: Vec<Node>,
+    placed: Vec<Placed>,
+    /// Each shared mesh's own BVH, in its own coordinates (shape 0 in its hits).
+    meshes: Vec<Bvh>,
+}
+
+impl Instances {
+    /// The instanced shapes of `scene`, or `None` when it has none (or only empty ones).
+    pub(super) fn new(scene: &Scene, options: BuildOptions) -> Result<Option<Instances>, TooLarge> {
+        let mut meshes: Vec<Bvh> = Vec::new();
+        let mut by_arrays: HashMap<(usize, usize), u32> = HashMap::new();
+        let mut placed = Vec::new();
+        let mut boxes = Vec::new();
+        for (s, shape) in scene.shapes.iter().enumerate() {
+            let Geometry::Triangles(mesh) = &shape.geometry else { continue };
+            let Some(instance) = &mesh.instance else { continue };
+            let m = match by_arrays.get(&mesh.arrays()) {
+                Some(&m) => m,
+                None => {
+                    let prims =
+                        (0..mesh.indices.len() as u32)
+                            .filter_map(|t| {
+                                let v = mesh.local_triangle(t);
+                                ((v[1] - v[0]).cross(v[2] - v[0]) != glam::Vec3::ZERO)
+                                    .then_some(Prim::Triangle { v, shape: 0, prim: t })
+                            })
+                            .collect::<Vec<_>>();
+                    if prims.len() > super::wide::MAX_PRIMS as usize {
+                        return Err(TooLarge(prims.len()));
+                    }
+                    meshes.push(build::build(prims, options));
+                    by_arrays.insert(mesh.arrays(), meshes.len() as u32 - 1);
+                    meshes.len() as u32 - 1
+                }
+            };
+            let Some(root) = meshes[m as usize].nodes.first() else { continue };
+            let local = Aabb { min: Vec3A::from(root.min), max: Vec3A::from(root.max) };
+            boxes.push(placed_box(&local, &instance.to_world));
+            placed.push(Placed { to_local: instance.to_local, shape: s as u32, mesh: m });
+        }
+        if placed.is_empty() {
+            return Ok(None);
+        }
+        let (nodes, order) = build::tree(boxes.len(), |i| boxes[i], options);
+        let placed = order.iter().map(|&i| placed[i as usize]).collect();
+        Ok(Some(Instances { nodes, placed, meshes }))
+    }
+
+    /// How many instances, and how many distinct meshes they place.
+    pub(super) fn counts(&self) -> (usize, usize) {
+        (self.placed.len(), self.meshes.len())
+    }
+
+    /// The closest hit along `ray` nearer than `best` (the hit found so far, if any).
+    pub(super) fn intersect(&self, ray: &Ray, mut best: Option<Hit>) -> Option<Hit> {
+        let rb = RayBox::new(ray);
+        let mut t_max = best.map_or(ray.t_max, |h| h.t);
+        let mut stack = [0u32; STACK];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        if rb.hit(&self.nodes[0], t_max).is_none() {
+            return best;
+        }
+        loop {
+            let n = &self.nodes[node];
+            if n.is_leaf() {
+                for p in &self.placed[n.first as usize..(n.first + n.count) as usize] {
+                    let local = Ray { t_max, ..local_ray(ray, &p.to_local) };
+                    if let Some(h) = self.meshes[p.mesh as usize].intersect(&local) {
+                        t_max = h.t;
+                        best = Some(Hit { shape: p.shape, ..h });
+                    }
+                }
+            } else {
+                let (a, b) = (n.first as usize, n.first as usize + 1);
+                match (rb.hit(&self.nodes[a], t_max), rb.hit(&self.nodes[b], t_max)) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
+                        stack[sp] = far as u32;
+                        sp += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = b;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let candidate = stack[sp] as usize;
+                if rb.hit(&self.nodes[candidate], t_max).is_some() {
+                    node = candidate;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Whether any instance lies along `ray` within [0, t_max].
+    pub(super) fn occluded(&self, ray: &Ray) -> bool {
+        let rb = RayBox::new(ray);
+        let mut stack = [0u32; STACK];
+        let mut sp = 0usize;
+        if rb.hit(&self.nodes[0], ray.t_max).is_none() {
+            return false;
+        }
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            if n.is_leaf() {
+                let leaf = &self.placed[n.first as usize..(n.first + n.count) as usize];
+                if leaf.iter().any(|p| {
+                    let local = Ray { t_max: ray.t_max, ..local_ray(ray, &p.to_local) };
+                    self.meshes[p.mesh as usize].occluded(&local)
+                }) {
+                    return true;
+                }
+            } else {
+                let (a, b) = (n.first as usize, n.first as usize + 1);
+                let ha = rb.hit(&self.nodes[a], ray.t_max).is_some();
+                let hb = rb.hit(&self.nodes[b], ray.t_max).is_some();
+                match (ha, hb) {
+                    (true, true) => {
+                        stack[sp] = b as u32;
+                        sp += 1;
+                        node = a;
+                        continue;
+                    }
+                    (true, false) => {
+                        node = a;
+                        continue;
+                    }
+                    (false, true) => {
+                        node = b;
+                        continue;
+                    }
+                    (false, false) => {}
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp] as usize;
+        }
+    }
+}
+
+/// `ray` in a mesh's own coordinates.
+#[inline(always)]
+fn local_ray(ray: &Ray, to_local: &Affine3A) -> Ray {
+    Ray {
+        origin: to_local.transform_point3(ray.origin),
+        dir: to_local.transform_vector3(ray.dir),
+        t_max: ray.t_max,
+    }
+}
+
+/// The box in the scene of a mesh whose own box is `local`, placed by `to_world`: the box of
+/// its eight corners placed, grown by the rounding of the placement (a few ulps of the
+/// coordinates' magnitude), so that no placed triangle sticks out of it.
+fn placed_box(local: &Aabb, to_world: &Affine3A) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for k in 0..8 {
+        let corner = Vec3A::new(
+            if k & 1 == 0 { local.min.x } else { local.max.x },
+            if k & 2 == 0 { local.min.y } else { local.max.y },
+            if k & 4 == 0 { local.min.z } else { local.max.z },
+        );
+        b = b.grow(to_world.transform_point3a(corner));
+    }
+    let pad = (b.min.abs().max(b.max.abs())).max_element() * 8.0 * f32::EPSILON;
+    Aabb { min: b.min - Vec3A::splat(pad), max: b.max + Vec3A::splat(pad) }
+}
