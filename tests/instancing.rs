@@ -241,3 +241,91 @@ fn an_instanced_scene_renders_as_its_copies() {
         );
     }
 }
+
+/// Rays leaving a shared mesh never hit it again: the ray origin's offset covers the rounding of
+/// the placement, both ways (the hit point placed into the scene, the next ray taken back into
+/// the mesh's coordinates), at large and small scales, turned, and sheared (a turned child of a
+/// node scaled unevenly). The mesh is a closed cube, convex, so any hit of its own shape by a
+/// ray leaving it outward is a self-hit.
+#[test]
+fn rays_leaving_an_instance_do_not_hit_it_again() {
+    let mut doc = GltfDoc::quad();
+    let p: Vec<f32> = (0..8)
+        .flat_map(|i| [(i & 1) as f32 - 0.5, ((i >> 1) & 1) as f32 - 0.5, ((i >> 2) & 1) as f32 - 0.5])
+        .collect();
+    let p = doc.floats(&p, "VEC3");
+    // Outward winding: each face's corners counter-clockwise seen from outside.
+    let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let indices: Vec<u32> = faces.iter().flat_map(|f| [f[0], f[1], f[2], f[0], f[2], f[3]]).collect();
+    let i = doc.indices(&indices);
+    // The same cube with coordinates 5000 units out in its own space, placed back near the
+    // camera: the rounding that matters is the mesh's own, not the scene's.
+    let far: Vec<f32> = (0..8)
+        .flat_map(|i| [(i & 1) as f32 + 4999.5, ((i >> 1) & 1) as f32 - 0.5, ((i >> 2) & 1) as f32 + 4999.5])
+        .collect();
+    let far = doc.floats(&far, "VEC3");
+    doc.json["meshes"] = json!([
+        {"name": "cube", "primitives": [{"attributes": {"POSITION": p}, "indices": i}]},
+        {"name": "far", "primitives": [{"attributes": {"POSITION": far}, "indices": i}]},
+    ]);
+    doc.node(json!({"name": "far-a", "mesh": 1, "translation": [-5001, 0, -5003]}), true);
+    doc.node(json!({"name": "far-b", "mesh": 1, "translation": [-4998.5, 0.5, -5004], "rotation": [0, 0.1, 0, 0.994_987_437_106_62f64]}), true);
+    let turn = [0.3, 0.5, 0.1, 0.806_225_774_829_854_9f64];
+    doc.node(json!({"name": "large", "mesh": 0, "translation": [3000, 200, -4000], "rotation": turn, "scale": [1000, 1000, 1000]}), true);
+    doc.node(json!({"name": "small", "mesh": 0, "translation": [0.01, 0.002, -0.03], "rotation": turn, "scale": [0.001, 0.001, 0.001]}), true);
+    let sheared = doc.node(json!({"name": "sheared", "mesh": 0, "rotation": [0, 0, 0.382_683_432_365_089_8f64, 0.923_879_532_511_286_7f64]}), false);
+    doc.node(
+        json!({"name": "stretch", "translation": [4, 1, -2], "scale": [1, 30, 0.2], "children": [sheared]}),
+        true,
+    );
+    doc.node(json!({"name": "plain", "mesh": 0, "translation": [-2, 0, -1]}), true);
+    // The camera (the scene's origin) near the small cubes, so their coordinates are small.
+    doc.node(json!({"name": "eye", "camera": 0, "translation": [0, 0, 2]}), true);
+    doc.json["cameras"] = json!([{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene::load(&doc.write_gltf(dir.path(), "cubes")).expect("loads");
+    assert_eq!(Analysis::of(&scene).instances, 6);
+    let embree = build_embree(&scene, None).expect("embree");
+    let bvh = Bvh::new(&scene).expect("bvh");
+    let mut state = 0x2545f4914f6cdd1du64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let accels: [(&str, &dyn Accel); 2] = [("embree", &embree), ("bvh", &bvh)];
+    for (name, accel) in accels {
+        let (mut rays, mut self_hits) = (0usize, 0usize);
+        for (k, shape) in scene.shapes.iter().enumerate() {
+            let Geometry::Triangles(mesh) = &shape.geometry else { panic!("a mesh") };
+            let corners: Vec<Vec3> = (0..12).flat_map(|t| mesh.triangle(t)).collect();
+            let centre = corners.iter().copied().sum::<Vec3>() / corners.len() as f32;
+            let size = corners.iter().map(|&c| (c - centre).length()).fold(0.0, f32::max);
+            for _ in 0..400 {
+                let d = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize_or(Vec3::X);
+                let target = centre + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * size * 0.5;
+                let ray = Ray::new(target + d * 4.0 * size, -d * size);
+                let Some(hit) = accel.intersect(&ray) else { continue };
+                if hit.shape != k as u32 {
+                    continue;
+                }
+                let s = surface(&scene, &ray, &hit);
+                let out = if s.ng.dot(ray.dir) < 0.0 { s.ng } else { -s.ng };
+                let origin = s.origin(out);
+                for e in [1e-3f32, 1e-2, 0.1, 0.5, 1.0] {
+                    let phi = std::f32::consts::TAU * next();
+                    let frame = lightsplit::math::Frame::new(out);
+                    let d = frame.to_world(Vec3::new(phi.cos(), phi.sin(), e).normalize());
+                    rays += 1;
+                    if accel.intersect(&Ray::new(origin, d)).is_some_and(|h| h.shape == hit.shape) {
+                        self_hits += 1;
+                    }
+                }
+            }
+        }
+        eprintln!("{name}: {rays} rays leaving the cubes, {self_hits} self-hits");
+        assert!(rays > 4000, "{name}: too few rays ({rays})");
+        assert_eq!(self_hits, 0, "{name}: {self_hits} of {rays} rays hit the cube they leave");
+    }
+}
