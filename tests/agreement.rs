@@ -197,7 +197,7 @@ fn rays_at_shared_edges_hit_on_both_backends() {
             // At most about 5000 edges a mesh.
             let stride = shared.len() / 5000 + 1;
             for &((i, j), [o1, o2]) in shared.iter().step_by(stride) {
-                let v = |k: u32| glam::Vec3::from(mesh.positions[k as usize]);
+                let v = |k: u32| mesh.vertex(k);
                 let (p, q) = (v(i), v(j));
                 let target = (p + q) * 0.5;
                 let ray = Ray::new(scene.camera.position, target - scene.camera.position);

@@ -194,6 +194,16 @@ impl Mesh {
         }
     }
 
+    /// Vertex `k`, placed in the scene.
+    #[inline]
+    pub fn vertex(&self, k: u32) -> Vec3 {
+        let p = self.positions[k as usize];
+        match &self.instance {
+            None => p.into(),
+            Some(i) => i.to_world.transform_point3a(p).into(),
+        }
+    }
+
     /// The three corners of triangle `prim` in the mesh's own coordinates (the scene's, unless
     /// the mesh is an instance).
     #[inline]
@@ -387,13 +397,10 @@ impl Scene {
                     hi = hi.max(*center + Vec3::splat(*radius));
                 }
                 Geometry::Triangles(mesh) => {
-                    let place = |p: Vec3A| match &mesh.instance {
-                        None => Vec3::from(p),
-                        Some(i) => i.to_world.transform_point3a(p).into(),
-                    };
-                    for p in mesh.positions.iter() {
-                        lo = lo.min(place(*p));
-                        hi = hi.max(place(*p));
+                    for k in 0..mesh.positions.len() as u32 {
+                        let p = mesh.vertex(k);
+                        lo = lo.min(p);
+                        hi = hi.max(p);
                     }
                 }
             }
