@@ -37,6 +37,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Re-filter a saved multi-layer EXR without rendering again.
     Filter(FilterCommandArgs),
+    /// Add up the part files of a render split across machines (`render --part`), exactly,
+    /// then filter once and write the image.
+    Merge(MergeArgs),
     /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
     Compare(CompareArgs),
     /// Measure Embree and the BVH side by side on identical ray sets.
@@ -406,6 +409,45 @@ pub struct RenderArgs {
     /// comparison. The beauty is the same.
     #[arg(long)]
     pub all_features: bool,
+    /// Render part I of N of each pixel's samples (0 <= I < N): the output is then a part
+    /// file (.exr) for `lightsplit merge`, never filtered. `auto` reads I and N from a Slurm
+    /// job array (SLURM_ARRAY_TASK_ID less SLURM_ARRAY_TASK_MIN, of SLURM_ARRAY_TASK_COUNT) or
+    /// a Kubernetes Indexed Job (JOB_COMPLETION_INDEX, of LIGHTSPLIT_PART_COUNT).
+    #[arg(long, value_name = "I/N|auto")]
+    pub part: Option<String>,
+    /// Every SECONDS, at the end of a pass, write the render so far as a part file: the
+    /// output itself with --part, else the output's name with `.part.exr` (removed when the
+    /// render completes). `--resume` continues from it.
+    #[arg(long, value_name = "SECONDS", value_parser = seconds)]
+    pub checkpoint: Option<f64>,
+    /// Continue from a checkpoint (or an interrupted render's part file) to the full spp: the
+    /// same image as a render never stopped. The scene and settings must be the same.
+    #[arg(long, value_name = "PART.exr")]
+    pub resume: Option<PathBuf>,
+    /// End before SECONDS of rendering, at a pass boundary (the first pass always runs), and
+    /// write what was rendered, with its part file.
+    #[arg(long, value_name = "SECONDS", value_parser = seconds)]
+    pub time_limit: Option<f64>,
+}
+
+/// `merge`.
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The part files (`render --part I/N`), in any order.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The output: .exr (every layer), .png or .hdr (the final image).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Merge the parts there are when some are missing (each is named on stderr).
+    #[arg(long)]
+    pub allow_missing: bool,
+    /// The filter, exposure and layer of the output, applied once after the merge.
+    #[command(flatten)]
+    pub out: OutputArgs,
+    /// Print what was done as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `text` as a `T` that passes `ok`: otherwise the parse error, or that it "must be `what`".

@@ -12,6 +12,7 @@ pub mod filter;
 pub mod math;
 pub mod metrics;
 pub mod output;
+pub mod part;
 pub mod render;
 pub mod scene;
 pub mod stress;

@@ -10,9 +10,11 @@ use std::process::ExitCode;
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
+
 use cli::{
     BenchAccelArgs, BenchFeaturesArgs, Cli, Command, CompareArgs, ConvergeArgs, FilterCommandArgs, InfoArgs,
-    RenderArgs, StressArgs,
+    MergeArgs, RenderArgs, StressArgs,
 };
 use lightsplit::film;
 use lightsplit::filter::{Kernel, Setting, Target};
@@ -80,6 +82,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render_command(args),
         Command::Filter(args) => filter_command(args),
+        Command::Merge(args) => merge_command(args),
         Command::Compare(args) => compare_command(args),
         Command::BenchAccel(args) => bench_accel_command(args),
         Command::Converge(args) => converge_command(args),
@@ -106,15 +109,33 @@ fn filter_label(setting: &Setting) -> Option<String> {
         .map(|k| format!("{} on {}", k.name(), setting.target.name()))
 }
 
-/// On SIGINT, SIGTERM or SIGHUP: removes the temporary file of a write under way (the output
-/// it would replace is left as it was) and exits with 128 + the signal's number, the status a
-/// shell reports for a process the signal stopped.
+/// While a render runs, the first SIGINT, SIGTERM or SIGHUP sets this: the render ends after
+/// its pass, and what it has is written.
+static STOP: AtomicBool = AtomicBool::new(false);
+/// Whether a signal now stops the render gracefully ([`STOP`]) instead of ending the process.
+static GRACEFUL: AtomicBool = AtomicBool::new(false);
+/// The signal that set [`STOP`] (0 for none).
+static STOPPED_BY: AtomicI32 = AtomicI32::new(0);
+
+/// On SIGINT, SIGTERM or SIGHUP: while a render runs ([`GRACEFUL`]), the first asks it to stop
+/// after the pass under way ([`STOP`]) and the program to end, once it has written what was
+/// rendered, with 128 + the signal's number. Otherwise (a second signal, or one outside a
+/// render) removes the temporary file of a write under way (the output it would replace is left
+/// as it was) and exits with 128 + the signal's number, the status a shell reports for a
+/// process the signal stopped.
 fn remove_temporaries_on_signals() {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
         Ok(mut signals) => {
             std::thread::spawn(move || {
-                if let Some(signal) = signals.forever().next() {
+                for signal in signals.forever() {
+                    if GRACEFUL.load(Ordering::SeqCst) && !STOP.swap(true, Ordering::SeqCst) {
+                        STOPPED_BY.store(signal, Ordering::SeqCst);
+                        eprintln!(
+                            "\nstopping after the pass under way, then writing what was rendered (again to stop now)"
+                        );
+                        continue;
+                    }
                     film::remove_temporaries_and_exit(128 + signal)
                 }
             });
@@ -265,26 +286,125 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(v) = args.sampler {
         options.sampler = v;
     }
-    let setting = args.out.check(&scene_filter, format)?;
+    // A part file is never filtered (the merge filters once): the scene's `[filter]` does not
+    // apply to it, and a filter on the command line is an error.
+    let part_mode = args.part.is_some();
+    let setting = if part_mode {
+        let setting = args.out.check(&Setting::default(), format)?;
+        if format != film::Format::Exr {
+            return Err(Failure::input(
+                "--part writes a part file for `lightsplit merge`: the output must be .exr",
+            ));
+        }
+        if setting.kernel.is_some() && setting.target != Target::None {
+            return Err(Failure::input(
+                "a part is never filtered: give the filter to `lightsplit merge`, which filters the merged image once",
+            ));
+        }
+        setting
+    } else {
+        args.out.check(&scene_filter, format)?
+    };
     scene::limits::check_render_memory(options.width, options.height).map_err(Failure::input)?;
     options.adaptive = args.adaptive;
     if args.all_features {
         options.features = Features::ALL;
         options.embree = Default::default();
+    } else if part_mode {
+        // A merge may filter any way: a part keeps the split and the guides.
+        options.features = Features { split: true, guides: true, ..options.features };
     } else {
         // `from_scene` found what the scene needs; the output decides the split and the guides.
         let Outputs { split, guides } = args.out.layer.reads(format, &setting);
         options.features = Features { split, guides, ..options.features };
     }
+    if let Some(text) = &args.part {
+        options.part = part_from(text)?;
+    }
 
-    let bar = progress_bar(options.width as u64 * options.height as u64 * options.spp as u64, args.run.json);
-    let out = render::render(&scene, &options, &|n| bar.inc(n)).map_err(Failure::failed)?;
+    // The part file: the output of a part, else beside the output (checkpoints, a stop).
+    let part_path = if part_mode { output.clone() } else { part_file_of(&output) };
+    film::check_not_an_input(&part_path, &scene.inputs).map_err(Failure::input)?;
+    let needs_key = part_mode || args.checkpoint.is_some() || args.resume.is_some();
+    let mut key = if needs_key {
+        Some(lightsplit::part::run_key(&scene, &options).map_err(Failure::input)?)
+    } else {
+        None
+    };
+    let resume = match &args.resume {
+        None => None,
+        Some(path) => {
+            let bad = |e: String| Failure::input(format!("--resume {}: {e}", path.display()));
+            let (header, sums) = lightsplit::part::read(path).map_err(bad)?;
+            if Some(&header.key) != key.as_ref() {
+                return Err(bad(
+                    "it is not a checkpoint of this render (the scene files or the settings differ)".into(),
+                ));
+            }
+            if header.part != options.part || header.spp != options.spp {
+                return Err(bad(format!(
+                    "it holds part {} of {} spp, this render part {} of {} spp",
+                    header.part, header.spp, options.part, options.spp
+                )));
+            }
+            Some(sums)
+        }
+    };
+    let header = |key: String, seconds: f64| lightsplit::part::Header {
+        key,
+        part: options.part,
+        spp: options.spp,
+        meta: render::metadata(&scene, &options, seconds),
+    };
+    let checkpoint_key = key.clone().unwrap_or_default();
+    let write_checkpoint = |sums: &film::Film, samples: &[u32]| {
+        if let Err(e) =
+            lightsplit::part::write(&part_path, sums, samples, &header(checkpoint_key.clone(), 0.0))
+        {
+            eprintln!("warning: checkpoint not written: {e}");
+        }
+    };
+
+    let range = options.part.samples(options.spp.max(1));
+    let total = options.width as u64 * options.height as u64 * (range.end - range.start) as u64;
+    let bar = progress_bar(total, args.run.json);
+    if let Some(r) = &resume {
+        bar.inc(r.samples.iter().map(|&n| n as u64).sum());
+    }
+    let control = render::Control {
+        progress: &|n| bar.inc(n),
+        stop: Some(&STOP),
+        time_limit: args.time_limit,
+        checkpoint: args.checkpoint.map(|s| (s, &write_checkpoint as &render::Checkpoint)),
+        resume,
+        keep_sums: part_mode,
+    };
+    GRACEFUL.store(true, Ordering::SeqCst);
+    let rendered = render::render_controlled(&scene, &options, control);
+    GRACEFUL.store(false, Ordering::SeqCst);
+    let out = rendered.map_err(|e| match e {
+        render::RenderError::Resume(_) => Failure::input(e),
+        _ => Failure::failed(e),
+    })?;
     bar.finish_and_clear();
+    let interrupted = out.stats.interrupted;
+    if let Some(sums) = &out.sums {
+        let key = match key.take() {
+            Some(k) => k,
+            None => lightsplit::part::run_key(&scene, &options).map_err(Failure::failed)?,
+        };
+        lightsplit::part::write(&part_path, &sums.film, &sums.samples, &header(key, out.stats.seconds))
+            .map_err(Failure::failed)?;
+    }
     let meta = film::Metadata {
         filter: filter_label(&setting),
         ..render::metadata(&scene, &options, out.stats.seconds)
     };
-    let filter_seconds = args.out.write(out.film, &setting, &output, &meta)?;
+    let filter_seconds = if part_mode { 0.0 } else { args.out.write(out.film, &setting, &output, &meta)? };
+    if !part_mode && !interrupted && args.checkpoint.is_some() {
+        // Complete: the checkpoint has served.
+        let _ = std::fs::remove_file(&part_path);
+    }
 
     let s = out.stats;
     let samples_per_second = s.samples as f64 / s.seconds.max(1e-9);
@@ -321,6 +441,11 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "filter_seconds": filter_seconds,
             "max_depth": options.max_depth,
             "version": env!("CARGO_PKG_VERSION"),
+            "part": options.part.to_string(),
+            "samples_per_pixel_min": s.min_spp,
+            "samples_per_pixel_max": s.max_spp,
+            "interrupted": interrupted,
+            "part_file": (part_mode || interrupted).then(|| part_path.to_string_lossy()),
             "outputs": [output.to_string_lossy()],
         });
         say!("{json}");
@@ -333,6 +458,11 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
                 s.stopped_early
             ),
             None => format!("{} spp", options.spp),
+        };
+        let spp = if part_mode {
+            format!("part {} of {spp}: samples {}..{}", options.part, range.start, range.end)
+        } else {
+            spp
         };
         let spp = format!("{spp} ({})", options.sampler);
         eprintln!(
@@ -350,6 +480,121 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
                 String::new()
             },
             output.display()
+        );
+    }
+    if interrupted {
+        let (lo, hi) = (s.min_spp, s.max_spp);
+        let got = if lo == hi { format!("{lo}") } else { format!("{lo} to {hi}") };
+        let why = match STOPPED_BY.load(Ordering::SeqCst) {
+            0 => "the time limit".to_string(),
+            sig => format!("signal {sig}"),
+        };
+        eprintln!(
+            "stopped by {why}: each pixel has {got} of its {} samples; the part file {} holds them (--resume it to go on)",
+            range.end - range.start,
+            part_path.display()
+        );
+    }
+    match STOPPED_BY.load(Ordering::SeqCst) {
+        0 => Ok(()),
+        sig => Err(Failure { code: (128 + sig).clamp(0, 255) as u8, message: String::new() }),
+    }
+}
+
+/// The part a render takes: `I/N`, or `auto` from the scheduler's environment.
+fn part_from(text: &str) -> Result<render::Part, Failure> {
+    if text != "auto" {
+        return lightsplit::part::parse_part(text).map_err(|e| Failure::input(format!("--part: {e}")));
+    }
+    let var = |name: &str| std::env::var(name).ok();
+    let number = |name: &str, v: String| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| Failure::input(format!("--part auto: {name}={v} is not a whole number")))
+    };
+    let (index, count) = if let (Some(id), Some(count)) =
+        (var("SLURM_ARRAY_TASK_ID"), var("SLURM_ARRAY_TASK_COUNT"))
+    {
+        let min = var("SLURM_ARRAY_TASK_MIN").unwrap_or_else(|| "0".into());
+        let (id, min) = (number("SLURM_ARRAY_TASK_ID", id)?, number("SLURM_ARRAY_TASK_MIN", min)?);
+        (id.checked_sub(min).unwrap_or(u32::MAX), number("SLURM_ARRAY_TASK_COUNT", count)?)
+    } else if let Some(index) = var("JOB_COMPLETION_INDEX") {
+        let count = var("LIGHTSPLIT_PART_COUNT").ok_or_else(|| {
+            Failure::input("--part auto: JOB_COMPLETION_INDEX is set but LIGHTSPLIT_PART_COUNT (the Job's completions) is not")
+        })?;
+        (number("JOB_COMPLETION_INDEX", index)?, number("LIGHTSPLIT_PART_COUNT", count)?)
+    } else {
+        return Err(Failure::input(
+            "--part auto: no scheduler found (SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and LIGHTSPLIT_PART_COUNT)",
+        ));
+    };
+    lightsplit::part::parse_part(&format!("{index}/{count}"))
+        .map_err(|e| Failure::input(format!("--part auto: {e}")))
+}
+
+/// The part file beside `output`: its name with `.part.exr`.
+fn part_file_of(output: &Path) -> PathBuf {
+    output.with_extension("part.exr")
+}
+
+fn merge_command(args: MergeArgs) -> Result<(), Failure> {
+    use lightsplit::part;
+    let start = std::time::Instant::now();
+    let format = film::check_output(&args.output).map_err(Failure::input)?;
+    film::check_not_an_input(&args.output, &args.parts).map_err(Failure::input)?;
+    let setting = args.out.check(&Setting::default(), format)?;
+    let mut named = Vec::new();
+    for path in &args.parts {
+        let header =
+            part::read_header(path).map_err(|e| Failure::input(format!("{}: {e}", path.display())))?;
+        named.push(part::Named { path: path.clone(), header });
+    }
+    let (count, missing) = part::check(&named, args.allow_missing).map_err(Failure::input)?;
+    for m in &missing {
+        eprintln!("warning: part {m}/{count} is missing: merging the others");
+    }
+    let bar = progress_bar(named.len() as u64, args.json);
+    let sums = part::merge(&named, &|| bar.inc(1)).map_err(Failure::input)?;
+    bar.finish_and_clear();
+    let (lo, hi) =
+        (sums.samples.iter().copied().min().unwrap_or(0), sums.samples.iter().copied().max().unwrap_or(0));
+    let merge_seconds = start.elapsed().as_secs_f64();
+    let first = &named[0].header;
+    let meta = film::Metadata {
+        filter: filter_label(&setting),
+        spp: Some(first.spp),
+        extra: Vec::new(),
+        ..first.meta.clone()
+    };
+    let film = sums.into_means();
+    let atrous = matches!(setting.kernel, Some(Kernel::Atrous(_))) && setting.target != Target::None;
+    if atrous && film.variance.is_empty() {
+        return Err(Failure::input("atrous reads each pixel's variance, which these parts do not hold"));
+    }
+    let filter_seconds = args.out.write(film, &setting, &args.output, &meta)?;
+    if args.json {
+        say!(
+            "{}",
+            serde_json::json!({
+                "parts": named.len(),
+                "of": count,
+                "missing": missing,
+                "samples_per_pixel_min": lo,
+                "samples_per_pixel_max": hi,
+                "merge_seconds": merge_seconds,
+                "filter": setting.kernel.as_ref().map(Kernel::name),
+                "filter_target": setting.target.name(),
+                "filter_seconds": filter_seconds,
+                "seconds": start.elapsed().as_secs_f64(),
+                "output": args.output.to_string_lossy(),
+            })
+        );
+    } else {
+        let got = if lo == hi { format!("{lo}") } else { format!("{lo} to {hi}") };
+        eprintln!(
+            "merged {} of {count} parts ({got} samples a pixel) in {merge_seconds:.2} s; wrote {}",
+            named.len(),
+            args.output.display()
         );
     }
     Ok(())

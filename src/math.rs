@@ -248,6 +248,24 @@ impl Distribution2D {
 /// The solid angle of the unit sphere.
 pub const FOUR_PI: f32 = 4.0 * PI;
 
+/// FNV-1a, 64 bits: a stable hash for cache names and run keys (std's hasher may change between
+/// releases).
+pub struct Fnv(pub u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    pub fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

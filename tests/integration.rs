@@ -17,6 +17,7 @@ mod formats;
 mod hardening;
 mod instancing;
 mod nonfinite;
+mod parts;
 mod properties;
 mod stress;
 mod variance;

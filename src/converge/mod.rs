@@ -320,8 +320,8 @@ impl Plan {
     /// sampler it is rendered with) and the program's version. The rows' own spp, seed,
     /// sampler and setting are columns of their own. A row of another key is not used.
     pub fn run_key(&self, scene: &Scene) -> Result<String, ConvergeError> {
-        let mut h = Fnv::default();
-        let file = |h: &mut Fnv, path: &Path| -> Result<(), ConvergeError> {
+        let mut h = crate::math::Fnv::default();
+        let file = |h: &mut crate::math::Fnv, path: &Path| -> Result<(), ConvergeError> {
             let bytes =
                 fs::read(path).map_err(|e| ConvergeError::Input(format!("{}: {e}", path.display())))?;
             h.write(&(bytes.len() as u64).to_le_bytes());
@@ -353,23 +353,6 @@ impl Plan {
     /// The cache file of the rendered reference, named by the run's key.
     pub fn reference_cache(&self, key: &str) -> PathBuf {
         self.out.join(format!("reference-{}spp-{key}.exr", self.reference_spp))
-    }
-}
-
-/// FNV-1a, 64 bits: a stable hash for cache names (std's hasher may change between releases).
-struct Fnv(u64);
-
-impl Default for Fnv {
-    fn default() -> Self {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv {
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
     }
 }
 

@@ -401,6 +401,17 @@ pub fn write_film(
     }
 }
 
+/// Writes named channels as an EXR the way [`write_film`] does: whole or not at all.
+pub fn write_exr_atomically(
+    path: &Path,
+    channels: Channels,
+    width: u32,
+    height: u32,
+    meta: &Metadata,
+) -> Result<(), WriteError> {
+    atomically(path, |tmp| write_exr_channels(channels, width, height, meta, tmp))
+}
+
 /// Writes a text file (a summary, a table) the same way as images: whole or not at all.
 pub fn write_text(path: &Path, text: impl AsRef<[u8]>) -> Result<(), WriteError> {
     atomically(path, |tmp| fs::write(tmp, text).map_err(|e| e.to_string()))
@@ -508,6 +519,9 @@ pub struct Metadata {
     /// ([`exr_matrices`](crate::render::camera::exr_matrices)).
     pub world_to_camera: Option<[f32; 16]>,
     pub world_to_ndc: Option<[f32; 16]>,
+    /// lightsplit's own text attributes (`lightsplit.*`: a part file's key, part and spp),
+    /// read back sorted by name.
+    pub extra: Vec<(String, String)>,
 }
 
 impl Metadata {
@@ -539,6 +553,9 @@ impl Metadata {
         put("sampler", self.sampler.as_deref().map(text));
         put("renderTimeSeconds", self.render_seconds.map(|v| V::F32(v as f32)));
         put("filter", self.filter.as_deref().map(text));
+        for (name, value) in &self.extra {
+            put(name, Some(text(value)));
+        }
         a
     }
 
@@ -557,6 +574,17 @@ impl Metadata {
             Some(V::I32(v)) => u32::try_from(*v).ok(),
             _ => None,
         };
+        let mut extra: Vec<(String, String)> = a
+            .other
+            .iter()
+            .filter_map(|(name, value)| match value {
+                V::Text(t) if name.to_string().starts_with("lightsplit.") => {
+                    Some((name.to_string(), t.to_string()))
+                }
+                _ => None,
+            })
+            .collect();
+        extra.sort();
         Ok(Metadata {
             scene: text("scene"),
             spp: int("samplesPerPixel"),
@@ -570,6 +598,7 @@ impl Metadata {
             filter: text("filter"),
             world_to_camera: a.world_to_camera,
             world_to_ndc: a.world_to_normalized_device,
+            extra,
         })
     }
 }
@@ -826,6 +855,7 @@ mod tests {
             filter: Some("box3 on indirect".into()),
             world_to_camera: Some(std::array::from_fn(|i| i as f32)),
             world_to_ndc: Some(std::array::from_fn(|i| -(i as f32))),
+            extra: vec![("lightsplit.part".into(), "2/7".into())],
         };
         write_film(Film::new(5, 3), gradient(), None, &path, 0.0, &meta).expect("write");
         assert_eq!(Metadata::of_exr(&path).expect("read"), meta);

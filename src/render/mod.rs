@@ -9,7 +9,8 @@ pub mod lights;
 pub mod sampler;
 pub mod surface;
 
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -58,6 +59,177 @@ pub struct RenderOptions {
     /// Adaptive sampling: stop a pixel once the relative standard error of its mean falls to
     /// this (checked after 16, 32, 64, ... samples; `spp` is the most a pixel takes).
     pub adaptive: Option<f32>,
+    /// Which of each pixel's `spp` samples this render takes (all, by default).
+    pub part: Part,
+}
+
+/// A share of each pixel's samples: part `index` of `count` takes samples `index spp / count`
+/// up to `(index + 1) spp / count` (sample `k` of a pixel always draws the same numbers, so
+/// the parts of a render take exactly the samples the whole would).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Part {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Default for Part {
+    fn default() -> Self {
+        Part { index: 0, count: 1 }
+    }
+}
+
+impl Part {
+    /// The sample indices of this part of `spp`.
+    pub fn samples(self, spp: u32) -> Range<u32> {
+        let at = |i: u32| (i as u64 * spp as u64 / self.count.max(1) as u64) as u32;
+        at(self.index)..at(self.index + 1)
+    }
+
+    /// Whether this is the whole render.
+    pub fn is_whole(self) -> bool {
+        self.count <= 1
+    }
+}
+
+impl std::fmt::Display for Part {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// A render's per-pixel sums, what a part or checkpoint file keeps: [`Accumulated::add`] merges
+/// parts exactly (in float, up to summation order), and a render resumes from it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accumulated {
+    /// The film in sums: the beauty, the components, the albedo, the normal (not normalised)
+    /// and the depth summed over the samples; `object` the object of each pixel's sample 0
+    /// (-1 for none), `coverage` how many samples saw it, `alpha` how many hit a surface; the
+    /// variances the sums of the squared sample luminances.
+    pub film: Film,
+    /// The samples each pixel has taken.
+    pub samples: Vec<u32>,
+}
+
+impl Accumulated {
+    /// Nothing yet: `film`'s buffers zeroed (the object unknown).
+    pub fn empty(width: u32, height: u32, split: bool, guides: bool) -> Accumulated {
+        let mut film = Film::with_buffers(width, height, split, guides);
+        film.coverage.fill(0.0);
+        film.alpha.fill(0.0);
+        Accumulated { film, samples: vec![0; width as usize * height as usize] }
+    }
+
+    /// The film of means.
+    pub fn into_means(self) -> Film {
+        let Accumulated { mut film, samples } = self;
+        for (at, &n) in samples.iter().enumerate() {
+            let inv = if n > 0 { 1.0 / n as f32 } else { 0.0 };
+            if !film.variance.is_empty() {
+                // Sums of squares to the variance of the mean, from the sums before they become
+                // means.
+                let lum = |v: Vec3| crate::math::luminance(v) as f64;
+                film.variance[at] =
+                    film::variance_of_mean(n, lum(film.raw.pixels[at]), film.variance[at] as f64) as f32;
+                for c in Component::ALL {
+                    let sum = lum(film.components[c].pixels[at]);
+                    let v = &mut film.component_variance[c][at];
+                    *v = film::variance_of_mean(n, sum, *v as f64) as f32;
+                }
+            }
+            film.raw.pixels[at] *= inv;
+            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
+                layer.pixels[at] *= inv;
+            }
+            if film.has_guides() {
+                film.albedo.pixels[at] *= inv;
+                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
+                film.depth[at] *= inv;
+                film.coverage[at] *= inv;
+                film.alpha[at] *= inv;
+            }
+        }
+        film
+    }
+
+    /// Adds the samples of `other`, a render of other samples of the same pixels (another part):
+    /// every sum adds, sample counts too. The object of sample 0 is the same in both wherever
+    /// both have samples (a pixel's sample 0 is traced by every part); where they disagree the
+    /// parts are not of one render.
+    pub fn add(&mut self, other: &Accumulated) -> Result<(), String> {
+        let (a, b) = (&mut self.film, &other.film);
+        if (a.width, a.height) != (b.width, b.height) {
+            return Err(format!("{}x{} against {}x{}", b.width, b.height, a.width, a.height));
+        }
+        if (a.has_split(), a.has_guides()) != (b.has_split(), b.has_guides()) {
+            return Err("one has the component split or the guide buffers and the other not".into());
+        }
+        let add3 = |x: &mut film::Image, y: &film::Image| {
+            x.pixels.iter_mut().zip(&y.pixels).for_each(|(p, q)| *p += *q)
+        };
+        let add1 = |x: &mut Vec<f32>, y: &Vec<f32>| x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
+        if a.has_guides() {
+            for (i, (&o, &n)) in b.object.iter().zip(&other.samples).enumerate() {
+                if n == 0 {
+                    continue;
+                }
+                if self.samples[i] > 0 && a.object[i] != o {
+                    let (x, y) = (i as u32 % a.width, i as u32 / a.width);
+                    return Err(format!(
+                        "pixel ({x}, {y}) shows object {o} in one and {} in the other",
+                        a.object[i]
+                    ));
+                }
+                a.object[i] = o;
+            }
+            add3(&mut a.albedo, &b.albedo);
+            add3(&mut a.normal, &b.normal);
+            add1(&mut a.depth, &b.depth);
+            add1(&mut a.coverage, &b.coverage);
+            add1(&mut a.alpha, &b.alpha);
+        }
+        add3(&mut a.raw, &b.raw);
+        for (x, y) in a.components.iter_mut().zip(&b.components) {
+            add3(x, y);
+        }
+        add1(&mut a.variance, &b.variance);
+        for (x, y) in a.component_variance.iter_mut().zip(&b.component_variance) {
+            add1(x, y);
+        }
+        for (n, m) in self.samples.iter_mut().zip(&other.samples) {
+            *n += m;
+        }
+        Ok(())
+    }
+}
+
+/// What writes a checkpoint: given the sums so far and each pixel's sample count.
+pub type Checkpoint<'a> = dyn Fn(&Film, &[u32]) + Sync + 'a;
+
+/// How a render runs beyond its options: progress, stopping, checkpoints, resuming.
+pub struct Control<'a> {
+    /// Called with the number of samples each tile pass has done, from worker threads.
+    pub progress: &'a (dyn Fn(u64) + Sync),
+    /// Once set, the render ends after the pass under way: every pixel keeps the samples of
+    /// the passes done.
+    pub stop: Option<&'a AtomicBool>,
+    /// Seconds of rendering after which the render ends at a pass boundary: the last pass it
+    /// starts is one that, at the pace so far, ends within the limit (the first pass always
+    /// runs).
+    pub time_limit: Option<f64>,
+    /// Every so many seconds, at the end of a pass, called with the sums so far and the
+    /// samples of each pixel (a checkpoint).
+    pub checkpoint: Option<(f64, &'a Checkpoint<'a>)>,
+    /// Continue from these sums (a checkpoint of a render with the same scene and options).
+    pub resume: Option<Accumulated>,
+    /// Keep the sums in [`RenderOutput::sums`].
+    pub keep_sums: bool,
+}
+
+impl<'a> Control<'a> {
+    /// Progress alone.
+    pub fn progress(progress: &'a (dyn Fn(u64) + Sync)) -> Control<'a> {
+        Control { progress, stop: None, time_limit: None, checkpoint: None, resume: None, keep_sums: false }
+    }
 }
 
 /// What a file records of a render of `scene` with `options` that took `seconds`
@@ -76,6 +248,7 @@ pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::M
         filter: None,
         world_to_camera: Some(world_to_camera),
         world_to_ndc: Some(world_to_ndc),
+        extra: Vec::new(),
     }
 }
 
@@ -97,6 +270,7 @@ impl RenderOptions {
             features: Features::needed(&analysis, Outputs::ALL),
             embree: Features::embree_settings(&analysis),
             adaptive: None,
+            part: Part::default(),
         }
     }
 }
@@ -118,12 +292,20 @@ pub struct RenderStats {
     pub buffer_bytes: u64,
     /// Pixels adaptive sampling stopped before the spp.
     pub stopped_early: u64,
+    /// The fewest and the most samples a pixel took (of this render's range, those it resumed
+    /// included).
+    pub min_spp: u32,
+    pub max_spp: u32,
+    /// Whether a stop or the time limit ended the render before its samples were all taken.
+    pub interrupted: bool,
 }
 
 /// A finished render.
 pub struct RenderOutput {
     pub film: Film,
     pub stats: RenderStats,
+    /// The sums, when [`Control::keep_sums`] asked for them.
+    pub sums: Option<Accumulated>,
 }
 
 /// An error while rendering (the scene itself was valid).
@@ -133,6 +315,9 @@ pub enum RenderError {
     Accel(#[from] accel::AccelError),
     #[error("the image size {0}x{1} is empty or too large")]
     Size(u32, u32),
+    /// The sums to resume from do not fit the render.
+    #[error("cannot resume: {0}")]
+    Resume(String),
 }
 
 /// Renders `scene` with `options`; `progress` is called with the number of samples each tile
@@ -142,9 +327,46 @@ pub fn render(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<RenderOutput, RenderError> {
+    render_controlled(scene, options, Control::progress(progress))
+}
+
+/// [`render`] under `control`: stopped, time-limited, checkpointed or resumed.
+pub fn render_controlled(
+    scene: &Scene,
+    options: &RenderOptions,
+    control: Control,
+) -> Result<RenderOutput, RenderError> {
     if options.width == 0 || options.height == 0 || options.width as u64 * options.height as u64 > 1 << 30 {
         return Err(RenderError::Size(options.width, options.height));
     }
+    if options.part.count == 0 || options.part.index >= options.part.count {
+        return Err(RenderError::Resume(format!("part {} does not exist", options.part)));
+    }
+    if let Some(r) = &control.resume {
+        let f = &r.film;
+        let (split, guides) = (options.features.split, options.features.guides);
+        if (f.width, f.height) != (options.width, options.height) {
+            return Err(RenderError::Resume(format!(
+                "the checkpoint is {}x{}, the render {}x{}",
+                f.width, f.height, options.width, options.height
+            )));
+        }
+        if (f.has_split(), f.has_guides()) != (split, guides) {
+            return Err(RenderError::Resume("the checkpoint was rendered with other buffers".into()));
+        }
+        if options.adaptive.is_some() {
+            return Err(RenderError::Resume("an adaptive render cannot be resumed".into()));
+        }
+        let range = options.part.samples(options.spp.max(1));
+        let first = r.samples.first().copied().unwrap_or(0);
+        if r.samples.iter().any(|&n| n != first) || first > range.end - range.start {
+            return Err(RenderError::Resume(format!(
+                "the checkpoint's sample counts are not those of a pass of samples {}..{}",
+                range.start, range.end
+            )));
+        }
+    }
+    let control = &control;
     let run = || -> Result<RenderOutput, accel::AccelError> {
         // Build, then render with the backend's own monomorphised integrator.
         let start = Instant::now();
@@ -155,9 +377,11 @@ pub fn render(
         Ok(match options.accel {
             Backend::Embree => {
                 let accel = accel::build_embree_with(scene, options.threads, options.embree)?;
-                built(render_with(scene, &accel, options, progress))
+                built(render_with_control(scene, &accel, options, control))
             }
-            Backend::Bvh => built(render_with(scene, &accel::bvh::Bvh::new(scene)?, options, progress)),
+            Backend::Bvh => {
+                built(render_with_control(scene, &accel::bvh::Bvh::new(scene)?, options, control))
+            }
         })
     };
     Ok(match options.threads {
@@ -187,9 +411,9 @@ struct Tile {
     y0: u32,
     w: u32,
     h: u32,
-    /// Adaptive sampling: the samples each pixel has taken, the sums of its sample luminances
-    /// and of their squares, and whether it has converged (empty otherwise: every pixel takes
-    /// the spp).
+    /// The samples each pixel has taken; for adaptive sampling also the sums of its sample
+    /// luminances and of their squares, and whether it has converged (empty otherwise: every
+    /// pixel takes the spp).
     n: Vec<u32>,
     moments: Vec<[f64; 2]>,
     converged: Vec<bool>,
@@ -198,7 +422,7 @@ struct Tile {
 }
 
 impl Tile {
-    fn new(x0: u32, y0: u32, w: u32, h: u32, adaptive: bool) -> Tile {
+    fn new(x0: u32, y0: u32, w: u32, h: u32, adaptive: bool, done: u32) -> Tile {
         let n = (w * h) as usize;
         let some = if adaptive { n } else { 0 };
         Tile {
@@ -206,7 +430,7 @@ impl Tile {
             y0,
             w,
             h,
-            n: vec![0; some],
+            n: vec![done; n],
             moments: vec![[0.0; 2]; some],
             converged: vec![false; some],
             rays: 0,
@@ -313,6 +537,14 @@ impl Sums {
         }
     }
 
+    /// Sets the object pixel `i` shows: that of its sample 0, traced by a part that does not
+    /// take it.
+    fn set_object(&mut self, i: usize, object: Option<u32>) {
+        if let Some(g) = self.guides.get_mut(i) {
+            g.object = object;
+        }
+    }
+
     /// Adds sample `k` of pixel `i`; false when it was dropped as non-finite (it counts as a
     /// zero sample).
     #[inline(always)]
@@ -358,17 +590,27 @@ impl Sums {
 /// doubles the count, up to the render's spp.
 pub const ADAPTIVE_FIRST_PASS: u32 = 16;
 
-/// The sample counts at which passes end: the spp alone, or for adaptive sampling 16, 32, 64
-/// and so on up to the spp.
-fn pass_ends(spp: u32, adaptive: bool) -> Vec<u32> {
-    if !adaptive {
-        return vec![spp];
+/// Without adaptive sampling, a pass takes this many samples a pixel (a packet of camera rays):
+/// a stop, a time limit or a checkpoint waits at most one pass.
+pub const PASS: u32 = PACKET as u32;
+
+/// The sample indices at which the passes over `samples` end, after `done` (samples from
+/// `samples.start` up to `done` are taken): counted from the start, every [`PASS`]; for
+/// adaptive sampling 16, 32, 64 and so on. The last is `samples.end`.
+fn pass_ends(samples: Range<u32>, adaptive: bool, done: u32) -> Vec<u32> {
+    let len = samples.end - samples.start;
+    let mut ends = Vec::new();
+    let mut k = if adaptive { ADAPTIVE_FIRST_PASS } else { PASS };
+    loop {
+        let end = samples.start + k.min(len);
+        if end > done {
+            ends.push(end);
+        }
+        if k >= len {
+            return ends;
+        }
+        k = if adaptive { k.saturating_mul(2) } else { k.saturating_add(PASS) };
     }
-    let mut ends = vec![ADAPTIVE_FIRST_PASS.min(spp)];
-    while let Some(&last) = ends.last().filter(|&&l| l < spp) {
-        ends.push((last.saturating_mul(2)).min(spp));
-    }
-    ends
 }
 
 /// The relative standard error of a pixel's mean from its `n` sample luminances' sum and sum of
@@ -394,11 +636,21 @@ pub fn render_with<A: Accel>(
     options: &RenderOptions,
     progress: &(dyn Fn(u64) + Sync),
 ) -> RenderOutput {
+    render_with_control(scene, accel, options, &Control::progress(progress))
+}
+
+/// [`render_with`] under `control` (whose resume state [`render_controlled`] has checked).
+pub fn render_with_control<A: Accel>(
+    scene: &Scene,
+    accel: &A,
+    options: &RenderOptions,
+    control: &Control,
+) -> RenderOutput {
     macro_rules! specialised {
         ($($bits:literal)*) => {
             match options.features.bits() {
-                $($bits => render_features::<A, $bits>(scene, accel, options, progress),)*
-                _ => render_features::<A, { features::ALL }>(scene, accel, options, progress),
+                $($bits => render_features::<A, $bits>(scene, accel, options, control),)*
+                _ => render_features::<A, { features::ALL }>(scene, accel, options, control),
             }
         };
     }
@@ -410,8 +662,9 @@ fn render_features<A: Accel, const F: u8>(
     scene: &Scene,
     accel: &A,
     options: &RenderOptions,
-    progress: &(dyn Fn(u64) + Sync),
+    control: &Control,
 ) -> RenderOutput {
+    let progress = control.progress;
     let (split, guides) = (F & features::SPLIT != 0, F & features::GUIDES != 0);
     let start = Instant::now();
     let (width, height) = (options.width, options.height);
@@ -424,19 +677,26 @@ fn render_features<A: Accel, const F: u8>(
     let reported = AtomicU32::new(0);
 
     let adaptive = options.adaptive;
+    let range = options.part.samples(spp);
+    // The film holds each pixel's sums (the coverage: how many samples saw the object) until
+    // every pass is done, then their means.
+    let start_state = match &control.resume {
+        Some(r) => r.clone(),
+        None => Accumulated::empty(width, height, split, guides),
+    };
+    // Samples are taken in order: a resumed render has taken the first of its range.
+    let done = range.start + start_state.samples.first().copied().unwrap_or(0);
     let mut tiles: Vec<Tile> = (0..height.div_ceil(TILE))
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            Tile::new(x0, y0, w, h, adaptive.is_some())
+            Tile::new(x0, y0, w, h, adaptive.is_some(), done)
         })
         .collect();
-    // The film holds each pixel's sums (the coverage: how many samples saw the object) until
-    // every pass is done, then their means.
-    let mut film = Film::with_buffers(width, height, split, guides);
-    film.coverage.fill(0.0);
-    film.alpha.fill(0.0);
-    let shared = Mutex::new(film);
+    // A part that does not start at sample 0 traces each pixel's sample 0 for the object it
+    // shows, so every part counts the coverage of the same object.
+    let trace_first = guides && range.start > 0 && control.resume.is_none();
+    let shared = Mutex::new(start_state.film);
     let lock = || shared.lock().unwrap_or_else(|e| e.into_inner());
 
     // `--debug-nonfinite`: the sampler is a pure function of (seed, pixel, sample), so the
@@ -459,8 +719,20 @@ fn render_features<A: Accel, const F: u8>(
 
     // Samples [from, to) of every pixel not yet converged, tile by tile; the pixel's sample i
     // always draws from the same stream, so passes change no sample.
-    let mut from = 0;
-    for to in pass_ends(spp, adaptive.is_some()) {
+    let mut from = done;
+    let (mut interrupted, mut last_checkpoint) = (false, Instant::now());
+    for to in pass_ends(range.clone(), adaptive.is_some(), done) {
+        let stop_asked = control.stop.is_some_and(|s| s.load(Ordering::Relaxed));
+        let over_time = control.time_limit.is_some_and(|limit| {
+            // At the pace so far (per sample), would this pass end after the limit?
+            let elapsed = start.elapsed().as_secs_f64();
+            let pace = elapsed / (from - done).max(1) as f64;
+            from > done && elapsed + pace * (to - from) as f64 > limit
+        });
+        if stop_asked || over_time {
+            interrupted = true;
+            break;
+        }
         tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
             let mut sums = Sums::load(tile, &lock());
             let mut taken = 0u64;
@@ -471,6 +743,13 @@ fn render_features<A: Accel, const F: u8>(
                 let (at, x, y) = tile.pixel(i, width);
                 // The pixel's camera rays, a packet at a time, then each path from its hit.
                 let streams = PixelSampler::new(options.sampler, options.seed, at as u64);
+                if trace_first && from == range.start {
+                    let mut sampler = streams.sample(0);
+                    let ray = camera.ray(x, y, sampler.pixel_2d());
+                    let hit = accel.intersect(&ray);
+                    let s = integrator.sample_from(ray, hit, &mut sampler, &mut tile.rays);
+                    sums.set_object(i, s.object);
+                }
                 let mut k = from;
                 while k < to {
                     let n = (to - k).min(PACKET as u32) as usize;
@@ -495,14 +774,13 @@ fn render_features<A: Accel, const F: u8>(
                     }
                     k += n as u32;
                 }
-                if let Some(n) = tile.n.get_mut(i) {
-                    *n = to;
-                }
+                tile.n[i] = to;
                 taken += (to - from) as u64;
                 if let (Some(threshold), Some(m)) = (adaptive, tile.moments.get(i)) {
-                    if to == spp || relative_error(to, m[0], m[1]) <= threshold as f64 {
+                    let n = to - range.start;
+                    if to == range.end || relative_error(n, m[0], m[1]) <= threshold as f64 {
                         tile.converged[i] = true;
-                        taken += (spp - to) as u64; // never taken: done, for the progress bar
+                        taken += (range.end - to) as u64; // never taken: done, for the progress bar
                     }
                 }
             }
@@ -510,48 +788,45 @@ fn render_features<A: Accel, const F: u8>(
             progress(taken);
         });
         from = to;
+        if let Some((every, write)) = control.checkpoint {
+            if last_checkpoint.elapsed().as_secs_f64() >= every && to < range.end {
+                write(&lock(), &samples_of(&tiles, width, height, range.start));
+                last_checkpoint = Instant::now();
+            }
+        }
     }
 
-    // Sums to means.
-    let mut film = shared.into_inner().unwrap_or_else(|e| e.into_inner());
+    let film = shared.into_inner().unwrap_or_else(|e| e.into_inner());
+    let samples = samples_of(&tiles, width, height, range.start);
     let mut stats = RenderStats {
         buffer_bytes: film.bytes() + tiles.iter().map(Tile::bytes).sum::<u64>(),
+        min_spp: samples.iter().copied().min().unwrap_or(0),
+        max_spp: samples.iter().copied().max().unwrap_or(0),
+        interrupted,
         ..Default::default()
     };
     for tile in &tiles {
-        for i in 0..(tile.w * tile.h) as usize {
-            let n = tile.n.get(i).copied().unwrap_or(spp);
-            let (at, ..) = tile.pixel(i, width);
-            let inv = 1.0 / n as f32;
-            if !film.variance.is_empty() {
-                // Sums of squares to the variance of the mean, from the sums before they become
-                // means.
-                let lum = |v: Vec3| crate::math::luminance(v) as f64;
-                film.variance[at] =
-                    film::variance_of_mean(n, lum(film.raw.pixels[at]), film.variance[at] as f64) as f32;
-                for c in Component::ALL {
-                    let sum = lum(film.components[c].pixels[at]);
-                    let v = &mut film.component_variance[c][at];
-                    *v = film::variance_of_mean(n, sum, *v as f64) as f32;
-                }
-            }
-            film.raw.pixels[at] *= inv;
-            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
-                layer.pixels[at] *= inv;
-            }
-            if film.has_guides() {
-                film.albedo.pixels[at] *= inv;
-                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
-                film.depth[at] *= inv;
-                film.coverage[at] /= n as f32;
-                film.alpha[at] /= n as f32;
-            }
-            stats.samples += n as u64;
-            stats.stopped_early += (n < spp) as u64;
-        }
         stats.rays += tile.rays;
         stats.nonfinite_samples += tile.nonfinite;
     }
+    for &n in &samples {
+        stats.samples += n as u64;
+        stats.stopped_early += (n < range.end - range.start && !interrupted) as u64;
+    }
+    let state = Accumulated { film, samples };
+    let sums = (control.keep_sums || interrupted).then(|| state.clone());
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film, stats }
+    RenderOutput { film: state.into_means(), stats, sums }
+}
+
+/// Each pixel's sample count, from the tiles (whose counts run from `first`, the range's first
+/// sample).
+fn samples_of(tiles: &[Tile], width: u32, height: u32, first: u32) -> Vec<u32> {
+    let mut out = vec![0; width as usize * height as usize];
+    for tile in tiles {
+        for (i, &n) in tile.n.iter().enumerate() {
+            out[tile.pixel(i, width).0] = n - first.min(n);
+        }
+    }
+    out
 }
