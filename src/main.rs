@@ -350,16 +350,17 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             Some(sums)
         }
     };
-    let header = |key: String, seconds: f64| lightsplit::part::Header {
+    let header = |key: String, seconds: f64, complete: bool| lightsplit::part::Header {
         key,
         part: options.part,
         spp: options.spp,
+        complete,
         meta: render::metadata(&scene, &options, seconds),
     };
     let checkpoint_key = key.clone().unwrap_or_default();
     let write_checkpoint = |sums: &film::Film, samples: &[u32]| {
         if let Err(e) =
-            lightsplit::part::write(&part_path, sums, samples, &header(checkpoint_key.clone(), 0.0))
+            lightsplit::part::write(&part_path, sums, samples, &header(checkpoint_key.clone(), 0.0, false))
         {
             eprintln!("warning: checkpoint not written: {e}");
         }
@@ -393,8 +394,13 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             Some(k) => k,
             None => lightsplit::part::run_key(&scene, &options).map_err(Failure::failed)?,
         };
-        lightsplit::part::write(&part_path, &sums.film, &sums.samples, &header(key, out.stats.seconds))
-            .map_err(Failure::failed)?;
+        lightsplit::part::write(
+            &part_path,
+            &sums.film,
+            &sums.samples,
+            &header(key, out.stats.seconds, !interrupted),
+        )
+        .map_err(Failure::failed)?;
     }
     let meta = film::Metadata {
         filter: filter_label(&setting),

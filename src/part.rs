@@ -31,6 +31,8 @@ pub struct Header {
     pub part: Part,
     /// The samples per pixel of the whole render.
     pub spp: u32,
+    /// Whether the part holds all its samples (not a checkpoint, not stopped).
+    pub complete: bool,
     /// The render's own record (scene, seed, sampler, camera matrices...).
     pub meta: Metadata,
 }
@@ -83,6 +85,7 @@ pub fn write(path: &Path, sums: &Film, samples: &[u32], header: &Header) -> Resu
             ("lightsplit.key".into(), header.key.clone()),
             ("lightsplit.part".into(), header.part.to_string()),
             ("lightsplit.spp".into(), header.spp.to_string()),
+            ("lightsplit.complete".into(), if header.complete { "yes" } else { "no" }.into()),
         ],
         ..header.meta.clone()
     };
@@ -103,7 +106,8 @@ pub fn read_header(path: &Path) -> Result<Header, String> {
     let key = extra("lightsplit.key")?;
     let part = parse_part(&extra("lightsplit.part")?)?;
     let spp: u32 = extra("lightsplit.spp")?.parse().map_err(|_| "a bad `lightsplit.spp`".to_string())?;
-    Ok(Header { key, part, spp, meta })
+    let complete = extra("lightsplit.complete")? == "yes";
+    Ok(Header { key, part, spp, complete, meta })
 }
 
 /// Reads a part file: its header and its sums.
@@ -221,6 +225,15 @@ pub fn check(parts: &[Named], allow_missing: bool) -> Result<(u32, Vec<u32>), Me
                 h.part
             )));
         }
+    }
+    let incomplete: Vec<&Named> = parts.iter().filter(|p| !p.header.complete).collect();
+    if let (Some(p), false) = (incomplete.first(), allow_missing) {
+        return Err(MergeError(format!(
+            "{} is part {} stopped before its samples were all taken (a checkpoint): resume it \
+             (`render --resume`), or merge what there is with --allow-missing",
+            p.path.display(),
+            p.header.part
+        )));
     }
     let missing: Vec<u32> = (0..count).filter(|&i| seen[i as usize].is_none()).collect();
     if !missing.is_empty() && !allow_missing {

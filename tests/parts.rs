@@ -114,6 +114,7 @@ fn merged_parts_equal_the_whole_render() {
                     key: "k".into(),
                     part,
                     spp,
+                    complete: true,
                     meta: lightsplit::film::Metadata::default(),
                 };
                 lightsplit::part::write(&path, &s.film, &s.samples, &header).expect("part file");
@@ -335,6 +336,15 @@ fn a_time_limited_render_resumes_to_the_whole_image() {
     let a = lightsplit::film::read_image(&d.join("resumed.exr")).expect("reads");
     let b = lightsplit::film::read_image(&d.join("whole.exr")).expect("reads");
     assert_eq!(a.pixels, b.pixels, "resumed and whole renders differ");
+    // A part stopped early is refused by a merge, unless it merges what there is.
+    let o = run(&["merge", &path("cut.part.exr"), "-o", &path("m.exr")]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("stopped before its samples were all taken"), "{}", stderr(&o));
+    let o = run(&["merge", &path("cut.part.exr"), "--allow-missing", "-o", &path("m.exr")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let merged = lightsplit::film::read_image(&d.join("m.exr")).expect("reads");
+    let cut = lightsplit::film::read_image(&d.join("cut.exr")).expect("reads");
+    assert_eq!(merged.pixels, cut.pixels, "the merge of a stopped render's part is its image");
     // Another scene's checkpoint, or another spp, is refused.
     let o = run(&["render", s, "--spp", "300", "--resume", &path("cut.part.exr"), "-o", &path("x.exr")]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -376,4 +386,45 @@ fn a_stopped_render_keeps_its_work() {
         let image = lightsplit::film::read_image(&out).expect("a valid image");
         assert_eq!(image.pixels, sums.into_means().raw.pixels, "the image is the mean of the samples taken");
     }
+}
+
+/// The Kubernetes manifest (which cannot run here) parses, and its numbers agree: an Indexed Job
+/// whose completions are the part count its pods are given, each rendering `--part auto`, and a
+/// merge Job that waits for as many finished parts and merges them.
+#[test]
+fn the_kubernetes_manifest_is_an_indexed_job_and_a_merge() {
+    use serde::Deserialize;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("deploy/k8s/render-job.yaml");
+    let text = std::fs::read_to_string(&path).expect("deploy/k8s/render-job.yaml");
+    let docs: Vec<serde_yaml::Value> = serde_yaml::Deserializer::from_str(&text)
+        .map(|d| serde_yaml::Value::deserialize(d).expect("YAML"))
+        .collect();
+    assert_eq!(docs.len(), 2, "two Jobs");
+    let env = |container: &serde_yaml::Value, name: &str| -> Option<String> {
+        container["env"]
+            .as_sequence()?
+            .iter()
+            .find(|e| e["name"] == name)
+            .and_then(|e| e["value"].as_str().map(String::from))
+    };
+    let (parts, merge) = (&docs[0], &docs[1]);
+    for d in &docs {
+        assert_eq!(d["apiVersion"], "batch/v1");
+        assert_eq!(d["kind"], "Job");
+    }
+    assert_eq!(parts["spec"]["completionMode"], "Indexed");
+    let completions = parts["spec"]["completions"].as_u64().expect("completions");
+    let render = &parts["spec"]["template"]["spec"]["containers"][0];
+    assert_eq!(env(render, "LIGHTSPLIT_PART_COUNT"), Some(completions.to_string()));
+    let script = render["args"][0].as_str().expect("the part's script");
+    assert!(script.contains("lightsplit render") && script.contains("--part auto"), "{script}");
+    assert!(script.contains("${JOB_COMPLETION_INDEX}"), "each part its own file: {script}");
+    let wait = &merge["spec"]["template"]["spec"]["initContainers"][0];
+    assert_eq!(env(wait, "PARTS"), Some(completions.to_string()));
+    let merging = merge["spec"]["template"]["spec"]["containers"][0]["args"][0].as_str().expect("merge");
+    assert!(merging.contains("lightsplit merge"), "{merging}");
+    let claim = |d: &serde_yaml::Value| {
+        d["spec"]["template"]["spec"]["volumes"][0]["persistentVolumeClaim"]["claimName"].clone()
+    };
+    assert_eq!(claim(parts), claim(merge), "one shared volume");
 }
