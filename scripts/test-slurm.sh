@@ -80,7 +80,7 @@ ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 SchedulerType=sched/builtin
 SelectType=select/cons_tres
-SelectTypeParameters=CR_Core
+SelectTypeParameters=CR_CPU
 MpiDefault=none
 ReturnToService=2
 StateSaveLocation=$work/state
@@ -111,10 +111,18 @@ sinfo -h -N -o '%T' | grep -qE '^(idle|mixed|allocated)' || { echo "error: the n
 echo "one-node cluster up: $(sinfo -h -N -o '%N %T %c CPUs')"
 
 start=$(date +%s.%N)
-LIGHTSPLIT=$root/target/release/lightsplit scripts/slurm-render.sh --wait "$scene" "$work/out.exr" "$n" "${options[@]}"
+submitted=$(LIGHTSPLIT=$root/target/release/lightsplit scripts/slurm-render.sh "$scene" "$work/out.exr" "$n" "${options[@]}")
+echo "$submitted"
+merge_job=$(echo "$submitted" | sed -E 's/.*merge job ([0-9]+).*/\1/')
+# Until the merge job has left the queue (sbatch --wait polls too coarsely to time with).
+for _ in $(seq 36000); do
+  squeue -h -j "$merge_job" 2>/dev/null | grep -q . || break
+  sleep 0.1
+done
 end=$(date +%s.%N)
 seconds=$(echo "$end - $start" | bc)
 if [ $time_only = 1 ]; then
+  [ -s "$work/out.exr" ] || { echo "error: no merged image" >&2; exit 1; }
   echo "$n parts: ${seconds} s from submission to the merged image"
   exit 0
 fi
