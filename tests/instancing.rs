@@ -96,13 +96,7 @@ fn agree(scene: &Scene, ray: &Ray, a: Option<Hit>, b: Option<Hit>, size: f32) ->
 fn rays(scene: &Scene, accel: &impl Accel) -> Vec<Ray> {
     let mut out = Vec::new();
     let (lo, hi) = scene.bounds();
-    let mut state = 0x9e3779b97f4a7c15u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = crate::common::uniform_stream(0x9e3779b97f4a7c15u64);
     for _ in 0..4000 {
         let target = lo + (hi - lo) * Vec3::new(next(), next(), next());
         let ray = Ray::new(Vec3::ZERO, target);
@@ -287,13 +281,7 @@ fn rays_leaving_an_instance_do_not_hit_it_again() {
     assert_eq!(Analysis::of(&scene).instances, 6);
     let embree = build_embree(&scene, None).expect("embree");
     let bvh = Bvh::new(&scene).expect("bvh");
-    let mut state = 0x2545f4914f6cdd1du64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = crate::common::uniform_stream(0x2545f4914f6cdd1du64);
     let accels: [(&str, &dyn Accel); 2] = [("embree", &embree), ("bvh", &bvh)];
     for (name, accel) in accels {
         let (mut rays, mut self_hits) = (0usize, 0usize);

@@ -230,6 +230,13 @@ const SCENE: &str = "[camera]\nposition = [0, 1, 4]\nlook_at = [0, 0.5, 0]\nfov 
     [[light]]\ntype = \"sun\"\ndirection = [0.3, 1, 0.2]\nirradiance = [2, 2, 2]\n\
     [[light]]\ntype = \"sky\"\nradiance = [0.3, 0.3, 0.4]\n";
 
+/// [`SCENE`] written into `dir`; its path.
+fn scene_in(dir: &Path) -> String {
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, SCENE).expect("write");
+    scene.to_string_lossy().into_owned()
+}
+
 /// From the command line: parts of another render, a part named twice and a missing part are
 /// refused with status 2, naming them; --allow-missing merges what there is; a filtered part, a
 /// part that does not exist and `auto` without a scheduler are refused; `auto` reads Slurm's
@@ -238,9 +245,7 @@ const SCENE: &str = "[camera]\nposition = [0, 1, 4]\nlook_at = [0, 0.5, 0]\nfov 
 fn bad_sets_of_parts_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let scene = d.join("s.toml");
-    std::fs::write(&scene, SCENE).expect("write");
-    let s = scene.to_str().expect("utf-8");
+    let s = &scene_in(d);
     let path = |name: &str| d.join(name).to_string_lossy().into_owned();
     for i in 0..3 {
         let o = run(&["render", s, "--part", &format!("{i}/3"), "-o", &path(&format!("p{i}.exr"))]);
@@ -316,9 +321,7 @@ fn bad_sets_of_parts_are_refused() {
 fn a_time_limited_render_resumes_to_the_whole_image() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let scene = d.join("s.toml");
-    std::fs::write(&scene, SCENE).expect("write");
-    let s = scene.to_str().expect("utf-8");
+    let s = &scene_in(d);
     let path = |name: &str| d.join(name).to_string_lossy().into_owned();
     let o = run(&["render", s, "--spp", "400", "-o", &path("whole.exr")]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -191,3 +191,15 @@ impl GltfDoc {
         out
     }
 }
+
+/// A xorshift64 stream of numbers in [0, 1) from `seed` (not 0): cheap, reproducible
+/// randomness for ray and point sets.
+pub fn uniform_stream(seed: u64) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    }
+}

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use glam::{Affine3A, Vec3A};
 
-use super::{build, Aabb, BuildOptions, Bvh, Node, Prim, RayBox, TooLarge, STACK};
+use super::{any, build, closest, Aabb, BuildOptions, Bvh, Node, Prim, TooLarge};
 use crate::accel::{Hit, Ray};
 use crate::scene::{Geometry, Scene};
 
@@ -78,107 +78,29 @@ impl Instances {
     }
 
     /// The closest hit along `ray` nearer than `best` (the hit found so far, if any).
-    pub(super) fn intersect(&self, ray: &Ray, mut best: Option<Hit>) -> Option<Hit> {
-        let rb = RayBox::new(ray);
-        let mut t_max = best.map_or(ray.t_max, |h| h.t);
-        let mut stack = [0u32; STACK];
-        let mut sp = 0usize;
-        let mut node = 0usize;
-        if rb.hit(&self.nodes[0], t_max).is_none() {
-            return best;
-        }
-        loop {
-            let n = &self.nodes[node];
-            if n.is_leaf() {
-                for p in &self.placed[n.first as usize..(n.first + n.count) as usize] {
-                    let local = Ray { t_max, ..local_ray(ray, &p.to_local) };
-                    if let Some(h) = self.meshes[p.mesh as usize].intersect(&local) {
-                        t_max = h.t;
-                        best = Some(Hit { shape: p.shape, ..h });
-                    }
-                }
-            } else {
-                let (a, b) = (n.first as usize, n.first as usize + 1);
-                match (rb.hit(&self.nodes[a], t_max), rb.hit(&self.nodes[b], t_max)) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
-                        stack[sp] = far as u32;
-                        sp += 1;
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = a;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = b;
-                        continue;
-                    }
-                    (None, None) => {}
+    pub(super) fn intersect(&self, ray: &Ray, best: Option<Hit>) -> Option<Hit> {
+        let t_max = best.map_or(ray.t_max, |h| h.t);
+        closest(&self.nodes, ray, t_max, best, |range, t_max| {
+            let mut found = None;
+            for p in &self.placed[range] {
+                let local = Ray { t_max: *t_max, ..local_ray(ray, &p.to_local) };
+                if let Some(h) = self.meshes[p.mesh as usize].intersect(&local) {
+                    *t_max = h.t;
+                    found = Some(Hit { shape: p.shape, ..h });
                 }
             }
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let candidate = stack[sp] as usize;
-                if rb.hit(&self.nodes[candidate], t_max).is_some() {
-                    node = candidate;
-                    break;
-                }
-            }
-        }
+            found
+        })
     }
 
     /// Whether any instance lies along `ray` within [0, t_max].
     pub(super) fn occluded(&self, ray: &Ray) -> bool {
-        let rb = RayBox::new(ray);
-        let mut stack = [0u32; STACK];
-        let mut sp = 0usize;
-        if rb.hit(&self.nodes[0], ray.t_max).is_none() {
-            return false;
-        }
-        let mut node = 0usize;
-        loop {
-            let n = &self.nodes[node];
-            if n.is_leaf() {
-                let leaf = &self.placed[n.first as usize..(n.first + n.count) as usize];
-                if leaf.iter().any(|p| {
-                    let local = Ray { t_max: ray.t_max, ..local_ray(ray, &p.to_local) };
-                    self.meshes[p.mesh as usize].occluded(&local)
-                }) {
-                    return true;
-                }
-            } else {
-                let (a, b) = (n.first as usize, n.first as usize + 1);
-                let ha = rb.hit(&self.nodes[a], ray.t_max).is_some();
-                let hb = rb.hit(&self.nodes[b], ray.t_max).is_some();
-                match (ha, hb) {
-                    (true, true) => {
-                        stack[sp] = b as u32;
-                        sp += 1;
-                        node = a;
-                        continue;
-                    }
-                    (true, false) => {
-                        node = a;
-                        continue;
-                    }
-                    (false, true) => {
-                        node = b;
-                        continue;
-                    }
-                    (false, false) => {}
-                }
-            }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            node = stack[sp] as usize;
-        }
+        any(&self.nodes, ray, |range| {
+            self.placed[range].iter().any(|p| {
+                let local = Ray { t_max: ray.t_max, ..local_ray(ray, &p.to_local) };
+                self.meshes[p.mesh as usize].occluded(&local)
+            })
+        })
     }
 }
 

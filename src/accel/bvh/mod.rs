@@ -249,113 +249,131 @@ impl Bvh {
 
     /// Closest hit by the binary tree (the reference the wide tree is tested against).
     pub fn intersect_binary(&self, ray: &Ray) -> Option<Hit> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let rb = RayBox::new(ray);
         let rt = RayTri::new(ray);
-        let mut best: Option<Hit> = None;
-        let mut t_max = ray.t_max;
-        let mut stack = [0u32; STACK];
-        let mut sp = 0usize;
-        let mut node = 0usize;
-        rb.hit(&self.nodes[0], t_max)?;
-        loop {
-            let n = &self.nodes[node];
-            if n.is_leaf() {
-                for p in &self.prims[n.first as usize..(n.first + n.count) as usize] {
-                    if let Some(h) = prim_hit(p, ray, &rt, t_max) {
-                        t_max = h.t;
-                        best = Some(h);
-                    }
-                }
-            } else {
-                let (a, b) = (n.first as usize, n.first as usize + 1);
-                let ta = rb.hit(&self.nodes[a], t_max);
-                let tb = rb.hit(&self.nodes[b], t_max);
-                match (ta, tb) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
-                        stack[sp] = far as u32;
-                        sp += 1;
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = a;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = b;
-                        continue;
-                    }
-                    (None, None) => {}
+        closest(&self.nodes, ray, ray.t_max, None, |range, t_max| {
+            let mut best = None;
+            for p in &self.prims[range] {
+                if let Some(h) = prim_hit(p, ray, &rt, *t_max) {
+                    *t_max = h.t;
+                    best = Some(h);
                 }
             }
-            // Pop, skipping nodes that the current closest hit has made too far.
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let candidate = stack[sp] as usize;
-                if rb.hit(&self.nodes[candidate], t_max).is_some() {
-                    node = candidate;
-                    break;
-                }
-            }
-        }
+            best
+        })
     }
 
     /// Any hit by the binary tree.
     pub fn occluded_binary(&self, ray: &Ray) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
-        let rb = RayBox::new(ray);
         let rt = RayTri::new(ray);
-        let t_max = ray.t_max;
-        let mut stack = [0u32; STACK];
-        let mut sp = 0usize;
-        if rb.hit(&self.nodes[0], t_max).is_none() {
-            return false;
-        }
-        let mut node = 0usize;
-        loop {
-            let n = &self.nodes[node];
-            if n.is_leaf() {
-                let leaf = &self.prims[n.first as usize..(n.first + n.count) as usize];
-                if leaf.iter().any(|p| prim_hit(p, ray, &rt, t_max).is_some()) {
-                    return true;
-                }
-            } else {
-                let (a, b) = (n.first as usize, n.first as usize + 1);
-                let ha = rb.hit(&self.nodes[a], t_max).is_some();
-                let hb = rb.hit(&self.nodes[b], t_max).is_some();
-                match (ha, hb) {
-                    (true, true) => {
-                        stack[sp] = b as u32;
-                        sp += 1;
-                        node = a;
-                        continue;
-                    }
-                    (true, false) => {
-                        node = a;
-                        continue;
-                    }
-                    (false, true) => {
-                        node = b;
-                        continue;
-                    }
-                    (false, false) => {}
-                }
+        any(&self.nodes, ray, |range| {
+            self.prims[range].iter().any(|p| prim_hit(p, ray, &rt, ray.t_max).is_some())
+        })
+    }
+}
+
+/// Ordered closest-hit traversal of a binary tree, nearer child first, from the hit `best`
+/// found so far (nothing beyond `t_max`, its distance). `leaf` tests the items of a leaf's range
+/// nearer than its `t_max`, lowering it to each hit it finds, and returns the nearest.
+#[inline(always)]
+fn closest(
+    nodes: &[Node],
+    ray: &Ray,
+    mut t_max: f32,
+    mut best: Option<Hit>,
+    mut leaf: impl FnMut(std::ops::Range<usize>, &mut f32) -> Option<Hit>,
+) -> Option<Hit> {
+    let rb = RayBox::new(ray);
+    if nodes.is_empty() || rb.hit(&nodes[0], t_max).is_none() {
+        return best;
+    }
+    let mut stack = [0u32; STACK];
+    let mut sp = 0usize;
+    let mut node = 0usize;
+    loop {
+        let n = &nodes[node];
+        if n.is_leaf() {
+            if let Some(h) = leaf(n.first as usize..(n.first + n.count) as usize, &mut t_max) {
+                best = Some(h);
             }
+        } else {
+            let (a, b) = (n.first as usize, n.first as usize + 1);
+            match (rb.hit(&nodes[a], t_max), rb.hit(&nodes[b], t_max)) {
+                (Some(ta), Some(tb)) => {
+                    let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
+                    stack[sp] = far as u32;
+                    sp += 1;
+                    node = near;
+                    continue;
+                }
+                (Some(_), None) => {
+                    node = a;
+                    continue;
+                }
+                (None, Some(_)) => {
+                    node = b;
+                    continue;
+                }
+                (None, None) => {}
+            }
+        }
+        // Pop, skipping nodes that the current closest hit has made too far.
+        loop {
             if sp == 0 {
-                return false;
+                return best;
             }
             sp -= 1;
-            node = stack[sp] as usize;
+            let candidate = stack[sp] as usize;
+            if rb.hit(&nodes[candidate], t_max).is_some() {
+                node = candidate;
+                break;
+            }
         }
+    }
+}
+
+/// Any-hit traversal of a binary tree within [0, ray.t_max]: whether `leaf` finds a hit in the
+/// range of some leaf the ray reaches.
+#[inline(always)]
+fn any(nodes: &[Node], ray: &Ray, mut leaf: impl FnMut(std::ops::Range<usize>) -> bool) -> bool {
+    let rb = RayBox::new(ray);
+    let t_max = ray.t_max;
+    if nodes.is_empty() || rb.hit(&nodes[0], t_max).is_none() {
+        return false;
+    }
+    let mut stack = [0u32; STACK];
+    let mut sp = 0usize;
+    let mut node = 0usize;
+    loop {
+        let n = &nodes[node];
+        if n.is_leaf() {
+            if leaf(n.first as usize..(n.first + n.count) as usize) {
+                return true;
+            }
+        } else {
+            let (a, b) = (n.first as usize, n.first as usize + 1);
+            match (rb.hit(&nodes[a], t_max).is_some(), rb.hit(&nodes[b], t_max).is_some()) {
+                (true, true) => {
+                    stack[sp] = b as u32;
+                    sp += 1;
+                    node = a;
+                    continue;
+                }
+                (true, false) => {
+                    node = a;
+                    continue;
+                }
+                (false, true) => {
+                    node = b;
+                    continue;
+                }
+                (false, false) => {}
+            }
+        }
+        if sp == 0 {
+            return false;
+        }
+        sp -= 1;
+        node = stack[sp] as usize;
     }
 }
 
