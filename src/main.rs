@@ -573,8 +573,7 @@ fn merge_command(args: MergeArgs) -> Result<(), Failure> {
         ..first.meta.clone()
     };
     let film = sums.into_means();
-    let atrous = matches!(setting.kernel, Some(Kernel::Atrous(_))) && setting.target != Target::None;
-    if atrous && film.variance.is_empty() {
+    if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
         return Err(Failure::input("atrous reads each pixel's variance, which these parts do not hold"));
     }
     let filter_seconds = args.out.write(film, &setting, &args.output, &meta)?;
@@ -661,8 +660,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
-    let atrous = matches!(setting.kernel, Some(Kernel::Atrous(_))) && setting.target != Target::None;
-    if atrous && film.variance.is_empty() {
+    if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
         return Err(Failure::input(format!(
             "{}: atrous reads each pixel's variance, and this file has no `*_variance` layers \
              (written before they existed): render it again",

@@ -53,7 +53,7 @@ fn filters_indirect(setting: &Setting) -> bool {
 
 /// Whether `setting` is the à-trous filter, which reads the variance (kept with the split) and
 /// the guides.
-fn atrous(setting: &Setting) -> bool {
+pub fn atrous(setting: &Setting) -> bool {
     matches!(setting.kernel, Some(crate::filter::Kernel::Atrous(_))) && setting.target != Target::None
 }
 

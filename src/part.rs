@@ -63,15 +63,15 @@ pub fn run_key(scene: &Scene, options: &RenderOptions) -> Result<String, String>
 /// The channels of a part file: the means (`R`, `G`, `B`, `A`) of `sums`, then the sums
 /// themselves and the sample counts.
 fn channels(sums: &Film, samples: &[u32]) -> Channels {
-    let means = Accumulated { film: sums.clone(), samples: samples.to_vec() }.into_means();
+    // The means of the two layers shown, as [`Accumulated::into_means`] makes them.
+    let inv: Vec<f32> = samples.iter().map(|&n| if n > 0 { 1.0 / n as f32 } else { 0.0 }).collect();
     let mut out: Channels = Vec::new();
     for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
-        out.push((name.into(), means.raw.pixels.iter().map(|p| p[c]).collect()));
+        out.push((name.into(), sums.raw.pixels.iter().zip(&inv).map(|(p, i)| p[c] * i).collect()));
     }
-    if means.has_guides() {
-        out.push(("A".into(), means.alpha));
+    if sums.has_guides() {
+        out.push(("A".into(), sums.alpha.iter().zip(&inv).map(|(a, i)| a * i).collect()));
     }
-    drop(means.raw);
     let sums = film::film_channels(sums.clone(), Image::empty(), None);
     out.extend(sums.into_iter().map(|(name, data)| (format!("{SUMS}{name}"), data)));
     out.push((SAMPLES.into(), samples.iter().map(|&n| n as f32).collect()));
