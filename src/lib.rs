@@ -1,6 +1,7 @@
 //! lightsplit: a path tracer that splits each pixel's radiance into light-path components and
 //! low-pass filters only the indirect diffuse part (Jensen & Christensen, "Optimizing Path
 //! Tracing using Noise Reduction Filters"). Rays go through Embree or the project's own BVH.
+//! `unsafe` is denied everywhere but in the Embree wrapper and the BVH's SIMD module.
 #![deny(unsafe_code)]
 
 pub mod accel;

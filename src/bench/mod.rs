@@ -58,6 +58,10 @@ pub struct BenchAccelReport {
     pub ray_counts: [usize; 3],
     /// Build time of each backend (the best of three builds), by backend name.
     pub build_seconds: std::collections::BTreeMap<String, f64>,
+    /// The BVH's wide tree: nodes, leaves, fill and bytes.
+    pub bvh_tree: crate::accel::bvh::wide::WideStats,
+    /// The BVH's slab test (`avx2` or `portable`).
+    pub bvh_isa: &'static str,
     pub rows: Vec<Row>,
 }
 
@@ -166,6 +170,8 @@ pub fn bench_accel(
         build_seconds: [(Backend::Embree.to_string(), embree_build), (Backend::Bvh.to_string(), bvh_build)]
             .into_iter()
             .collect(),
+        bvh_tree: bvh.stats(),
+        bvh_isa: bvh.isa().name(),
         rows,
     })
 }
@@ -189,6 +195,16 @@ impl BenchAccelReport {
             be,
             bb,
             bb / be.max(1e-12)
+        );
+        let t = &self.bvh_tree;
+        out += &format!(
+            "bvh tree     {} nodes ({:.2} children each), {} leaves ({:.2} triangles each), {:.1} bytes per triangle, {} slab test\n",
+            t.nodes,
+            t.mean_children,
+            t.leaves,
+            t.mean_leaf_triangles,
+            t.bytes as f64 / self.triangles.max(1) as f64,
+            self.bvh_isa
         );
         out += "rays        threads   embree Mrays/s   bvh Mrays/s   bvh/embree (median of rounds)\n";
         for pair in self.rows.chunks(2) {

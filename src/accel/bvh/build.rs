@@ -5,7 +5,7 @@
 
 use glam::{Vec3A, Vec4};
 
-use super::wide::Bvh4;
+use super::wide::Bvh8;
 use super::{prim_bounds, Aabb, BuildOptions, Bvh, Node, Prim, STACK};
 
 /// Subtrees with more primitives than this are built on two threads.
@@ -58,11 +58,11 @@ impl Tree {
 
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     if prims.is_empty() {
-        return Bvh { nodes: Vec::new(), prims, wide: Bvh4::collapse(&[], &[]), instances: None };
+        return Bvh { nodes: Vec::new(), prims, wide: Bvh8::collapse(&[], &[]), instances: None };
     }
     let (nodes, order) = tree(prims.len(), |i| prim_bounds(&prims[i]), options);
     let ordered: Vec<Prim> = order.iter().map(|&i| prims[i as usize]).collect();
-    let wide = Bvh4::collapse(&nodes, &ordered);
+    let wide = Bvh8::collapse(&nodes, &ordered);
     Bvh { nodes, prims: ordered, wide, instances: None }
 }
 
@@ -130,7 +130,7 @@ fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: 
     };
     let mid = match split {
         Some(Split { cost, axis, bin, lo, scale, bins }) => {
-            if n <= options.max_leaf && cost >= n as f32 {
+            if n <= options.max_leaf && cost >= blocks(n, options) {
                 return leaf; // a leaf is cheaper than any split
             }
             // The same arithmetic as the binning, so each item goes where it was counted.
@@ -192,8 +192,8 @@ struct Bin {
     count: u32,
 }
 
-/// A split between bins `bin` and `bin + 1` on `axis`; `cost` is in units of one primitive test
-/// (a leaf of n primitives costs n).
+/// A split between bins `bin` and `bin + 1` on `axis`; `cost` is in units of one leaf test of a
+/// block of primitives (a leaf of n primitives costs n / block, rounded up).
 struct Split {
     cost: f32,
     axis: usize,
@@ -201,6 +201,12 @@ struct Split {
     lo: f32,
     scale: f32,
     bins: usize,
+}
+
+/// The SAH's cost of testing `n` primitives: the number of blocks the leaf test takes.
+#[inline(always)]
+fn blocks(n: usize, options: &BuildOptions) -> f32 {
+    n.div_ceil(options.block.max(1)) as f32
 }
 
 #[inline(always)]
@@ -289,7 +295,7 @@ fn sweep(
         for b in (1..bins_n).rev() {
             acc = acc.union(&bins[b].bounds);
             count += bins[b].count;
-            right_cost[b] = acc.half_area() * count as f32;
+            right_cost[b] = acc.half_area() * blocks(count as usize, options);
         }
         let mut acc = Aabb::EMPTY;
         let mut count = 0u32;
@@ -299,8 +305,8 @@ fn sweep(
             if count == 0 || count as usize == n {
                 continue;
             }
-            let cost =
-                options.traversal_cost + (acc.half_area() * count as f32 + right_cost[b + 1]) / parent_area;
+            let cost = options.traversal_cost
+                + (acc.half_area() * blocks(count as usize, options) + right_cost[b + 1]) / parent_area;
             if best.as_ref().is_none_or(|s| cost < s.cost) {
                 best = Some(Split { cost, axis, bin: b, lo: lo[axis], scale: scale[axis], bins: bins_n });
             }

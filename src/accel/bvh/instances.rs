@@ -67,7 +67,8 @@ impl Instances {
         if placed.is_empty() {
             return Ok(None);
         }
-        let (nodes, order) = build::tree(boxes.len(), |i| boxes[i], BuildOptions { max_leaf: 1, ..options });
+        let (nodes, order) =
+            build::tree(boxes.len(), |i| boxes[i], BuildOptions { max_leaf: 1, block: 1, ..options });
         let placed = order.iter().map(|&i| placed[i as usize]).collect();
         Ok(Some(Instances { nodes, placed, meshes }))
     }

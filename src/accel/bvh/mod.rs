@@ -7,6 +7,7 @@
 mod build;
 mod instances;
 mod intersect;
+pub mod simd;
 pub mod wide;
 
 use glam::{Vec3, Vec3A};
@@ -73,12 +74,12 @@ pub enum Prim {
     Sphere { center: Vec3, radius: f32, shape: u32 },
 }
 
-/// The BVH over a scene: the binary SAH tree and its 4-wide collapse, which rays traverse.
+/// The BVH over a scene: the binary SAH tree and its 8-wide collapse, which rays traverse.
 /// Immutable once built, so it is `Send + Sync`.
 pub struct Bvh {
     nodes: Vec<Node>,
     prims: Vec<Prim>,
-    wide: wide::Bvh4,
+    wide: wide::Bvh8,
     /// Shapes that place a shared mesh: the second level.
     instances: Option<Box<instances::Instances>>,
 }
@@ -93,15 +94,18 @@ pub struct TooLarge(pub usize);
 pub struct BuildOptions {
     /// Leaves hold at most this many primitives.
     pub max_leaf: usize,
-    /// SAH cost of one traversal step relative to one primitive test.
+    /// SAH cost of one traversal step relative to one leaf test (of a block of primitives).
     pub traversal_cost: f32,
     /// Centroid bins per axis.
     pub bins: usize,
+    /// The SAH counts a leaf's primitives in blocks of this many: the leaf test's width, so a
+    /// leaf of four triangles costs what a leaf of one does.
+    pub block: usize,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { max_leaf: 4, traversal_cost: 3.0, bins: 16 }
+        BuildOptions { max_leaf: 4, traversal_cost: 2.0, bins: 16, block: 4 }
     }
 }
 
@@ -146,6 +150,22 @@ impl Bvh {
     /// Number of binary nodes, of wide nodes and of primitives (of the first level).
     pub fn size(&self) -> (usize, usize, usize) {
         (self.nodes.len(), self.wide.node_count(), self.prims.len())
+    }
+
+    /// Counts and sizes of the wide tree rays traverse (the first level).
+    pub fn stats(&self) -> wide::WideStats {
+        self.wide.stats()
+    }
+
+    /// The slab test rays use (AVX2 or portable, chosen at run time).
+    pub fn isa(&self) -> simd::Isa {
+        self.wide.isa()
+    }
+
+    /// The same tree, traversed with the portable slab test whatever the CPU has (for tests and
+    /// benchmarks; the instance level keeps its meshes' choice).
+    pub fn portable(self) -> Bvh {
+        Bvh { wide: self.wide.portable(), ..self }
     }
 
     /// How many shapes place a shared mesh, and how many distinct meshes they place.

@@ -4,8 +4,9 @@
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 
+use super::simd::{BoxTest, Isa, Portable, RayBox8};
 use super::tests::{mesh, scene_of};
-use super::wide::{Node4, RayBox4};
+use super::wide::Node8;
 use super::*;
 
 /// The slab test in f64: the parameter interval where the ray is inside the box, if any.
@@ -65,7 +66,11 @@ proptest! {
         let ray = ray_of(o, d);
         let node = Node { min: min.to_array(), first: 0, max: max.to_array(), count: 1 };
         let binary = RayBox::new(&ray).hit(&node, f32::INFINITY).is_some();
-        let wide = RayBox4::new(&ray).hit(&Node4::with_first_box(min, max), f32::INFINITY).1 & 1 != 0;
+        let (node8, rb) = (Node8::with_first_box(min, max), RayBox8::new(&ray));
+        let portable = Portable.hit(&rb, &node8, f32::INFINITY).1 & 1 != 0;
+        // The kernel this CPU runs (AVX2 on x86-64 machines that have it).
+        let wide = Isa::best().hit(&rb, &node8, f32::INFINITY).1 & 1 != 0;
+        prop_assert_eq!(portable, wide);
         match reference {
             Some((near, far)) if far >= near => {
                 prop_assert!(binary && wide, "missed: enters at {near}, leaves at {far}");

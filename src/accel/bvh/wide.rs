@@ -1,14 +1,17 @@
-//! The 4-wide BVH that rays actually traverse: the binary SAH tree collapsed so that each node
-//! holds up to four children, their boxes stored axis by axis so one SIMD slab test (the `wide`
-//! crate's `f32x4`: SSE on x86-64, NEON on ARM, no `unsafe`) checks all four at once.
+//! The 8-wide BVH that rays actually traverse: the binary SAH tree collapsed so that each node
+//! holds up to eight children, their boxes stored axis by axis so one slab test checks all eight
+//! at once: AVX2 where the CPU has it, chosen at run time, or the portable test of the `wide`
+//! crate ([`super::simd`], the only module with `unsafe`). A leaf's (up to) four triangles are
+//! tested together by the watertight test, four lanes wide.
 
 use wide::f32x4;
 
 use super::intersect::{gamma, sphere, RayTri};
+use super::simd::{BoxTest, Isa, Portable, RayBox8};
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
-/// A reference to a child, 32 bits so a node's four children take 16 bytes: an inner node is its
+/// A reference to a child, 32 bits so a node's eight children take 32 bytes: an inner node is its
 /// index (top bit clear), a leaf the index of its [`Leaf4`] with the top bit set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Child(u32);
@@ -66,50 +69,84 @@ struct SphereRef {
     shape: u32,
 }
 
-/// Four children's boxes, axis by axis (empty slots hold an inverted box that no ray meets),
-/// and what each child is: 112 bytes, padded to two cache lines.
+/// How many children an inner node has at most.
+pub const WIDTH: usize = 8;
+
+/// Eight children's boxes, axis by axis (empty slots hold an inverted box that no ray meets),
+/// and what each child is: 224 bytes, padded to four cache lines.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub struct Node4 {
-    /// min x, min y, min z, max x, max y, max z of the four children.
-    bounds: [[f32; 4]; 6],
-    children: [Child; 4],
+pub struct Node8 {
+    /// min x, min y, min z, max x, max y, max z of the eight children.
+    pub bounds: [[f32; WIDTH]; 6],
+    children: [Child; WIDTH],
 }
 
-pub struct Bvh4 {
-    nodes: Vec<Node4>,
-    leaves: Vec<Leaf4>,
-    spheres: Vec<SphereRef>,
-    root: Child,
-}
+impl Node8 {
+    /// A node with every slot empty.
+    pub const EMPTY: Node8 = Node8 {
+        bounds: [
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+        ],
+        children: [Child::EMPTY; WIDTH],
+    };
 
-/// Traversal stack depth. Collapsing never deepens the binary tree, which the build bounds.
-const STACK: usize = 3 * super::STACK;
-
-impl Node4 {
     /// A node whose first child has the box `[min, max]` and whose others are empty.
     #[cfg(test)]
-    pub(super) fn with_first_box(min: glam::Vec3, max: glam::Vec3) -> Node4 {
-        // Empty boxes: min above max.
-        let mut bounds = [[f32::INFINITY; 4]; 6];
+    pub(super) fn with_first_box(min: glam::Vec3, max: glam::Vec3) -> Node8 {
+        let mut node = Node8::EMPTY;
         for a in 0..3 {
-            bounds[3 + a] = [f32::NEG_INFINITY; 4];
-            bounds[a][0] = min[a];
-            bounds[3 + a][0] = max[a];
+            node.bounds[a][0] = min[a];
+            node.bounds[3 + a][0] = max[a];
         }
-        Node4 { bounds, children: [Child::EMPTY; 4] }
+        node
     }
 }
 
-impl Bvh4 {
+/// Counts and sizes of a wide tree: what rays traverse, and what it takes in memory.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct WideStats {
+    pub nodes: usize,
+    pub leaves: usize,
+    /// Children per inner node (at most eight).
+    pub mean_children: f64,
+    /// Triangles per leaf (at most four).
+    pub mean_leaf_triangles: f64,
+    /// Bytes of nodes, leaves and spheres, exactly.
+    pub bytes: usize,
+}
+
+pub struct Bvh8 {
+    nodes: Vec<Node8>,
+    leaves: Vec<Leaf4>,
+    spheres: Vec<SphereRef>,
+    root: Child,
+    /// The slab test this CPU runs best.
+    isa: Isa,
+}
+
+/// Traversal stack depth: each level of the tree pushes at most seven entries, and collapsing
+/// never deepens the binary tree, whose depth the build bounds.
+const STACK: usize = (WIDTH - 1) * super::STACK + 1;
+
+/// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
+const FAR_SCALE: f32 = super::FAR_SCALE;
+
+impl Bvh8 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
-    /// opening the inner child of largest area until it has four.
-    pub fn collapse(binary: &[Node], prims: &[Prim]) -> Bvh4 {
-        let mut bvh = Bvh4 {
-            nodes: Vec::with_capacity(binary.len() / 2 + 1),
+    /// opening the inner child of largest area until it has eight.
+    pub fn collapse(binary: &[Node], prims: &[Prim]) -> Bvh8 {
+        let mut bvh = Bvh8 {
+            nodes: Vec::with_capacity(binary.len() / 6 + 1),
             leaves: Vec::with_capacity(binary.len() / 2 + 1),
             spheres: Vec::new(),
             root: Child::EMPTY,
+            isa: Isa::best(),
         };
         if binary.is_empty() {
             return bvh;
@@ -160,18 +197,30 @@ impl Bvh4 {
         Child::leaf((self.leaves.len() - 1) as u32)
     }
 
+    /// Adds the binary subtree at `index`: a leaf, or an inner node filled by [`Self::fill`].
     fn add(&mut self, binary: &[Node], prims: &[Prim], index: usize) -> Child {
         let n = &binary[index];
         if n.count > 0 {
             return self.add_leaf(&prims[n.first as usize..(n.first + n.count) as usize]);
         }
+        let at = self.nodes.len();
+        self.nodes.push(Node8::EMPTY);
+        self.fill(binary, prims, index, at);
+        Child::inner(at as u32)
+    }
+
+    /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
+    /// of largest area opened until there are eight. A node's inner children are stored side by
+    /// side, and so are its leaves, before any grandchild: what a ray visits next is near.
+    fn fill(&mut self, binary: &[Node], prims: &[Prim], index: usize, at: usize) {
+        let n = &binary[index];
         let area = |i: usize| {
             let b = &binary[i];
             let d = [b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]];
             d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
         };
         let mut kids: Vec<usize> = vec![n.first as usize, n.first as usize + 1];
-        while kids.len() < 4 {
+        while kids.len() < WIDTH {
             let open = kids
                 .iter()
                 .enumerate()
@@ -182,28 +231,24 @@ impl Bvh4 {
             kids[slot] = first;
             kids.push(first + 1);
         }
-        let at = self.nodes.len();
-        self.nodes.push(Node4 {
-            bounds: [
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-            ],
-            children: [Child::EMPTY; 4],
-        });
+        let mut inner = Vec::with_capacity(WIDTH);
         for (slot, &k) in kids.iter().enumerate() {
             let b = &binary[k];
             for axis in 0..3 {
                 self.nodes[at].bounds[axis][slot] = b.min[axis];
                 self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
             }
-            let child = self.add(binary, prims, k);
-            self.nodes[at].children[slot] = child;
+            self.nodes[at].children[slot] = if b.count > 0 {
+                self.add_leaf(&prims[b.first as usize..(b.first + b.count) as usize])
+            } else {
+                self.nodes.push(Node8::EMPTY);
+                inner.push((k, self.nodes.len() - 1));
+                Child::inner((self.nodes.len() - 1) as u32)
+            };
         }
-        Child::inner(at as u32)
+        for (k, node) in inner {
+            self.fill(binary, prims, k, node);
+        }
     }
 
     pub fn node_count(&self) -> usize {
@@ -213,47 +258,32 @@ impl Bvh4 {
     fn leaf_spheres(&self, leaf: &Leaf4) -> &[SphereRef] {
         &self.spheres[leaf.spheres_first as usize..(leaf.spheres_first + leaf.spheres_count) as usize]
     }
-}
 
-/// Per-ray values for the four-box slab test.
-pub(super) struct RayBox4 {
-    origin: [f32x4; 3],
-    inv_dir: [f32x4; 3],
-    /// For each axis, whether the ray runs towards negative values (then near and far swap).
-    negative: [bool; 3],
-}
-
-/// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
-const FAR_SCALE: f32 = super::FAR_SCALE;
-
-impl RayBox4 {
-    pub(super) fn new(ray: &Ray) -> Self {
-        // A zero direction component becomes a tiny one, so 1/d is huge but finite and no
-        // 0 * inf NaN can arise in the slab test.
-        let safe = |d: f32| if d.abs() < 1e-30 { 1e-30f32.copysign(d) } else { d };
-        let inv = [1.0 / safe(ray.dir.x), 1.0 / safe(ray.dir.y), 1.0 / safe(ray.dir.z)];
-        RayBox4 {
-            origin: [f32x4::splat(ray.origin.x), f32x4::splat(ray.origin.y), f32x4::splat(ray.origin.z)],
-            inv_dir: inv.map(f32x4::splat),
-            negative: inv.map(|i| i < 0.0),
+    /// Counts and sizes of the tree.
+    pub fn stats(&self) -> WideStats {
+        let children: usize =
+            self.nodes.iter().map(|n| n.children.iter().filter(|c| **c != Child::EMPTY).count()).sum();
+        let triangles: usize = self.leaves.iter().map(|l| l.triangles as usize).sum();
+        WideStats {
+            nodes: self.nodes.len(),
+            leaves: self.leaves.len(),
+            mean_children: children as f64 / self.nodes.len().max(1) as f64,
+            mean_leaf_triangles: triangles as f64 / self.leaves.len().max(1) as f64,
+            bytes: self.nodes.len() * std::mem::size_of::<Node8>()
+                + self.leaves.len() * std::mem::size_of::<Leaf4>()
+                + self.spheres.len() * std::mem::size_of::<SphereRef>(),
         }
     }
 
-    /// Entry distances of the four children, and a bit mask of those the ray meets within
-    /// [0, t_max].
-    #[inline(always)]
-    pub(super) fn hit(&self, n: &Node4, t_max: f32) -> (f32x4, u32) {
-        let mut t_near = f32x4::splat(0.0);
-        let mut t_far = f32x4::splat(t_max);
-        for axis in 0..3 {
-            let (near, far) = if self.negative[axis] { (3 + axis, axis) } else { (axis, 3 + axis) };
-            let a = (f32x4::new(n.bounds[near]) - self.origin[axis]) * self.inv_dir[axis];
-            let b = (f32x4::new(n.bounds[far]) - self.origin[axis]) * self.inv_dir[axis];
-            t_near = t_near.fast_max(a);
-            t_far = t_far.fast_min(b);
-        }
-        let mask = t_near.simd_le(t_far * f32x4::splat(FAR_SCALE)).to_bitmask();
-        (t_near, mask)
+    /// The same tree traversed with the portable slab test (for tests and benchmarks).
+    pub fn portable(mut self) -> Bvh8 {
+        self.isa = Isa::Portable;
+        self
+    }
+
+    /// The slab test rays use.
+    pub fn isa(&self) -> Isa {
+        self.isa
     }
 }
 
@@ -364,13 +394,33 @@ impl RayTri4 {
     }
 }
 
-impl Bvh4 {
-    /// Closest hit along `ray` among `prims` (the binary tree's primitive order).
+impl Bvh8 {
+    /// Closest hit along `ray`, with the slab test this CPU runs best.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        match self.isa {
+            Isa::Portable => self.intersect_with(ray, Portable),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.intersect(self, ray),
+        }
+    }
+
+    /// Whether anything lies along `ray` within [0, t_max]; stops at the first hit.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        match self.isa {
+            Isa::Portable => self.occluded_with(ray, Portable),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.occluded(self, ray),
+        }
+    }
+
+    /// Closest hit along `ray`, ordered: the children a node's box test passes are visited
+    /// nearest first, and entries the closest hit so far has passed are skipped when popped.
+    #[inline(always)]
+    pub(super) fn intersect_with<K: BoxTest>(&self, ray: &Ray, k: K) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
-        let rb = RayBox4::new(ray);
+        let rb = RayBox8::new(ray);
         let rt = RayTri4::new(ray);
         let mut best: Option<Hit> = None;
         let mut t_max = ray.t_max;
@@ -396,27 +446,37 @@ impl Bvh4 {
             } else {
                 let node = &self.nodes[child.0 as usize];
                 // Empty slots hold inverted boxes, so the mask never names them.
-                let (t_near, mut mask) = rb.hit(node, t_max);
-                let t_near = t_near.to_array();
-                // Order the hit children by decreasing entry distance (insertion sort of at
-                // most four), push all but the nearest, and visit the nearest next.
-                let mut order = [Entry { child: Child::EMPTY, t: 0.0 }; 4];
-                let mut k = 0;
-                while mask != 0 {
+                let (t_near, mut mask) = k.hit(&rb, node, t_max);
+                if mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
-                    let mut j = k;
-                    while j > 0 && order[j - 1].t < t_near[slot] {
-                        order[j] = order[j - 1];
-                        j -= 1;
+                    let first = Entry { child: node.children[slot], t: t_near[slot] };
+                    if mask == 0 {
+                        // One child: visit it, the stack untouched.
+                        current = first;
+                        continue;
                     }
-                    order[j] = Entry { child: node.children[slot], t: t_near[slot] };
-                    k += 1;
-                }
-                if k > 0 {
-                    stack[sp..sp + k - 1].copy_from_slice(&order[..k - 1]);
-                    sp += k - 1;
-                    current = order[k - 1];
+                    // Several: push them ordered by decreasing entry distance (insertion into
+                    // the top of the stack), then pop the nearest.
+                    let base = sp;
+                    self.prefetch(k, first.child);
+                    stack[sp] = first;
+                    sp += 1;
+                    while mask != 0 {
+                        let slot = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let e = Entry { child: node.children[slot], t: t_near[slot] };
+                        self.prefetch(k, e.child);
+                        let mut j = sp;
+                        while j > base && stack[j - 1].t < e.t {
+                            stack[j] = stack[j - 1];
+                            j -= 1;
+                        }
+                        stack[j] = e;
+                        sp += 1;
+                    }
+                    sp -= 1;
+                    current = stack[sp];
                     continue;
                 }
             }
@@ -434,12 +494,25 @@ impl Bvh4 {
         }
     }
 
-    /// Whether anything lies along `ray` within [0, t_max]; stops at the first hit.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    /// Hints the CPU to load `child`'s node or leaf.
+    #[inline(always)]
+    fn prefetch<K: BoxTest>(&self, k: K, child: Child) {
+        if child.is_leaf() {
+            if let Some(leaf) = self.leaves.get(child.index()) {
+                k.prefetch(leaf);
+            }
+        } else if let Some(node) = self.nodes.get(child.0 as usize) {
+            k.prefetch(node);
+        }
+    }
+
+    /// Whether anything lies along `ray` within [0, t_max], in any order.
+    #[inline(always)]
+    pub(super) fn occluded_with<K: BoxTest>(&self, ray: &Ray, k: K) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
-        let rb = RayBox4::new(ray);
+        let rb = RayBox8::new(ray);
         let rt = RayTri4::new(ray);
         let mut stack = [Child::EMPTY; STACK];
         let mut sp = 0;
@@ -459,11 +532,12 @@ impl Bvh4 {
                 }
             } else {
                 let node = &self.nodes[current.0 as usize];
-                let (_, mut mask) = rb.hit(node, ray.t_max);
+                let (_, mut mask) = k.hit(&rb, node, ray.t_max);
                 while mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
                     stack[sp] = node.children[slot];
+                    self.prefetch(k, stack[sp]);
                     sp += 1;
                 }
             }

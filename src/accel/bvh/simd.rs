@@ -1,0 +1,269 @@
+//! The one module of the BVH with `unsafe`: the eight-box slab test written with AVX2
+//! intrinsics, and the entry points that run a whole traversal compiled for AVX2. An [`Avx2`]
+//! value exists only after `is_x86_feature_detected!` found the features on this CPU, so every
+//! `unsafe` block here relies on that one check. [`Portable`] is the same test through the
+//! `wide` crate (SSE2 on x86-64, NEON on ARM); the tests check the two against each other.
+#![allow(unsafe_code)]
+
+use wide::f32x8;
+
+use super::wide::{Bvh8, Node8};
+use crate::accel::{Hit, Ray};
+
+/// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
+const FAR_SCALE: f32 = super::FAR_SCALE;
+
+/// Per-ray values of the eight-box slab test, the same for every kernel.
+pub struct RayBox8 {
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
+    /// For each axis, the rows of a node's bounds that hold the near and the far planes (they
+    /// swap where the ray runs towards negative values).
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl RayBox8 {
+    pub fn new(ray: &Ray) -> Self {
+        // A zero direction component becomes a tiny one, so 1/d is huge but finite and no
+        // 0 * inf NaN can arise in the slab test.
+        let safe = |d: f32| if d.abs() < 1e-30 { 1e-30f32.copysign(d) } else { d };
+        let inv = [1.0 / safe(ray.dir.x), 1.0 / safe(ray.dir.y), 1.0 / safe(ray.dir.z)];
+        let negative = inv.map(|i| i < 0.0);
+        RayBox8 {
+            origin: ray.origin.to_array(),
+            inv_dir: inv,
+            near: std::array::from_fn(|a| if negative[a] { 3 + a } else { a }),
+            far: std::array::from_fn(|a| if negative[a] { a } else { 3 + a }),
+        }
+    }
+}
+
+/// A slab test of a node's eight child boxes.
+pub trait BoxTest: Copy {
+    /// Entry distances of the eight children, and a bit mask of those the ray meets within
+    /// [0, t_max]: `(b - o) * (1 / d)` per plane, no fused multiply-add, so the rounding is the
+    /// one Ize's factor covers.
+    fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32);
+
+    /// Asks the CPU to bring `item` into the cache, where the kernel can (a hint: it changes
+    /// no result). Traversal calls it for children it will visit after the nearest one.
+    #[inline(always)]
+    fn prefetch<T>(self, _item: &T) {}
+}
+
+/// The slab test through the `wide` crate: runs on every CPU.
+#[derive(Clone, Copy, Debug)]
+pub struct Portable;
+
+impl BoxTest for Portable {
+    #[inline(always)]
+    fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
+        let mut t_near = f32x8::splat(0.0);
+        let mut t_far = f32x8::splat(t_max);
+        for axis in 0..3 {
+            let o = f32x8::splat(rb.origin[axis]);
+            let inv = f32x8::splat(rb.inv_dir[axis]);
+            let a = (f32x8::new(node.bounds[rb.near[axis]]) - o) * inv;
+            let b = (f32x8::new(node.bounds[rb.far[axis]]) - o) * inv;
+            t_near = t_near.fast_max(a);
+            t_far = t_far.fast_min(b);
+        }
+        let mask = t_near.simd_le(t_far * f32x8::splat(FAR_SCALE)).to_bitmask();
+        (t_near.to_array(), mask)
+    }
+}
+
+/// Proof that this CPU has AVX and AVX2: obtained only from [`Avx2::detect`].
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub struct Avx2 {
+    _detected: (),
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// The proof, when this CPU has the features.
+    pub fn detect() -> Option<Avx2> {
+        (std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"))
+            .then_some(Avx2 { _detected: () })
+    }
+
+    /// The closest hit, by a traversal compiled for AVX2.
+    pub fn intersect(self, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that
+        // `intersect_avx2` is compiled for.
+        unsafe { intersect_avx2(self, bvh, ray) }
+    }
+
+    /// Any hit, by a traversal compiled for AVX2.
+    pub fn occluded(self, bvh: &Bvh8, ray: &Ray) -> bool {
+        // SAFETY: as in `intersect`: AVX and AVX2 were detected.
+        unsafe { occluded_avx2(self, bvh, ray) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn intersect_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+    bvh.intersect_with(ray, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn occluded_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray) -> bool {
+    bvh.occluded_with(ray, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+impl BoxTest for Avx2 {
+    #[inline(always)]
+    fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
+        use std::arch::x86_64::*;
+        // SAFETY: `self` proves the CPU has AVX (`Avx2::detect`). The loads read whole rows
+        // of `node.bounds`, eight f32 each, in bounds; `loadu` needs no alignment.
+        unsafe {
+            let mut t_near = _mm256_setzero_ps();
+            let mut t_far = _mm256_set1_ps(t_max);
+            for axis in 0..3 {
+                let o = _mm256_set1_ps(rb.origin[axis]);
+                let inv = _mm256_set1_ps(rb.inv_dir[axis]);
+                let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
+                let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
+                // max and min return their second operand when one is NaN, as `wide`'s
+                // fast_max and fast_min do; none arises (finite 1/d, see RayBox8::new).
+                t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
+                t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
+            }
+            let far = _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE));
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
+            let mut out = [0.0f32; 8];
+            _mm256_storeu_ps(out.as_mut_ptr(), t_near);
+            (out, mask)
+        }
+    }
+
+    #[inline(always)]
+    fn prefetch<T>(self, item: &T) {
+        use std::arch::x86_64::*;
+        let start = (item as *const T).cast::<i8>();
+        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: `self` proves the CPU has SSE (a part of AVX). A prefetch reads nothing
+            // the program sees and cannot fault; the address stays within `item`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+}
+
+/// The kernels this CPU runs best, chosen once per tree.
+#[derive(Clone, Copy, Debug)]
+pub enum Isa {
+    Portable,
+    #[cfg(target_arch = "x86_64")]
+    Avx2(Avx2),
+}
+
+impl Isa {
+    /// AVX2 where this CPU has it, else portable.
+    pub fn best() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = Avx2::detect() {
+            return Isa::Avx2(k);
+        }
+        Isa::Portable
+    }
+
+    /// The kernels' name, as reports print it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(_) => "avx2",
+        }
+    }
+}
+
+impl BoxTest for Isa {
+    fn prefetch<T>(self, item: &T) {
+        match self {
+            Isa::Portable => Portable.prefetch(item),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.prefetch(item),
+        }
+    }
+
+    /// The chosen kernel (a match per call: for tests, not for traversal loops).
+    fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
+        match self {
+            Isa::Portable => Portable.hit(rb, node, t_max),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.hit(rb, node, t_max),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sampler::Sampler;
+
+    /// The AVX2 slab test gives the portable test's distances and masks bit for bit, on random
+    /// boxes (some empty, some thin, some behind the ray) and random rays, including rays with
+    /// zero direction components and rays starting on a box's planes.
+    #[test]
+    fn avx2_box_test_equals_the_portable_one() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let Some(avx2) = Avx2::detect() else {
+                eprintln!("no AVX2 on this CPU: only the portable kernel runs here");
+                return;
+            };
+            let mut rng = Sampler::new(7, 1, 0);
+            let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
+            let mut checked = 0;
+            for case in 0..20_000 {
+                let mut node = Node8::EMPTY;
+                for slot in 0..8 {
+                    if (case + slot) % 5 == 0 {
+                        continue; // an empty slot: its inverted box stays
+                    }
+                    let thin = (case + slot) % 7 == 0;
+                    for a in 0..3 {
+                        let lo = f(10.0);
+                        let extent = if thin && a == 1 { 0.0 } else { f(4.0).abs() };
+                        node.bounds[a][slot] = lo;
+                        node.bounds[3 + a][slot] = lo + extent;
+                    }
+                }
+                let mut origin = glam::Vec3::new(f(12.0), f(12.0), f(12.0));
+                if case % 11 == 0 {
+                    origin.x = node.bounds[0][1]; // on a plane
+                }
+                // Aimed near the centre of one slot's box, so most boxes are met or just missed.
+                let slot = case % 8;
+                let centre = glam::Vec3::from_array(std::array::from_fn(|a| {
+                    0.5 * (node.bounds[a][slot] + node.bounds[3 + a][slot])
+                }));
+                let aim = if centre.is_finite() { centre } else { glam::Vec3::ZERO };
+                let mut dir = aim - origin + glam::Vec3::new(f(1.0), f(1.0), f(1.0));
+                if case % 13 == 0 {
+                    dir.y = 0.0;
+                }
+                let t_max = if case % 3 == 0 { f32::INFINITY } else { f(20.0).abs() };
+                let ray = Ray { origin, dir, t_max };
+                let rb = RayBox8::new(&ray);
+                let (tp, mp) = Portable.hit(&rb, &node, t_max);
+                let (ta, ma) = avx2.hit(&rb, &node, t_max);
+                assert_eq!(mp, ma, "masks differ for {ray:?}");
+                for s in 0..8 {
+                    if mp & (1 << s) != 0 {
+                        assert_eq!(tp[s].to_bits(), ta[s].to_bits(), "slot {s} of {ray:?}");
+                    }
+                }
+                checked += mp.count_ones();
+            }
+            // Enough boxes were hit for the comparison of distances to mean something.
+            assert!(checked > 8_000, "only {checked} boxes hit");
+        }
+    }
+}
