@@ -1,6 +1,7 @@
 //! Criterion benchmarks of the accelerator kernels that `bench-accel` measures: BVH and Embree
-//! builds, and tracing the same primary, shadow and incoherent ray sets on one thread, on the
-//! Cornell box and on a 100-thousand-triangle terrain generated in code.
+//! builds, and tracing the same primary, shadow and incoherent ray sets on one thread (the BVH
+//! with its AVX2 slab test and with the portable one), on the Cornell box and on a
+//! 100-thousand-triangle terrain generated in code.
 
 use std::path::Path;
 
@@ -38,6 +39,8 @@ fn bench(c: &mut Criterion) {
     for (name, scene) in scenes() {
         let embree = build_embree(&scene, None).expect("embree");
         let bvh = Bvh::new(&scene).expect("bvh");
+        // The same tree with the portable slab test: what the AVX2 kernel is worth.
+        let portable = Bvh::new(&scene).expect("bvh").portable();
         let sets = RaySets::generate(&scene, &embree, 50_000, 1);
 
         let mut builds = c.benchmark_group(format!("build/{name}"));
@@ -56,6 +59,9 @@ fn bench(c: &mut Criterion) {
             });
             group.bench_function(BenchmarkId::from_parameter("bvh"), |b| {
                 b.iter(|| one.install(|| trace_pass(&bvh, rays, kind)))
+            });
+            group.bench_function(BenchmarkId::from_parameter("bvh-portable"), |b| {
+                b.iter(|| one.install(|| trace_pass(&portable, rays, kind)))
             });
             group.finish();
         }

@@ -339,8 +339,13 @@ pub struct CompareArgs {
 /// `bench-accel`: both backends, so no `--accel`.
 #[derive(clap::Args)]
 pub struct BenchAccelArgs {
-    /// The scene file (TOML).
-    pub scene: PathBuf,
+    /// The scene files (TOML), measured one after another (with `--json`, one object a line).
+    #[arg(required = true)]
+    pub scenes: Vec<PathBuf>,
+    /// Also draw Mrays/s on one thread against each scene's triangle count, both backends and
+    /// every ray kind, log-log, into this PNG (meant for several sizes of one scene).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Primary rays per set (shadow and incoherent rays start at their hits).
     #[arg(long, default_value_t = 1 << 20, value_parser = count::<usize>)]
     pub rays: usize,

@@ -615,7 +615,19 @@ fn default_output(scene: &Path) -> PathBuf {
 }
 
 fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
-    let (scene, _) = load_scene(&args.scene)?;
+    if let Some(plot) = &args.plot {
+        if film::check_output(plot).map_err(Failure::input)? != film::Format::Png {
+            return Err(Failure::input(format!("--plot {}: the plot is a PNG", plot.display())));
+        }
+    }
+    if args.embree_settings && (args.scenes.len() > 1 || args.plot.is_some()) {
+        return Err(Failure::input("--embree-settings measures one scene and draws no plot"));
+    }
+    // Every scene loads before anything is measured, so a bad file costs no waiting.
+    let mut scenes = Vec::new();
+    for path in &args.scenes {
+        scenes.push(load_scene(path)?.0);
+    }
     let options = lightsplit::bench::BenchAccelOptions {
         rays: args.rays,
         threads: args.threads.unwrap_or_else(rayon::current_num_threads),
@@ -625,30 +637,43 @@ fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     };
     let bar = progress_bar(0, args.json);
     if args.embree_settings {
-        let rows = lightsplit::bench::bench_embree_settings(&scene, &options, &|done, total| {
+        let rows = lightsplit::bench::bench_embree_settings(&scenes[0], &options, &|done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         })
         .map_err(Failure::failed)?;
         bar.finish_and_clear();
         if args.json {
-            say!("{}", serde_json::json!({ "scene": args.scene.to_string_lossy(), "rows": rows }));
+            say!("{}", serde_json::json!({ "scene": args.scenes[0].to_string_lossy(), "rows": rows }));
         } else {
             say!("{}", lightsplit::bench::settings_table(&rows).trim_end_matches('\n'));
         }
         return Ok(());
     }
-    let report = lightsplit::bench::bench_accel(&scene, &options, &|done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })
-    .map_err(Failure::failed)?;
+    let mut reports = Vec::new();
+    for (i, scene) in scenes.iter().enumerate() {
+        bar.set_message(format!("{} of {}", i + 1, scenes.len()));
+        let report = lightsplit::bench::bench_accel(scene, &options, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+        .map_err(Failure::failed)?;
+        if !args.json {
+            let table = report.table();
+            bar.suspend(|| print_line(format_args!("{}", table.trim_end_matches('\n'))))?;
+        }
+        reports.push(report);
+    }
     bar.finish_and_clear();
+    if let Some(plot) = &args.plot {
+        lightsplit::bench::plot::scaling_plot(&reports, plot).map_err(Failure::failed)?;
+    }
     if args.json {
-        let json = serde_json::to_string(&report).map_err(Failure::failed)?;
-        say!("{json}");
-    } else {
-        say!("{}", report.table().trim_end_matches('\n'));
+        // One JSON object a scene, one a line.
+        for report in &reports {
+            let json = serde_json::to_string(report).map_err(Failure::failed)?;
+            say!("{json}");
+        }
     }
     Ok(())
 }

@@ -480,3 +480,54 @@ fn info_explains_every_scene() {
     let o = lightsplit(&["info", "no-such-scene.toml"]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `bench-accel` over several scenes measures each (one JSON object a line, a scene each, with the
+/// BVH's exact bytes and its tree) and draws the scaling plot; a plot that is not a PNG, or
+/// `--embree-settings` with several scenes, is refused before anything is measured.
+#[test]
+fn bench_accel_measures_several_scenes_and_plots_them() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut scenes = Vec::new();
+    for resolution in [4, 12] {
+        let path = dir.path().join(format!("t{resolution}.toml"));
+        let scene = format!(
+            "{CAMERA}[[shape]]\ntype = \"terrain\"\nresolution = {resolution}\nsize = 4\nheight = 1\n\
+             [[light]]\ntype = \"sun\"\ndirection = [0, 1, 0]\nirradiance = [1, 1, 1]\n"
+        );
+        std::fs::write(&path, scene).expect("write");
+        scenes.push(path.to_str().expect("utf8").to_string());
+    }
+    let plot = dir.path().join("scaling.png");
+    let mut args = vec!["bench-accel"];
+    args.extend(scenes.iter().map(String::as_str));
+    let tail = ["--rays", "500", "--seconds", "0.001", "--rounds", "1", "--threads", "1", "--json", "--plot"];
+    args.extend(tail);
+    args.push(plot.to_str().expect("utf8"));
+    let out = lightsplit(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let reports: Vec<serde_json::Value> =
+        stdout.lines().map(|l| serde_json::from_str(l).expect("a JSON object a line")).collect();
+    assert_eq!(reports.len(), 2);
+    let triangles: Vec<u64> = reports.iter().map(|r| r["triangles"].as_u64().expect("triangles")).collect();
+    assert_eq!(triangles, [2 * 4 * 4, 2 * 12 * 12]);
+    for r in &reports {
+        // Nodes, leaves and bytes are those of a real tree over the scene's triangles.
+        let bytes = r["bvh_bytes"].as_u64().expect("bvh_bytes");
+        let leaves = r["bvh_tree"]["leaves"].as_u64().expect("leaves");
+        let per_leaf = r["bvh_tree"]["mean_leaf_triangles"].as_f64().expect("fill");
+        assert!(leaves > 0 && bytes > 0, "{r}");
+        assert!((per_leaf * leaves as f64 - r["triangles"].as_f64().expect("n")).abs() < 1e-6, "{r}");
+        assert_eq!(r["rows"].as_array().expect("rows").len(), 6, "{r}");
+    }
+    let png = image::open(&plot).expect("the plot is a PNG");
+    assert!(png.width() > 100 && png.height() > 100);
+
+    for bad in [
+        vec!["bench-accel", scenes[0].as_str(), "--plot", "out.jpg"],
+        vec!["bench-accel", scenes[0].as_str(), scenes[1].as_str(), "--embree-settings"],
+    ] {
+        let out = lightsplit(&bad);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+}

@@ -2,6 +2,7 @@
 //! sets, side by side in one run, so their ratio means something on a noisy machine.
 
 pub mod features;
+pub mod plot;
 pub mod rays;
 
 use std::time::Instant;
@@ -62,6 +63,11 @@ pub struct BenchAccelReport {
     pub bvh_tree: crate::accel::bvh::wide::WideStats,
     /// The BVH's slab test (`avx2` or `portable`).
     pub bvh_isa: &'static str,
+    /// Bytes the BVH holds, exactly ([`Bvh::bytes`]).
+    pub bvh_bytes: usize,
+    /// How much the process's resident memory grew across one build of each backend (Linux;
+    /// absent elsewhere): the only figure there is for Embree, which manages its own memory.
+    pub resident_growth_bytes: std::collections::BTreeMap<String, u64>,
     pub rows: Vec<Row>,
 }
 
@@ -112,6 +118,21 @@ pub fn bench_accel(
     options: &BenchAccelOptions,
     progress: &dyn Fn(usize, usize),
 ) -> Result<BenchAccelReport, accel::AccelError> {
+    // Memory first, one fresh build of each backend, each dropped before the next.
+    let mut resident_growth_bytes = std::collections::BTreeMap::new();
+    let before = resident_bytes();
+    let one = accel::build_embree(scene, None)?;
+    if let (Some(a), Some(b)) = (before, resident_bytes()) {
+        resident_growth_bytes.insert(Backend::Embree.to_string(), b.saturating_sub(a));
+    }
+    drop(one);
+    let before = resident_bytes();
+    let one = Bvh::new(scene)?;
+    if let (Some(a), Some(b)) = (before, resident_bytes()) {
+        resident_growth_bytes.insert(Backend::Bvh.to_string(), b.saturating_sub(a));
+    }
+    drop(one);
+
     let (embree, embree_build) = best_of(3, || {
         let start = Instant::now();
         let e = accel::build_embree(scene, None);
@@ -172,6 +193,8 @@ pub fn bench_accel(
             .collect(),
         bvh_tree: bvh.stats(),
         bvh_isa: bvh.isa().name(),
+        bvh_bytes: bvh.bytes(),
+        resident_growth_bytes,
         rows,
     })
 }
@@ -198,13 +221,28 @@ impl BenchAccelReport {
         );
         let t = &self.bvh_tree;
         out += &format!(
-            "bvh tree     {} nodes ({:.2} children each), {} leaves ({:.2} triangles each), {:.1} bytes per triangle, {} slab test\n",
+            "bvh tree     {} nodes ({:.2} children each, depth {}), {} leaves ({:.2} triangles each), {:.1} bytes per triangle, {} slab test\n",
             t.nodes,
             t.mean_children,
+            t.depth,
             t.leaves,
             t.mean_leaf_triangles,
             t.bytes as f64 / self.triangles.max(1) as f64,
             self.bvh_isa
+        );
+        let mb = |b: u64| b as f64 / 1e6;
+        let per = |b: u64| b as f64 / self.triangles.max(1) as f64;
+        let resident = |backend: Backend| {
+            self.resident_growth_bytes.get(&backend.to_string()).map_or("not measured".to_string(), |&b| {
+                format!("{:.1} MB resident growth ({:.1} B/triangle)", mb(b), per(b))
+            })
+        };
+        out += &format!(
+            "memory       embree {}\n             bvh {:.1} MB held exactly ({:.1} B/triangle), {}\n",
+            resident(Backend::Embree),
+            mb(self.bvh_bytes as u64),
+            per(self.bvh_bytes as u64),
+            resident(Backend::Bvh)
         );
         out += "rays        threads   embree Mrays/s   bvh Mrays/s   bvh/embree (median of rounds)\n";
         for pair in self.rows.chunks(2) {
@@ -221,6 +259,14 @@ impl BenchAccelReport {
         }
         out
     }
+}
+
+/// The process's resident memory (VmRSS of /proc/self/status), where there is one.
+fn resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: u64 = line.trim_start_matches("VmRSS:").trim().trim_end_matches("kB").trim().parse().ok()?;
+    Some(kb * 1024)
 }
 
 /// One Embree setting measured by [`bench_embree_settings`].

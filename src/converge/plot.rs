@@ -12,7 +12,7 @@ use super::summary::Table;
 
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSansMono.ttf");
 
-fn font() {
+pub(crate) fn font() {
     static REGISTER: Once = Once::new();
     REGISTER.call_once(|| {
         // The font is compiled in; if plotters rejected it the labels would be missing, not the plot.
@@ -45,7 +45,7 @@ fn wrap(label: &str, max: usize) -> Vec<String> {
 }
 
 /// An x axis label on a log scale: only at 1, 2 and 5 times a power of ten (the others crowd).
-fn round_label(v: f64) -> String {
+pub(crate) fn round_label(v: f64) -> String {
     let exponent = v.log10().floor();
     let lead = v / 10f64.powf(exponent);
     if ![1.0, 2.0, 5.0].iter().any(|d| (lead - d).abs() < 1e-6) {

@@ -58,12 +58,24 @@ impl Tree {
 
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     if prims.is_empty() {
-        return Bvh { nodes: Vec::new(), prims, wide: Bvh8::collapse(&[], &[]), instances: None };
+        return Bvh {
+            nodes: Vec::new(),
+            prims,
+            bounds: None,
+            wide: Bvh8::collapse(&[], &[], &[]),
+            instances: None,
+        };
     }
     let (nodes, order) = tree(prims.len(), |i| prim_bounds(&prims[i]), options);
-    let ordered: Vec<Prim> = order.iter().map(|&i| prims[i as usize]).collect();
-    let wide = Bvh8::collapse(&nodes, &ordered);
-    Bvh { nodes, prims: ordered, wide, instances: None }
+    let wide = Bvh8::collapse(&nodes, &prims, &order);
+    let bounds = nodes.first().map(|n| Aabb { min: Vec3A::from(n.min), max: Vec3A::from(n.max) });
+    if options.keep_binary {
+        let ordered = order.iter().map(|&i| prims[i as usize]).collect();
+        Bvh { nodes, prims: ordered, bounds, wide, instances: None }
+    } else {
+        // Rays traverse the wide tree only: the binary one and the primitives are not kept.
+        Bvh { nodes: Vec::new(), prims: Vec::new(), bounds, wide, instances: None }
+    }
 }
 
 /// The binary tree over `n` boxes (`bounds(i)` the `i`th; at least one): its flattened nodes,
@@ -75,7 +87,7 @@ pub(super) fn tree(
 ) -> (Vec<Node>, Vec<u32>) {
     use rayon::prelude::*;
     let mut items: Vec<Item> = (0..n).into_par_iter().map(|i| Item::new(bounds(i), i as u32)).collect();
-    let tree = build_node(&mut items, 0, &options, 0);
+    let tree = build_node(&mut items, 0, &options, 0, None);
     let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
@@ -104,55 +116,78 @@ fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
     }
 }
 
-/// Builds the subtree over `items`, which start at `offset` in the final primitive order.
-fn build_node(items: &mut [Item], offset: usize, options: &BuildOptions, depth: usize) -> Tree {
+/// The bounds of items' boxes and of their centroids.
+fn bounds_of(items: &[Item]) -> (Aabb, Aabb) {
     use rayon::prelude::*;
-    let n = items.len();
     let grow = |(b, c): (Aabb, Aabb), it: &Item| (b.union(&it.bounds()), c.grow(it.centroid()));
-    let (bounds, centroids) = if n > PARALLEL_BINNING {
+    if items.len() > PARALLEL_BINNING {
         items
             .par_chunks(PARALLEL_BINNING / 4)
             .map(|chunk| chunk.iter().fold((Aabb::EMPTY, Aabb::EMPTY), grow))
             .reduce(|| (Aabb::EMPTY, Aabb::EMPTY), |(a, b), (c, d)| (a.union(&c), b.union(&d)))
     } else {
         items.iter().fold((Aabb::EMPTY, Aabb::EMPTY), grow)
-    };
+    }
+}
+
+/// Builds the subtree over `items`, which start at `offset` in the final primitive order;
+/// `known` is the bounds of their boxes and centroids when the caller has them.
+fn build_node(
+    items: &mut [Item],
+    offset: usize,
+    options: &BuildOptions,
+    depth: usize,
+    known: Option<(Aabb, Aabb)>,
+) -> Tree {
+    let n = items.len();
+    let (bounds, centroids) = known.unwrap_or_else(|| bounds_of(items));
     let leaf = Tree::Leaf { bounds, start: offset, count: n };
     if n == 1 {
         return leaf;
     }
 
+    // Any split costs at least one traversal step: where a leaf costs no more, no binning can
+    // find a cheaper split (most nodes are these, at the bottom of the tree).
+    if n <= options.max_leaf && blocks(n, options) <= options.traversal_cost {
+        return leaf;
+    }
     let extent = centroids.max - centroids.min;
     let split = if depth < SAH_DEPTH && extent.max_element() > 0.0 {
         best_sah_split(items, &bounds, &centroids, options)
     } else {
         None
     };
-    let mid = match split {
+    let (mid, sides) = match split {
         Some(Split { cost, axis, bin, lo, scale, bins }) => {
             if n <= options.max_leaf && cost >= blocks(n, options) {
                 return leaf; // a leaf is cheaper than any split
             }
             // The same arithmetic as the binning, so each item goes where it was counted.
-            let mid = partition(items, |it| bin_of(it.centroid()[axis], lo, scale, bins) <= bin);
-            if mid == 0 || mid == n {
-                median_split(items, extent)
-            } else {
-                mid
+            match partition(items, |c| bin_of(c[axis], lo, scale, bins) <= bin) {
+                (0, _) => (median_split(items, extent), None),
+                (mid, _) if mid == n => (median_split(items, extent), None),
+                (mid, sides) => (mid, Some(sides)),
             }
         }
         None if n <= options.max_leaf => return leaf,
-        None => median_split(items, extent),
+        None => (median_split(items, extent), None),
     };
 
     let (left, right) = items.split_at_mut(mid);
+    let (kl, kr) = match sides {
+        Some([l, r]) => (Some(l), Some(r)),
+        None => (None, None),
+    };
     let (l, r) = if n > PARALLEL_MIN {
         rayon::join(
-            || build_node(left, offset, options, depth + 1),
-            || build_node(right, offset + mid, options, depth + 1),
+            || build_node(left, offset, options, depth + 1, kl),
+            || build_node(right, offset + mid, options, depth + 1, kr),
         )
     } else {
-        (build_node(left, offset, options, depth + 1), build_node(right, offset + mid, options, depth + 1))
+        (
+            build_node(left, offset, options, depth + 1, kl),
+            build_node(right, offset + mid, options, depth + 1, kr),
+        )
     };
     Tree::Inner { bounds, children: Box::new([l, r]) }
 }
@@ -174,16 +209,22 @@ fn median_split(items: &mut [Item], extent: Vec3A) -> usize {
     mid
 }
 
-/// In-place partition; returns how many items satisfy `pred` (they come first).
-fn partition(items: &mut [Item], pred: impl Fn(&Item) -> bool) -> usize {
+/// In-place partition by `pred` of each item's centroid; returns how many items satisfy it (they
+/// come first), and the bounds of boxes and centroids on each side, gathered on the way.
+fn partition(items: &mut [Item], pred: impl Fn(Vec3A) -> bool) -> (usize, [(Aabb, Aabb); 2]) {
+    let mut sides = [(Aabb::EMPTY, Aabb::EMPTY); 2];
     let mut i = 0;
     for j in 0..items.len() {
-        if pred(&items[j]) {
+        let (b, c) = (items[j].bounds(), items[j].centroid());
+        let left = pred(c);
+        let side = &mut sides[usize::from(!left)];
+        *side = (side.0.union(&b), side.1.grow(c));
+        if left {
             items.swap(i, j);
             i += 1;
         }
     }
-    i
+    (i, sides)
 }
 
 #[derive(Clone, Copy)]

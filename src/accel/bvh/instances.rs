@@ -59,8 +59,7 @@ impl Instances {
                     meshes.len() as u32 - 1
                 }
             };
-            let Some(root) = meshes[m as usize].nodes.first() else { continue };
-            let local = Aabb { min: Vec3A::from(root.min), max: Vec3A::from(root.max) };
+            let Some(local) = meshes[m as usize].bounds else { continue };
             boxes.push(placed_box(&local, &instance.to_world));
             placed.push(Placed { to_local: instance.to_local, shape: s as u32, mesh: m });
         }
@@ -76,6 +75,13 @@ impl Instances {
     /// How many instances, and how many distinct meshes they place.
     pub(super) fn counts(&self) -> (usize, usize) {
         (self.placed.len(), self.meshes.len())
+    }
+
+    /// Bytes held: the tree over the instances, their placements, and each shared mesh's BVH.
+    pub(super) fn bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node>()
+            + self.placed.len() * std::mem::size_of::<Placed>()
+            + self.meshes.iter().map(Bvh::bytes).sum::<usize>()
     }
 
     /// The closest hit along `ray` nearer than `best` (the hit found so far, if any).

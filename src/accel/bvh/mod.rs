@@ -77,8 +77,11 @@ pub enum Prim {
 /// The BVH over a scene: the binary SAH tree and its 8-wide collapse, which rays traverse.
 /// Immutable once built, so it is `Send + Sync`.
 pub struct Bvh {
+    /// The binary tree and its primitives in leaf order: empty unless the options keep them.
     nodes: Vec<Node>,
     prims: Vec<Prim>,
+    /// The box of every primitive (of the first level), if there are any.
+    bounds: Option<Aabb>,
     wide: wide::Bvh8,
     /// Shapes that place a shared mesh: the second level.
     instances: Option<Box<instances::Instances>>,
@@ -101,11 +104,14 @@ pub struct BuildOptions {
     /// The SAH counts a leaf's primitives in blocks of this many: the leaf test's width, so a
     /// leaf of four triangles costs what a leaf of one does.
     pub block: usize,
+    /// Keep the binary tree and its primitives after collapsing it (the reference traversal
+    /// and [`Bvh::validate`] need them; rays do not).
+    pub keep_binary: bool,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { max_leaf: 4, traversal_cost: 2.0, bins: 16, block: 4 }
+        BuildOptions { max_leaf: 4, traversal_cost: 2.0, bins: 16, block: 4, keep_binary: false }
     }
 }
 
@@ -113,6 +119,12 @@ impl Bvh {
     /// Builds over every shape of `scene`; degenerate triangles and empty spheres are dropped.
     pub fn new(scene: &Scene) -> Result<Bvh, TooLarge> {
         Self::with_options(scene, BuildOptions::default())
+    }
+
+    /// [`Bvh::new`], keeping the binary tree for the reference traversal and the checks.
+    #[cfg(test)]
+    pub(crate) fn with_reference(scene: &Scene) -> Result<Bvh, TooLarge> {
+        Self::with_options(scene, BuildOptions { keep_binary: true, ..BuildOptions::default() })
     }
 
     pub fn with_options(scene: &Scene, options: BuildOptions) -> Result<Bvh, TooLarge> {
@@ -127,14 +139,18 @@ impl Bvh {
                 // Instances go to the second level.
                 Geometry::Triangles(mesh) if mesh.instance.is_some() => {}
                 Geometry::Triangles(mesh) => {
-                    for t in 0..mesh.indices.len() as u32 {
+                    use rayon::prelude::*;
+                    let triangles = (0..mesh.indices.len() as u32).into_par_iter().filter_map(|t| {
                         let v = mesh.triangle(t);
                         // Degenerate (zero-area) triangles can never be hit by the watertight
                         // test; leaving them out keeps them from costing traversal.
-                        if (v[1] - v[0]).cross(v[2] - v[0]) != Vec3::ZERO {
-                            prims.push(Prim::Triangle { v, shape: s as u32, prim: t });
-                        }
-                    }
+                        ((v[1] - v[0]).cross(v[2] - v[0]) != Vec3::ZERO).then_some(Prim::Triangle {
+                            v,
+                            shape: s as u32,
+                            prim: t,
+                        })
+                    });
+                    prims.par_extend(triangles);
                 }
             }
         }
@@ -157,6 +173,15 @@ impl Bvh {
         self.wide.stats()
     }
 
+    /// Bytes held, exactly: the wide tree, the binary tree and primitives kept beside it (the
+    /// reference traversal and the checks read them), and the instance level.
+    pub fn bytes(&self) -> usize {
+        self.wide.stats().bytes
+            + self.nodes.len() * std::mem::size_of::<Node>()
+            + self.prims.len() * std::mem::size_of::<Prim>()
+            + self.instances.as_ref().map_or(0, |i| i.bytes())
+    }
+
     /// The slab test rays use (AVX2 or portable, chosen at run time).
     pub fn isa(&self) -> simd::Isa {
         self.wide.isa()
@@ -176,6 +201,9 @@ impl Bvh {
     /// Checks the tree's invariants: every primitive in exactly one leaf, children inside their
     /// parents' boxes, leaves within their size. Returns a description of the first violation.
     pub fn validate(&self, max_leaf: usize) -> Result<(), String> {
+        if self.nodes.is_empty() && self.bounds.is_some() {
+            return Err("the binary tree was not kept (build with keep_binary)".into());
+        }
         let mut seen = vec![false; self.prims.len()];
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
@@ -267,7 +295,8 @@ impl Bvh {
         self.wide.occluded(ray) || self.instances.as_ref().is_some_and(|i| i.occluded(ray))
     }
 
-    /// Closest hit by the binary tree (the reference the wide tree is tested against).
+    /// Closest hit by the binary tree (the reference the wide tree is tested against; `None`
+    /// unless the tree was built with `keep_binary`).
     pub fn intersect_binary(&self, ray: &Ray) -> Option<Hit> {
         let rt = RayTri::new(ray);
         closest(&self.nodes, ray, ray.t_max, None, |range, t_max| {

@@ -100,7 +100,7 @@ proptest! {
         let Some((t, ru, rw)) = triangle_f64(o.as_dvec3(), d.as_dvec3(), [v0, v1, v2].map(|p| p.as_dvec3()))
         else { return Ok(()) };
         let scene = scene_of(vec![mesh(vec![v0, v1, v2], vec![[0, 1, 2]])]);
-        let bvh = Bvh::new(&scene).expect("builds");
+        let bvh = Bvh::with_reference(&scene).expect("builds");
         let ray = ray_of(o, d);
         let margin = 1e-4;
         let inside = ru > margin && rw > margin && 1.0 - ru - rw > margin && t > margin;
@@ -127,7 +127,7 @@ proptest! {
         prop_assume!(n1.length() > 1e-2 && n2.length() > 1e-2);
         // Triangles (a, b, c) and (a, e, b) share the edge a-b, wound alike.
         let scene = scene_of(vec![mesh(vec![a, b, c, e], vec![[0, 1, 2], [0, 3, 1]])]);
-        let bvh = Bvh::new(&scene).expect("builds");
+        let bvh = Bvh::with_reference(&scene).expect("builds");
         {
             let target = a + (b - a) * s;
             let d = target - o;
@@ -165,7 +165,7 @@ proptest! {
         positions.extend(&ring);
         let indices: Vec<[u32; 3]> = (0..5u32).map(|k| [0, 1 + k, 1 + (k + 1) % 5]).collect();
         let scene = scene_of(vec![mesh(positions, indices)]);
-        let bvh = Bvh::new(&scene).expect("builds");
+        let bvh = Bvh::with_reference(&scene).expect("builds");
         let origin = place(Vec3::new(lateral.0, lateral.1, 10.0));
         let ray = ray_of(origin, apex - origin);
         prop_assert!(bvh.intersect(&ray).is_some() && bvh.intersect_binary(&ray).is_some() && bvh.occluded(&ray),

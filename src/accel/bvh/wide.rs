@@ -119,6 +119,14 @@ pub struct WideStats {
     pub mean_leaf_triangles: f64,
     /// Bytes of nodes, leaves and spheres, exactly.
     pub bytes: usize,
+    /// Inner nodes on the longest path from the root.
+    pub depth: usize,
+}
+
+/// Primitives and the order the binary tree's leaf ranges index.
+struct Ordered<'a> {
+    prims: &'a [Prim],
+    order: &'a [u32],
 }
 
 pub struct Bvh8 {
@@ -128,11 +136,17 @@ pub struct Bvh8 {
     root: Child,
     /// The slab test this CPU runs best.
     isa: Isa,
+    /// Inner nodes on the longest path from the root: the stack holds at most
+    /// `(WIDTH - 1) * depth + 1` entries.
+    depth: usize,
 }
 
 /// Traversal stack depth: each level of the tree pushes at most seven entries, and collapsing
 /// never deepens the binary tree, whose depth the build bounds.
 const STACK: usize = (WIDTH - 1) * super::STACK + 1;
+/// The stack of trees shallow enough for it (every tree of a real scene): a ray sets up its
+/// stack before it starts, so a short one costs less.
+const SHORT_STACK: usize = 128;
 
 /// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
 const FAR_SCALE: f32 = super::FAR_SCALE;
@@ -140,24 +154,27 @@ const FAR_SCALE: f32 = super::FAR_SCALE;
 impl Bvh8 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
     /// opening the inner child of largest area until it has eight.
-    pub fn collapse(binary: &[Node], prims: &[Prim]) -> Bvh8 {
+    /// `order` maps the binary leaves' ranges to `prims`.
+    pub fn collapse(binary: &[Node], prims: &[Prim], order: &[u32]) -> Bvh8 {
         let mut bvh = Bvh8 {
             nodes: Vec::with_capacity(binary.len() / 6 + 1),
             leaves: Vec::with_capacity(binary.len() / 2 + 1),
             spheres: Vec::new(),
             root: Child::EMPTY,
             isa: Isa::best(),
+            depth: 0,
         };
         if binary.is_empty() {
             return bvh;
         }
-        bvh.root = bvh.add(binary, prims, 0);
+        bvh.root = bvh.add(binary, &Ordered { prims, order }, 0);
         bvh
     }
 
     /// Packs a binary leaf's primitives into a [`Leaf4`].
-    fn add_leaf(&mut self, prims: &[Prim]) -> Child {
-        debug_assert!(prims.len() <= MAX_LEAF as usize);
+    fn add_leaf(&mut self, prims: &Ordered, leaf: &Node) -> Child {
+        let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
+        debug_assert!(range.len() <= MAX_LEAF as usize);
         let mut leaf = Leaf4 {
             v: [[0.0; 4]; 9],
             shape: [0; 4],
@@ -166,8 +183,8 @@ impl Bvh8 {
             spheres_first: self.spheres.len() as u32,
             spheres_count: 0,
         };
-        for p in prims {
-            match *p {
+        for &i in &prims.order[range] {
+            match prims.prims[i as usize] {
                 Prim::Triangle { v, shape, prim } => {
                     let lane = leaf.triangles as usize;
                     for (k, vertex) in v.iter().enumerate() {
@@ -198,56 +215,59 @@ impl Bvh8 {
     }
 
     /// Adds the binary subtree at `index`: a leaf, or an inner node filled by [`Self::fill`].
-    fn add(&mut self, binary: &[Node], prims: &[Prim], index: usize) -> Child {
+    fn add(&mut self, binary: &[Node], prims: &Ordered, index: usize) -> Child {
         let n = &binary[index];
         if n.count > 0 {
-            return self.add_leaf(&prims[n.first as usize..(n.first + n.count) as usize]);
+            return self.add_leaf(prims, n);
         }
         let at = self.nodes.len();
         self.nodes.push(Node8::EMPTY);
-        self.fill(binary, prims, index, at);
+        self.fill(binary, prims, index, at, 1);
         Child::inner(at as u32)
     }
 
     /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
     /// of largest area opened until there are eight. A node's inner children are stored side by
     /// side, and so are its leaves, before any grandchild: what a ray visits next is near.
-    fn fill(&mut self, binary: &[Node], prims: &[Prim], index: usize, at: usize) {
+    fn fill(&mut self, binary: &[Node], prims: &Ordered, index: usize, at: usize, level: usize) {
+        self.depth = self.depth.max(level);
         let n = &binary[index];
         let area = |i: usize| {
             let b = &binary[i];
             let d = [b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]];
             d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
         };
-        let mut kids: Vec<usize> = vec![n.first as usize, n.first as usize + 1];
-        while kids.len() < WIDTH {
-            let open = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, &k)| binary[k].count == 0)
-                .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)));
-            let Some((slot, &k)) = open else { break };
-            let first = binary[k].first as usize;
+        let mut kids = [n.first as usize, n.first as usize + 1, 0, 0, 0, 0, 0, 0];
+        let mut len = 2;
+        while len < WIDTH {
+            let open = (0..len)
+                .filter(|&slot| binary[kids[slot]].count == 0)
+                .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])));
+            let Some(slot) = open else { break };
+            let first = binary[kids[slot]].first as usize;
             kids[slot] = first;
-            kids.push(first + 1);
+            kids[len] = first + 1;
+            len += 1;
         }
-        let mut inner = Vec::with_capacity(WIDTH);
-        for (slot, &k) in kids.iter().enumerate() {
+        let mut inner = [(0, 0); WIDTH];
+        let mut inner_len = 0;
+        for (slot, &k) in kids[..len].iter().enumerate() {
             let b = &binary[k];
             for axis in 0..3 {
                 self.nodes[at].bounds[axis][slot] = b.min[axis];
                 self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
             }
             self.nodes[at].children[slot] = if b.count > 0 {
-                self.add_leaf(&prims[b.first as usize..(b.first + b.count) as usize])
+                self.add_leaf(prims, b)
             } else {
                 self.nodes.push(Node8::EMPTY);
-                inner.push((k, self.nodes.len() - 1));
+                inner[inner_len] = (k, self.nodes.len() - 1);
+                inner_len += 1;
                 Child::inner((self.nodes.len() - 1) as u32)
             };
         }
-        for (k, node) in inner {
-            self.fill(binary, prims, k, node);
+        for &(k, node) in &inner[..inner_len] {
+            self.fill(binary, prims, k, node, level + 1);
         }
     }
 
@@ -272,6 +292,7 @@ impl Bvh8 {
             bytes: self.nodes.len() * std::mem::size_of::<Node8>()
                 + self.leaves.len() * std::mem::size_of::<Leaf4>()
                 + self.spheres.len() * std::mem::size_of::<SphereRef>(),
+            depth: self.depth,
         }
     }
 
@@ -417,6 +438,16 @@ impl Bvh8 {
     /// nearest first, and entries the closest hit so far has passed are skipped when popped.
     #[inline(always)]
     pub(super) fn intersect_with<K: BoxTest>(&self, ray: &Ray, k: K) -> Option<Hit> {
+        if (WIDTH - 1) * self.depth < SHORT_STACK {
+            self.intersect_stack::<K, SHORT_STACK>(ray, k)
+        } else {
+            self.intersect_stack::<K, STACK>(ray, k)
+        }
+    }
+
+    /// [`Self::intersect_with`] on a stack of `N` entries.
+    #[inline(always)]
+    fn intersect_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, k: K) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
@@ -424,7 +455,7 @@ impl Bvh8 {
         let rt = RayTri4::new(ray);
         let mut best: Option<Hit> = None;
         let mut t_max = ray.t_max;
-        let mut stack = [Entry { child: Child::EMPTY, t: 0.0 }; STACK];
+        let mut stack = [Entry { child: Child::EMPTY, t: 0.0 }; N];
         let mut sp = 0;
         let mut current = Entry { child: self.root, t: 0.0 };
         loop {
@@ -509,12 +540,22 @@ impl Bvh8 {
     /// Whether anything lies along `ray` within [0, t_max], in any order.
     #[inline(always)]
     pub(super) fn occluded_with<K: BoxTest>(&self, ray: &Ray, k: K) -> bool {
+        if (WIDTH - 1) * self.depth < SHORT_STACK {
+            self.occluded_stack::<K, SHORT_STACK>(ray, k)
+        } else {
+            self.occluded_stack::<K, STACK>(ray, k)
+        }
+    }
+
+    /// [`Self::occluded_with`] on a stack of `N` entries.
+    #[inline(always)]
+    fn occluded_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, k: K) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
         let rb = RayBox8::new(ray);
         let rt = RayTri4::new(ray);
-        let mut stack = [Child::EMPTY; STACK];
+        let mut stack = [Child::EMPTY; N];
         let mut sp = 0;
         let mut current = self.root;
         loop {
