@@ -111,7 +111,7 @@ pub struct BuildOptions {
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { max_leaf: 4, traversal_cost: 2.0, bins: 16, block: 4, keep_binary: false }
+        BuildOptions { max_leaf: 8, traversal_cost: 1.0, bins: 16, block: 4, keep_binary: false }
     }
 }
 

@@ -12,15 +12,17 @@ use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
 /// A reference to a child, 32 bits so a node's eight children take 32 bytes: an inner node is its
-/// index (top bit clear), a leaf the index of its [`Leaf4`] with the top bit set.
+/// index (top bit clear); a leaf the index of its first [`Leaf4`] with the top bit set, and the
+/// next bit set when a second block of four follows it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Child(u32);
 
 const LEAF: u32 = 1 << 31;
-/// The most primitives a leaf can hold (its triangles are tested four at a time).
-pub const MAX_LEAF: u32 = 4;
-/// The most primitives a tree can hold.
-pub const MAX_PRIMS: u32 = LEAF - 1;
+const TWO: u32 = 1 << 30;
+/// The most primitives a leaf can hold: two blocks of four triangles.
+pub const MAX_LEAF: u32 = 8;
+/// The most primitives a tree can hold (every leaf block index fits below [`TWO`]).
+pub const MAX_PRIMS: u32 = TWO - 1;
 
 impl Child {
     const EMPTY: Child = Child(u32::MAX);
@@ -30,9 +32,9 @@ impl Child {
         Child(index)
     }
 
-    fn leaf(index: u32) -> Child {
-        debug_assert!(index < LEAF - 1);
-        Child(LEAF | index)
+    fn leaf(index: u32, blocks: u32) -> Child {
+        debug_assert!(index < TWO - 1 && (1..=2).contains(&blocks));
+        Child(LEAF | index | if blocks == 2 { TWO } else { 0 })
     }
 
     /// Whether this is a leaf (EMPTY, never traversed, also has the top bit set).
@@ -41,9 +43,16 @@ impl Child {
         self.0 & LEAF != 0
     }
 
+    /// A leaf's first block.
     #[inline(always)]
     fn index(self) -> usize {
-        (self.0 & !LEAF) as usize
+        (self.0 & !(LEAF | TWO)) as usize
+    }
+
+    /// A leaf's blocks.
+    #[inline(always)]
+    fn blocks(self) -> usize {
+        1 + usize::from(self.0 & TWO != 0)
     }
 }
 
@@ -171,21 +180,29 @@ impl Bvh8 {
         bvh
     }
 
-    /// Packs a binary leaf's primitives into a [`Leaf4`].
+    /// Packs a binary leaf's primitives into one or two [`Leaf4`] blocks, side by side (its
+    /// spheres go with the first).
     fn add_leaf(&mut self, prims: &Ordered, leaf: &Node) -> Child {
         let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
         debug_assert!(range.len() <= MAX_LEAF as usize);
-        let mut leaf = Leaf4 {
+        let first = self.leaves.len();
+        let empty = |spheres_first: u32| Leaf4 {
             v: [[0.0; 4]; 9],
             shape: [0; 4],
             prim: [0; 4],
             triangles: 0,
-            spheres_first: self.spheres.len() as u32,
+            spheres_first,
             spheres_count: 0,
         };
+        self.leaves.push(empty(self.spheres.len() as u32));
         for &i in &prims.order[range] {
             match prims.prims[i as usize] {
                 Prim::Triangle { v, shape, prim } => {
+                    if self.leaves[self.leaves.len() - 1].triangles == 4 {
+                        self.leaves.push(empty(self.spheres.len() as u32));
+                    }
+                    let block = self.leaves.len() - 1;
+                    let leaf = &mut self.leaves[block];
                     let lane = leaf.triangles as usize;
                     for (k, vertex) in v.iter().enumerate() {
                         for a in 0..3 {
@@ -198,20 +215,21 @@ impl Bvh8 {
                 }
                 Prim::Sphere { center, radius, shape } => {
                     self.spheres.push(SphereRef { center, radius, shape });
-                    leaf.spheres_count += 1;
+                    self.leaves[first].spheres_count += 1;
                 }
             }
         }
-        // Unused lanes repeat lane 0 (a real triangle, or with no triangles lanes never run).
-        for lane in leaf.triangles.max(1) as usize..4 {
-            for row in leaf.v.iter_mut() {
-                row[lane] = row[0];
+        for leaf in &mut self.leaves[first..] {
+            // Unused lanes repeat lane 0 (a real triangle, or with no triangles lanes never run).
+            for lane in leaf.triangles.max(1) as usize..4 {
+                for row in leaf.v.iter_mut() {
+                    row[lane] = row[0];
+                }
+                leaf.shape[lane] = leaf.shape[0];
+                leaf.prim[lane] = leaf.prim[0];
             }
-            leaf.shape[lane] = leaf.shape[0];
-            leaf.prim[lane] = leaf.prim[0];
         }
-        self.leaves.push(leaf);
-        Child::leaf((self.leaves.len() - 1) as u32)
+        Child::leaf(first as u32, (self.leaves.len() - first) as u32)
     }
 
     /// Adds the binary subtree at `index`: a leaf, or an inner node filled by [`Self::fill`].
@@ -461,14 +479,16 @@ impl Bvh8 {
         loop {
             let child = current.child;
             if child.is_leaf() {
-                let leaf = &self.leaves[child.index()];
-                if leaf.triangles > 0 {
-                    if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
-                        t_max = t;
-                        best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
+                let blocks = &self.leaves[child.index()..child.index() + child.blocks()];
+                for leaf in blocks {
+                    if leaf.triangles > 0 {
+                        if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
+                            t_max = t;
+                            best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
+                        }
                     }
                 }
-                for s in self.leaf_spheres(leaf) {
+                for s in self.leaf_spheres(&blocks[0]) {
                     if let Some(t) = sphere(ray, s.center, s.radius, t_max) {
                         t_max = t;
                         best = Some(Hit { t, shape: s.shape, prim: 0, u: 0.0, v: 0.0 });
@@ -529,7 +549,7 @@ impl Bvh8 {
     #[inline(always)]
     fn prefetch<K: BoxTest>(&self, k: K, child: Child) {
         if child.is_leaf() {
-            if let Some(leaf) = self.leaves.get(child.index()) {
+            for leaf in self.leaves.iter().skip(child.index()).take(child.blocks()) {
                 k.prefetch(leaf);
             }
         } else if let Some(node) = self.nodes.get(child.0 as usize) {
@@ -560,12 +580,12 @@ impl Bvh8 {
         let mut current = self.root;
         loop {
             if current.is_leaf() {
-                let leaf = &self.leaves[current.index()];
-                if leaf.triangles > 0 && rt.hit(leaf, ray.t_max).is_some() {
+                let blocks = &self.leaves[current.index()..current.index() + current.blocks()];
+                if blocks.iter().any(|leaf| leaf.triangles > 0 && rt.hit(leaf, ray.t_max).is_some()) {
                     return true;
                 }
                 if self
-                    .leaf_spheres(leaf)
+                    .leaf_spheres(&blocks[0])
                     .iter()
                     .any(|s| sphere(ray, s.center, s.radius, ray.t_max).is_some())
                 {
