@@ -1,8 +1,8 @@
 //! The 8-wide BVH that rays actually traverse: the binary SAH tree collapsed so that each node
 //! holds up to eight children, their boxes stored axis by axis so one slab test checks all eight
 //! at once: AVX2 where the CPU has it, chosen at run time, or the portable test of the `wide`
-//! crate ([`super::simd`], the only module with `unsafe`). A leaf's (up to) four triangles are
-//! tested together by the watertight test, four lanes wide.
+//! crate ([`super::simd`], the only module with `unsafe`). A leaf is one or two blocks of (up
+//! to) four triangles, each block tested at once by the watertight test, four lanes wide.
 
 use wide::f32x4;
 
@@ -124,7 +124,7 @@ pub struct WideStats {
     pub leaves: usize,
     /// Children per inner node (at most eight).
     pub mean_children: f64,
-    /// Triangles per leaf (at most four).
+    /// Triangles per leaf block (at most four).
     pub mean_leaf_triangles: f64,
     /// Bytes of nodes, leaves and spheres, exactly.
     pub bytes: usize,
