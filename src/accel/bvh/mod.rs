@@ -89,7 +89,7 @@ pub struct Bvh {
 
 /// A scene with more primitives than the BVH's 28-bit primitive references can name.
 #[derive(Debug, thiserror::Error)]
-#[error("the scene has {0} primitives; lightsplit's BVH holds at most 268435456 (use --accel embree)")]
+#[error("the scene has {0} primitives; lightsplit's BVH holds at most {max} (use --accel embree)", max = wide::MAX_PRIMS)]
 pub struct TooLarge(pub usize);
 
 /// Build settings; the defaults are what the benchmarks chose.
@@ -176,7 +176,7 @@ impl Bvh {
     /// Bytes held, exactly: the wide tree, the binary tree and primitives kept beside it (the
     /// reference traversal and the checks read them), and the instance level.
     pub fn bytes(&self) -> usize {
-        self.wide.stats().bytes
+        self.wide.bytes()
             + self.nodes.len() * std::mem::size_of::<Node>()
             + self.prims.len() * std::mem::size_of::<Prim>()
             + self.instances.as_ref().map_or(0, |i| i.bytes())

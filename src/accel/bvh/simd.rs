@@ -184,14 +184,6 @@ impl Isa {
 }
 
 impl BoxTest for Isa {
-    fn prefetch<T>(self, item: &T) {
-        match self {
-            Isa::Portable => Portable.prefetch(item),
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.prefetch(item),
-        }
-    }
-
     /// The chosen kernel (a match per call: for tests, not for traversal loops).
     fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
         match self {

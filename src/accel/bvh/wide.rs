@@ -297,6 +297,13 @@ impl Bvh8 {
         &self.spheres[leaf.spheres_first as usize..(leaf.spheres_first + leaf.spheres_count) as usize]
     }
 
+    /// Bytes of nodes, leaves and spheres, exactly.
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node8>()
+            + self.leaves.len() * std::mem::size_of::<Leaf4>()
+            + self.spheres.len() * std::mem::size_of::<SphereRef>()
+    }
+
     /// Counts and sizes of the tree.
     pub fn stats(&self) -> WideStats {
         let children: usize =
@@ -307,9 +314,7 @@ impl Bvh8 {
             leaves: self.leaves.len(),
             mean_children: children as f64 / self.nodes.len().max(1) as f64,
             mean_leaf_triangles: triangles as f64 / self.leaves.len().max(1) as f64,
-            bytes: self.nodes.len() * std::mem::size_of::<Node8>()
-                + self.leaves.len() * std::mem::size_of::<Leaf4>()
-                + self.spheres.len() * std::mem::size_of::<SphereRef>(),
+            bytes: self.bytes(),
             depth: self.depth,
         }
     }
