@@ -4,6 +4,7 @@
 //! splits, which bounds the depth (and so the traversal stack) whatever the input.
 
 use glam::{Vec3A, Vec4};
+use wide::{f32x4, i32x4};
 
 use super::wide::Bvh8;
 use super::{prim_bounds, Aabb, BuildOptions, Bvh, Node, Prim, STACK};
@@ -43,17 +44,15 @@ impl Item {
     }
 }
 
+/// The tree while it is built: the top levels as boxes, built on several threads; below
+/// [`PARALLEL_MIN`] primitives, each subtree already flat, built on one thread.
 enum Tree {
-    Leaf { bounds: Aabb, start: usize, count: usize },
-    Inner { bounds: Aabb, children: Box<[Tree; 2]> },
-}
-
-impl Tree {
-    fn bounds(&self) -> &Aabb {
-        match self {
-            Tree::Leaf { bounds, .. } | Tree::Inner { bounds, .. } => bounds,
-        }
-    }
+    Inner {
+        bounds: Aabb,
+        children: Box<[Tree; 2]>,
+    },
+    /// A subtree's nodes, flattened: its root first, inner nodes' `first` indexing this vector.
+    Flat(Vec<Node>),
 }
 
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
@@ -94,22 +93,29 @@ pub(super) fn tree(
     (nodes, items.iter().map(|it| it.index() as u32).collect())
 }
 
+const PLACEHOLDER: Node = Node { min: [0.0; 3], first: 0, max: [0.0; 3], count: 0 };
+
 fn placeholder() -> Node {
-    Node { min: [0.0; 3], first: 0, max: [0.0; 3], count: 0 }
+    PLACEHOLDER
 }
 
 fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
-    let b = tree.bounds();
     match tree {
-        Tree::Leaf { start, count, .. } => {
-            nodes[at] =
-                Node { min: b.min.into(), first: *start as u32, max: b.max.into(), count: *count as u32 };
+        Tree::Flat(flat) => {
+            // The root goes to `at`, the rest after what is there: inner nodes' children move
+            // with them.
+            let base = nodes.len() as u32 - 1;
+            let moved = |n: &Node| if n.count > 0 { *n } else { Node { first: n.first + base, ..*n } };
+            let (root, rest) = flat.split_first().unwrap_or((&PLACEHOLDER, &[]));
+            nodes[at] = moved(root);
+            nodes.extend(rest.iter().map(moved));
         }
-        Tree::Inner { children, .. } => {
+        Tree::Inner { bounds, children } => {
             let first = nodes.len();
             nodes.push(placeholder());
             nodes.push(placeholder());
-            nodes[at] = Node { min: b.min.into(), first: first as u32, max: b.max.into(), count: 0 };
+            nodes[at] =
+                Node { min: bounds.min.into(), first: first as u32, max: bounds.max.into(), count: 0 };
             flatten(&children[0], nodes, first);
             flatten(&children[1], nodes, first + 1);
         }
@@ -130,8 +136,50 @@ fn bounds_of(items: &[Item]) -> (Aabb, Aabb) {
     }
 }
 
+/// What a node becomes: a leaf, or two children split at `mid` with (when known) the bounds of
+/// each side's boxes and centroids.
+enum Decision {
+    Leaf,
+    Split { mid: usize, sides: [Option<(Aabb, Aabb)>; 2] },
+}
+
+/// Chooses between a leaf and a split for `items` (whose box and centroid bounds are
+/// `bounds`), partitioning them in place for a split.
+fn decide(items: &mut [Item], bounds: &(Aabb, Aabb), options: &BuildOptions, depth: usize) -> Decision {
+    let n = items.len();
+    // Any split costs at least one traversal step: where a leaf costs no more, no binning can
+    // find a cheaper split (most nodes are these, at the bottom of the tree).
+    if n == 1 || (n <= options.max_leaf && blocks(n, options) <= options.traversal_cost) {
+        return Decision::Leaf;
+    }
+    let (bounds, centroids) = bounds;
+    let extent = centroids.max - centroids.min;
+    let split = if depth < SAH_DEPTH && extent.max_element() > 0.0 {
+        best_sah_split(items, bounds, centroids, options)
+    } else {
+        None
+    };
+    let median = |items: &mut [Item]| Decision::Split { mid: median_split(items, extent), sides: [None; 2] };
+    match split {
+        Some(Split { cost, axis, bin, binner }) => {
+            if n <= options.max_leaf && cost >= blocks(n, options) {
+                return Decision::Leaf; // a leaf is cheaper than any split
+            }
+            // The same arithmetic as the binning, so each item goes where it was counted.
+            match partition(items, |c| binner.bins(c)[axis] <= bin as i32) {
+                (0, _) => median(items),
+                (mid, _) if mid == n => median(items),
+                (mid, [l, r]) => Decision::Split { mid, sides: [Some(l), Some(r)] },
+            }
+        }
+        None if n <= options.max_leaf => Decision::Leaf,
+        None => median(items),
+    }
+}
+
 /// Builds the subtree over `items`, which start at `offset` in the final primitive order;
-/// `known` is the bounds of their boxes and centroids when the caller has them.
+/// `known` is the bounds of their boxes and centroids when the caller has them. Subtrees of
+/// up to [`PARALLEL_MIN`] items are built flat on this thread ([`build_flat`]).
 fn build_node(
     items: &mut [Item],
     offset: usize,
@@ -140,56 +188,67 @@ fn build_node(
     known: Option<(Aabb, Aabb)>,
 ) -> Tree {
     let n = items.len();
-    let (bounds, centroids) = known.unwrap_or_else(|| bounds_of(items));
-    let leaf = Tree::Leaf { bounds, start: offset, count: n };
-    if n == 1 {
-        return leaf;
+    let bounds = known.unwrap_or_else(|| bounds_of(items));
+    if n <= PARALLEL_MIN {
+        let mut nodes = Vec::with_capacity(2 * n.div_ceil(options.block.max(1)));
+        nodes.push(placeholder());
+        build_flat(&mut nodes, 0, items, offset, options, depth, bounds);
+        return Tree::Flat(nodes);
     }
-
-    // Any split costs at least one traversal step: where a leaf costs no more, no binning can
-    // find a cheaper split (most nodes are these, at the bottom of the tree).
-    if n <= options.max_leaf && blocks(n, options) <= options.traversal_cost {
-        return leaf;
-    }
-    let extent = centroids.max - centroids.min;
-    let split = if depth < SAH_DEPTH && extent.max_element() > 0.0 {
-        best_sah_split(items, &bounds, &centroids, options)
-    } else {
-        None
-    };
-    let (mid, sides) = match split {
-        Some(Split { cost, axis, bin, lo, scale, bins }) => {
-            if n <= options.max_leaf && cost >= blocks(n, options) {
-                return leaf; // a leaf is cheaper than any split
-            }
-            // The same arithmetic as the binning, so each item goes where it was counted.
-            match partition(items, |c| bin_of(c[axis], lo, scale, bins) <= bin) {
-                (0, _) => (median_split(items, extent), None),
-                (mid, _) if mid == n => (median_split(items, extent), None),
-                (mid, sides) => (mid, Some(sides)),
-            }
+    match decide(items, &bounds, options, depth) {
+        Decision::Leaf => {
+            let (b, _) = bounds;
+            Tree::Flat(vec![Node {
+                min: b.min.into(),
+                first: offset as u32,
+                max: b.max.into(),
+                count: n as u32,
+            }])
         }
-        None if n <= options.max_leaf => return leaf,
-        None => (median_split(items, extent), None),
-    };
+        Decision::Split { mid, sides: [kl, kr] } => {
+            let (left, right) = items.split_at_mut(mid);
+            let (l, r) = rayon::join(
+                || build_node(left, offset, options, depth + 1, kl),
+                || build_node(right, offset + mid, options, depth + 1, kr),
+            );
+            Tree::Inner { bounds: bounds.0, children: Box::new([l, r]) }
+        }
+    }
+}
 
-    let (left, right) = items.split_at_mut(mid);
-    let (kl, kr) = match sides {
-        Some([l, r]) => (Some(l), Some(r)),
-        None => (None, None),
-    };
-    let (l, r) = if n > PARALLEL_MIN {
-        rayon::join(
-            || build_node(left, offset, options, depth + 1, kl),
-            || build_node(right, offset + mid, options, depth + 1, kr),
-        )
-    } else {
-        (
-            build_node(left, offset, options, depth + 1, kl),
-            build_node(right, offset + mid, options, depth + 1, kr),
-        )
-    };
-    Tree::Inner { bounds, children: Box::new([l, r]) }
+/// Builds the subtree over `items` into `nodes[at]`, its descendants appended after, each
+/// inner node's two children side by side.
+fn build_flat(
+    nodes: &mut Vec<Node>,
+    at: usize,
+    items: &mut [Item],
+    offset: usize,
+    options: &BuildOptions,
+    depth: usize,
+    bounds: (Aabb, Aabb),
+) {
+    let b = bounds.0;
+    match decide(items, &bounds, options, depth) {
+        Decision::Leaf => {
+            nodes[at] = Node {
+                min: b.min.into(),
+                first: offset as u32,
+                max: b.max.into(),
+                count: items.len() as u32,
+            };
+        }
+        Decision::Split { mid, sides: [kl, kr] } => {
+            let first = nodes.len();
+            nodes.push(placeholder());
+            nodes.push(placeholder());
+            nodes[at] = Node { min: b.min.into(), first: first as u32, max: b.max.into(), count: 0 };
+            let (left, right) = items.split_at_mut(mid);
+            let kl = kl.unwrap_or_else(|| bounds_of(left));
+            let kr = kr.unwrap_or_else(|| bounds_of(right));
+            build_flat(nodes, first, left, offset, options, depth + 1, kl);
+            build_flat(nodes, first + 1, right, offset + mid, options, depth + 1, kr);
+        }
+    }
 }
 
 /// Splits at the median along the axis of largest centroid extent (or, when all centroids
@@ -210,21 +269,33 @@ fn median_split(items: &mut [Item], extent: Vec3A) -> usize {
 }
 
 /// In-place partition by `pred` of each item's centroid; returns how many items satisfy it (they
-/// come first), and the bounds of boxes and centroids on each side, gathered on the way.
+/// come first), and the bounds of boxes and centroids on each side, gathered on the way. Two
+/// cursors meet in the middle, swapping only items on the wrong side; each side's bounds stay
+/// in registers.
 fn partition(items: &mut [Item], pred: impl Fn(Vec3A) -> bool) -> (usize, [(Aabb, Aabb); 2]) {
-    let mut sides = [(Aabb::EMPTY, Aabb::EMPTY); 2];
-    let mut i = 0;
-    for j in 0..items.len() {
-        let (b, c) = (items[j].bounds(), items[j].centroid());
-        let left = pred(c);
-        let side = &mut sides[usize::from(!left)];
-        *side = (side.0.union(&b), side.1.grow(c));
-        if left {
-            items.swap(i, j);
+    let (mut left, mut right) = ((Aabb::EMPTY, Aabb::EMPTY), (Aabb::EMPTY, Aabb::EMPTY));
+    let grow =
+        |side: &mut (Aabb, Aabb), it: &Item| *side = (side.0.union(&it.bounds()), side.1.grow(it.centroid()));
+    let (mut i, mut j) = (0, items.len());
+    loop {
+        while i < j && pred(items[i].centroid()) {
+            grow(&mut left, &items[i]);
             i += 1;
         }
+        while i < j && !pred(items[j - 1].centroid()) {
+            grow(&mut right, &items[j - 1]);
+            j -= 1;
+        }
+        if i == j {
+            return (i, [left, right]);
+        }
+        // items[i] belongs right and items[j - 1] left.
+        items.swap(i, j - 1);
+        grow(&mut left, &items[i]);
+        grow(&mut right, &items[j - 1]);
+        i += 1;
+        j -= 1;
     }
-    (i, sides)
 }
 
 #[derive(Clone, Copy)]
@@ -239,25 +310,53 @@ struct Split {
     cost: f32,
     axis: usize,
     bin: usize,
-    lo: f32,
-    scale: f32,
-    bins: usize,
+    binner: Binner,
 }
 
 /// The SAH's cost of testing `n` primitives: the number of blocks the leaf test takes.
 #[inline(always)]
 fn blocks(n: usize, options: &BuildOptions) -> f32 {
-    n.div_ceil(options.block.max(1)) as f32
+    let block = options.block.max(1);
+    // A shift where the block is a power of two (always, by default): the sweeps ask this for
+    // every bin boundary, and a division costs more than the rest of the step.
+    if block.is_power_of_two() {
+        ((n + block - 1) >> block.trailing_zeros()) as f32
+    } else {
+        n.div_ceil(block) as f32
+    }
 }
 
-#[inline(always)]
-fn bin_of(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
-    (((c - lo) * scale) as usize).min(bins - 1)
+/// Maps centroids to bins on all three axes at once: `(c - lo) * scale`, truncated and clamped
+/// to `[0, bins - 1]` (a NaN goes to bin 0). The binning and the partition both use it, so each
+/// item goes to the side where it was counted.
+#[derive(Clone, Copy)]
+struct Binner {
+    lo: f32x4,
+    scale: f32x4,
+    last: i32x4,
+}
+
+impl Binner {
+    fn new(lo: Vec3A, scale: Vec3A, bins: usize) -> Binner {
+        Binner {
+            lo: f32x4::from(lo.extend(0.0).to_array()),
+            scale: f32x4::from(scale.extend(0.0).to_array()),
+            last: i32x4::splat(bins as i32 - 1),
+        }
+    }
+
+    #[inline(always)]
+    fn bins(&self, c: Vec3A) -> [i32; 4] {
+        let c = f32x4::from(c.extend(0.0).to_array());
+        // Out of range or NaN truncates to i32::MIN, which the clamp takes to 0.
+        ((c - self.lo) * self.scale).fast_trunc_int().max(i32x4::ZERO).min(self.last).to_array()
+    }
 }
 
 /// Centroid bins on the three axes: bounds and count of the items in each.
 type Bins = [[Bin; MAX_BINS]; 3];
 const MAX_BINS: usize = 32;
+const _: () = assert!(MAX_BINS.is_power_of_two());
 /// Nodes with more items than this bin on several threads.
 const PARALLEL_BINNING: usize = 1 << 15;
 
@@ -274,13 +373,19 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
     let lo = centroids.min;
     let extent = centroids.max - lo;
     let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), Vec3A::splat(bins_n as f32) / extent, Vec3A::ZERO);
-    let fill = |mut bins: Box<Bins>, it: &Item| {
+    let binner = Binner::new(lo, scale, bins_n);
+    let add = |bins: &mut Bins, it: &Item| {
         let (ib, c) = (it.bounds(), it.centroid());
+        let index = binner.bins(c);
         for axis in 0..3 {
-            let b = bin_of(c[axis], lo[axis], scale[axis], bins_n);
-            bins[axis][b].bounds = bins[axis][b].bounds.union(&ib);
-            bins[axis][b].count += 1;
+            // The clamp keeps the index below the bins; the mask tells the compiler so.
+            let bin = &mut bins[axis][index[axis] as usize & (MAX_BINS - 1)];
+            bin.bounds = bin.bounds.union(&ib);
+            bin.count += 1;
         }
+    };
+    let fill = |mut bins: Box<Bins>, it: &Item| {
+        add(&mut bins, it);
         bins
     };
     if items.len() > PARALLEL_BINNING {
@@ -296,19 +401,14 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
                 }
                 a
             });
-        sweep(&bins, items.len(), bounds, lo, scale, bins_n, options)
+        sweep(&bins, items.len(), bounds, binner, scale, bins_n, options)
     } else {
         // Small nodes bin on the stack.
         let mut bins = [[Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS]; 3];
         for it in items {
-            let (ib, c) = (it.bounds(), it.centroid());
-            for axis in 0..3 {
-                let b = bin_of(c[axis], lo[axis], scale[axis], bins_n);
-                bins[axis][b].bounds = bins[axis][b].bounds.union(&ib);
-                bins[axis][b].count += 1;
-            }
+            add(&mut bins, it);
         }
-        sweep(&bins, items.len(), bounds, lo, scale, bins_n, options)
+        sweep(&bins, items.len(), bounds, binner, scale, bins_n, options)
     }
 }
 
@@ -317,13 +417,13 @@ fn sweep(
     bins: &Bins,
     n: usize,
     bounds: &Aabb,
-    lo: Vec3A,
+    binner: Binner,
     scale: Vec3A,
     bins_n: usize,
     options: &BuildOptions,
 ) -> Option<Split> {
     let parent_area = bounds.half_area().max(f32::MIN_POSITIVE);
-    let mut best: Option<Split> = None;
+    let mut best = (f32::INFINITY, 0, 0);
     for axis in 0..3 {
         if scale[axis] <= 0.0 {
             continue;
@@ -346,12 +446,14 @@ fn sweep(
             if count == 0 || count as usize == n {
                 continue;
             }
-            let cost = options.traversal_cost
-                + (acc.half_area() * blocks(count as usize, options) + right_cost[b + 1]) / parent_area;
-            if best.as_ref().is_none_or(|s| cost < s.cost) {
-                best = Some(Split { cost, axis, bin: b, lo: lo[axis], scale: scale[axis], bins: bins_n });
+            // Area-weighted block counts: the cost but for the traversal step and the parent's
+            // area, which every candidate shares.
+            let cost = acc.half_area() * blocks(count as usize, options) + right_cost[b + 1];
+            if cost < best.0 {
+                best = (cost, axis, b);
             }
         }
     }
-    best
+    let (cost, axis, bin) = best;
+    cost.is_finite().then(|| Split { cost: options.traversal_cost + cost / parent_area, axis, bin, binner })
 }

@@ -70,6 +70,54 @@ pub struct Leaf4 {
     spheres_count: u32,
 }
 
+impl Leaf4 {
+    const EMPTY: Leaf4 = Leaf4 {
+        v: [[0.0; 4]; 9],
+        shape: [0; 4],
+        prim: [0; 4],
+        triangles: 0,
+        spheres_first: 0,
+        spheres_count: 0,
+    };
+}
+
+/// Packs a leaf's primitives into `blocks` (empty, enough for all of them), four triangles a
+/// block, and counts its spheres in the first block. Unused lanes repeat lane 0 (a real
+/// triangle; with no triangles, lanes never run). Returns the blocks used (at least one) and
+/// the spheres, which the caller stores.
+fn pack<'a>(blocks: &mut [Leaf4], prims: impl Iterator<Item = &'a Prim>) -> (usize, u32) {
+    let (mut triangles, mut spheres) = (0, 0);
+    for prim in prims {
+        match *prim {
+            Prim::Triangle { v, shape, prim } => {
+                let (block, lane) = (&mut blocks[triangles / 4], triangles % 4);
+                for (k, vertex) in v.iter().enumerate() {
+                    for a in 0..3 {
+                        block.v[3 * k + a][lane] = vertex[a];
+                    }
+                }
+                block.shape[lane] = shape;
+                block.prim[lane] = prim;
+                block.triangles += 1;
+                triangles += 1;
+            }
+            Prim::Sphere { .. } => spheres += 1,
+        }
+    }
+    let used = triangles.div_ceil(4).max(1);
+    for block in &mut blocks[..used] {
+        for lane in block.triangles.max(1) as usize..4 {
+            for row in block.v.iter_mut() {
+                row[lane] = row[0];
+            }
+            block.shape[lane] = block.shape[0];
+            block.prim[lane] = block.prim[0];
+        }
+    }
+    blocks[0].spheres_count = spheres;
+    (used, spheres)
+}
+
 /// A sphere of a leaf.
 #[derive(Clone, Copy, Debug)]
 struct SphereRef {
@@ -162,12 +210,12 @@ const FAR_SCALE: f32 = super::FAR_SCALE;
 
 impl Bvh8 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
-    /// opening the inner child of largest area until it has eight.
-    /// `order` maps the binary leaves' ranges to `prims`.
+    /// opening the inner child of largest area until it has eight. The leaves are packed first,
+    /// on all threads ([`Self::add_leaves`]). `order` maps the binary leaves' ranges to `prims`.
     pub fn collapse(binary: &[Node], prims: &[Prim], order: &[u32]) -> Bvh8 {
         let mut bvh = Bvh8 {
             nodes: Vec::with_capacity(binary.len() / 6 + 1),
-            leaves: Vec::with_capacity(binary.len() / 2 + 1),
+            leaves: Vec::new(),
             spheres: Vec::new(),
             root: Child::EMPTY,
             isa: Isa::best(),
@@ -176,78 +224,77 @@ impl Bvh8 {
         if binary.is_empty() {
             return bvh;
         }
-        bvh.root = bvh.add(binary, &Ordered { prims, order }, 0);
+        let leaves = bvh.add_leaves(binary, &Ordered { prims, order });
+        bvh.root = if binary[0].count > 0 {
+            leaves[0]
+        } else {
+            bvh.nodes.push(Node8::EMPTY);
+            bvh.fill(binary, &leaves, 0, 0, 1);
+            Child::inner(0)
+        };
         bvh
     }
 
-    /// Packs a binary leaf's primitives into one or two [`Leaf4`] blocks, side by side (its
-    /// spheres go with the first).
-    fn add_leaf(&mut self, prims: &Ordered, leaf: &Node) -> Child {
-        let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
-        debug_assert!(range.len() <= MAX_LEAF as usize);
-        let first = self.leaves.len();
-        let empty = |spheres_first: u32| Leaf4 {
-            v: [[0.0; 4]; 9],
-            shape: [0; 4],
-            prim: [0; 4],
-            triangles: 0,
-            spheres_first,
-            spheres_count: 0,
-        };
-        self.leaves.push(empty(self.spheres.len() as u32));
-        for &i in &prims.order[range] {
-            match prims.prims[i as usize] {
-                Prim::Triangle { v, shape, prim } => {
-                    if self.leaves[self.leaves.len() - 1].triangles == 4 {
-                        self.leaves.push(empty(self.spheres.len() as u32));
+    /// Packs every binary leaf's primitives into one or two [`Leaf4`] blocks side by side, the
+    /// leaves in the order of their primitives (so a subtree's leaves are near each other), on
+    /// all threads. Returns the reference to each binary leaf, by binary node index.
+    fn add_leaves(&mut self, binary: &[Node], prims: &Ordered) -> Vec<Child> {
+        use rayon::prelude::*;
+        // Blocks a leaf is given: enough for all its primitives (spheres, rare, leave some unused).
+        let blocks_of = |leaf: &Node| leaf.count.div_ceil(4).max(1) as usize;
+        // The binary leaves in primitive order (left children first).
+        let mut leaves = Vec::with_capacity(binary.len() / 2 + 1);
+        let mut stack = vec![0usize];
+        let mut total = 0;
+        while let Some(i) = stack.pop() {
+            let n = &binary[i];
+            if n.count > 0 {
+                leaves.push((i, total));
+                total += blocks_of(n);
+            } else {
+                stack.push(n.first as usize + 1);
+                stack.push(n.first as usize);
+            }
+        }
+        self.leaves.par_extend((0..total).into_par_iter().map(|_| Leaf4::EMPTY));
+        let mut slices = Vec::with_capacity(leaves.len());
+        let mut rest = self.leaves.as_mut_slice();
+        for &(i, _) in &leaves {
+            let (mine, others) = std::mem::take(&mut rest).split_at_mut(blocks_of(&binary[i]));
+            slices.push(mine);
+            rest = others;
+        }
+        // Each leaf's blocks used and spheres.
+        let packed: Vec<(usize, u32)> = leaves
+            .par_iter()
+            .zip(slices.into_par_iter())
+            .map(|(&(i, _), blocks)| {
+                let leaf = &binary[i];
+                let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
+                pack(blocks, prims.order[range].iter().map(|&p| &prims.prims[p as usize]))
+            })
+            .collect();
+        // Spheres (rare) go to their own array, leaf by leaf.
+        let mut children = vec![Child::EMPTY; binary.len()];
+        for (&(i, first), &(used, spheres)) in leaves.iter().zip(&packed) {
+            children[i] = Child::leaf(first as u32, used as u32);
+            if spheres > 0 {
+                self.leaves[first].spheres_first = self.spheres.len() as u32;
+                let leaf = &binary[i];
+                for &p in &prims.order[leaf.first as usize..(leaf.first + leaf.count) as usize] {
+                    if let Prim::Sphere { center, radius, shape } = prims.prims[p as usize] {
+                        self.spheres.push(SphereRef { center, radius, shape });
                     }
-                    let block = self.leaves.len() - 1;
-                    let leaf = &mut self.leaves[block];
-                    let lane = leaf.triangles as usize;
-                    for (k, vertex) in v.iter().enumerate() {
-                        for a in 0..3 {
-                            leaf.v[3 * k + a][lane] = vertex[a];
-                        }
-                    }
-                    leaf.shape[lane] = shape;
-                    leaf.prim[lane] = prim;
-                    leaf.triangles += 1;
-                }
-                Prim::Sphere { center, radius, shape } => {
-                    self.spheres.push(SphereRef { center, radius, shape });
-                    self.leaves[first].spheres_count += 1;
                 }
             }
         }
-        for leaf in &mut self.leaves[first..] {
-            // Unused lanes repeat lane 0 (a real triangle, or with no triangles lanes never run).
-            for lane in leaf.triangles.max(1) as usize..4 {
-                for row in leaf.v.iter_mut() {
-                    row[lane] = row[0];
-                }
-                leaf.shape[lane] = leaf.shape[0];
-                leaf.prim[lane] = leaf.prim[0];
-            }
-        }
-        Child::leaf(first as u32, (self.leaves.len() - first) as u32)
-    }
-
-    /// Adds the binary subtree at `index`: a leaf, or an inner node filled by [`Self::fill`].
-    fn add(&mut self, binary: &[Node], prims: &Ordered, index: usize) -> Child {
-        let n = &binary[index];
-        if n.count > 0 {
-            return self.add_leaf(prims, n);
-        }
-        let at = self.nodes.len();
-        self.nodes.push(Node8::EMPTY);
-        self.fill(binary, prims, index, at, 1);
-        Child::inner(at as u32)
+        children
     }
 
     /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
     /// of largest area opened until there are eight. A node's inner children are stored side by
     /// side, and so are its leaves, before any grandchild: what a ray visits next is near.
-    fn fill(&mut self, binary: &[Node], prims: &Ordered, index: usize, at: usize, level: usize) {
+    fn fill(&mut self, binary: &[Node], leaves: &[Child], index: usize, at: usize, level: usize) {
         self.depth = self.depth.max(level);
         let n = &binary[index];
         let area = |i: usize| {
@@ -276,7 +323,7 @@ impl Bvh8 {
                 self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
             }
             self.nodes[at].children[slot] = if b.count > 0 {
-                self.add_leaf(prims, b)
+                leaves[k]
             } else {
                 self.nodes.push(Node8::EMPTY);
                 inner[inner_len] = (k, self.nodes.len() - 1);
@@ -285,7 +332,7 @@ impl Bvh8 {
             };
         }
         for &(k, node) in &inner[..inner_len] {
-            self.fill(binary, prims, k, node, level + 1);
+            self.fill(binary, leaves, k, node, level + 1);
         }
     }
 
