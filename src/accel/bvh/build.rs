@@ -25,6 +25,10 @@ struct Item {
 }
 
 impl Item {
+    /// A box left out of the tree (its index is one no primitive has: they number under
+    /// [`super::wide::MAX_PRIMS`]).
+    const LEFT_OUT: Item = Item { min: Vec4::new(0.0, 0.0, 0.0, f32::from_bits(u32::MAX)), max: Vec3A::ZERO };
+
     fn new(bounds: Aabb, index: u32) -> Item {
         Item { min: bounds.min.extend(f32::from_bits(index)), max: bounds.max }
     }
@@ -56,16 +60,21 @@ enum Tree {
 }
 
 pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
-    if prims.is_empty() {
+    // Degenerate (zero-area) triangles can never be hit by the watertight test; leaving them out
+    // keeps them from costing traversal.
+    let bounds = |i: usize| match &prims[i] {
+        Prim::Triangle { v, .. } if (v[1] - v[0]).cross(v[2] - v[0]) == glam::Vec3::ZERO => None,
+        p => Some(prim_bounds(p)),
+    };
+    let Some((nodes, order)) = tree(prims.len(), bounds, options) else {
         return Bvh {
             nodes: Vec::new(),
-            prims,
+            prims: Vec::new(),
             bounds: None,
             wide: Bvh8::collapse(&[], &[], &[]),
             instances: None,
         };
-    }
-    let (nodes, order) = tree(prims.len(), |i| prim_bounds(&prims[i]), options);
+    };
     let wide = Bvh8::collapse(&nodes, &prims, &order);
     let bounds = nodes.first().map(|n| Aabb { min: Vec3A::from(n.min), max: Vec3A::from(n.max) });
     if options.keep_binary {
@@ -77,20 +86,28 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     }
 }
 
-/// The binary tree over `n` boxes (`bounds(i)` the `i`th; at least one): its flattened nodes,
-/// and the order of the boxes in its leaves (leaf ranges index that order).
+/// The binary tree over the boxes `bounds(i)` of `i` in `0..n` that have one (the others are
+/// left out): its flattened nodes, and the order of the boxes in its leaves (leaf ranges index
+/// that order). None without any box.
 pub(super) fn tree(
     n: usize,
-    bounds: impl Fn(usize) -> Aabb + Sync,
+    bounds: impl Fn(usize) -> Option<Aabb> + Sync,
     options: BuildOptions,
-) -> (Vec<Node>, Vec<u32>) {
+) -> Option<(Vec<Node>, Vec<u32>)> {
     use rayon::prelude::*;
-    let mut items: Vec<Item> = (0..n).into_par_iter().map(|i| Item::new(bounds(i), i as u32)).collect();
+    let mut items: Vec<Item> = (0..n)
+        .into_par_iter()
+        .map(|i| bounds(i).map_or(Item::LEFT_OUT, |b| Item::new(b, i as u32)))
+        .collect();
+    items.retain(|it| it.index() != Item::LEFT_OUT.index());
+    if items.is_empty() {
+        return None;
+    }
     let tree = build_node(&mut items, 0, &options, 0, None);
-    let mut nodes = Vec::with_capacity(2 * items.len() / options.max_leaf.max(1) + 1);
+    let mut nodes = Vec::with_capacity(2 * items.len().div_ceil(options.block.max(1)) + 1);
     nodes.push(placeholder());
     flatten(&tree, &mut nodes, 0);
-    (nodes, items.iter().map(|it| it.index() as u32).collect())
+    Some((nodes, items.iter().map(|it| it.index() as u32).collect()))
 }
 
 const PLACEHOLDER: Node = Node { min: [0.0; 3], first: 0, max: [0.0; 3], count: 0 };
@@ -271,7 +288,7 @@ fn median_split(items: &mut [Item], extent: Vec3A) -> usize {
 /// In-place partition by `pred` of each item's centroid; returns how many items satisfy it (they
 /// come first), and the bounds of boxes and centroids on each side, gathered on the way. Two
 /// cursors meet in the middle, swapping only items on the wrong side; each side's bounds stay
-/// in registers.
+/// in registers. (A branch-free version, swapping every item, measured slower.)
 fn partition(items: &mut [Item], pred: impl Fn(Vec3A) -> bool) -> (usize, [(Aabb, Aabb); 2]) {
     let (mut left, mut right) = ((Aabb::EMPTY, Aabb::EMPTY), (Aabb::EMPTY, Aabb::EMPTY));
     let grow =
@@ -354,14 +371,28 @@ impl Binner {
 }
 
 /// Centroid bins on the three axes: bounds and count of the items in each.
-type Bins = [[Bin; MAX_BINS]; 3];
+type Bins<const B: usize> = [[Bin; B]; 3];
 const MAX_BINS: usize = 32;
-const _: () = assert!(MAX_BINS.is_power_of_two());
 /// Nodes with more items than this bin on several threads.
 const PARALLEL_BINNING: usize = 1 << 15;
 
-fn empty_bins() -> Box<Bins> {
-    Box::new([[Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS]; 3])
+impl Bin {
+    const EMPTY: Bin = Bin { bounds: Aabb::EMPTY, count: 0 };
+}
+
+/// Adds `item` to the bins `binner` assigns it on each axis. `B` is a power of two at least the
+/// bins in use.
+#[inline(always)]
+fn add<const B: usize>(bins: &mut Bins<B>, binner: &Binner, item: &Item) {
+    const { assert!(B.is_power_of_two()) };
+    let (ib, c) = (item.bounds(), item.centroid());
+    let index = binner.bins(c);
+    for axis in 0..3 {
+        // The clamp keeps the index below the bins in use; the mask tells the compiler so.
+        let bin = &mut bins[axis][index[axis] as usize & (B - 1)];
+        bin.bounds = bin.bounds.union(&ib);
+        bin.count += 1;
+    }
 }
 
 /// The cheapest binned SAH split over all three axes, binning every axis in one pass over the
@@ -374,25 +405,18 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
     let extent = centroids.max - lo;
     let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), Vec3A::splat(bins_n as f32) / extent, Vec3A::ZERO);
     let binner = Binner::new(lo, scale, bins_n);
-    let add = |bins: &mut Bins, it: &Item| {
-        let (ib, c) = (it.bounds(), it.centroid());
-        let index = binner.bins(c);
-        for axis in 0..3 {
-            // The clamp keeps the index below the bins; the mask tells the compiler so.
-            let bin = &mut bins[axis][index[axis] as usize & (MAX_BINS - 1)];
-            bin.bounds = bin.bounds.union(&ib);
-            bin.count += 1;
-        }
-    };
-    let fill = |mut bins: Box<Bins>, it: &Item| {
-        add(&mut bins, it);
-        bins
-    };
+    let sweep = |bins: [&[Bin]; 3]| sweep(bins, items.len(), bounds, binner, options);
     if items.len() > PARALLEL_BINNING {
+        let empty = || Box::new([[Bin::EMPTY; MAX_BINS]; 3]);
         let bins = items
             .par_chunks(PARALLEL_BINNING / 4)
-            .map(|chunk| chunk.iter().fold(empty_bins(), fill))
-            .reduce(empty_bins, |mut a, b| {
+            .map(|chunk| {
+                chunk.iter().fold(empty(), |mut bins, it| {
+                    add(&mut bins, &binner, it);
+                    bins
+                })
+            })
+            .reduce(empty, |mut a, b| {
                 for axis in 0..3 {
                     for (x, y) in a[axis].iter_mut().zip(b[axis].iter()) {
                         x.bounds = x.bounds.union(&y.bounds);
@@ -401,34 +425,44 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
                 }
                 a
             });
-        sweep(&bins, items.len(), bounds, binner, scale, bins_n, options)
+        sweep(bins.each_ref().map(|axis| &axis[..bins_n]))
     } else {
-        // Small nodes bin on the stack.
-        let mut bins = [[Bin { bounds: Aabb::EMPTY, count: 0 }; MAX_BINS]; 3];
-        for it in items {
-            add(&mut bins, it);
+        // Smaller nodes bin on the stack, in as few bins as they use: setting up bins costs as
+        // much as binning a handful of items.
+        fn on_stack<const B: usize>(items: &[Item], binner: &Binner) -> Bins<B> {
+            let mut bins = [[Bin::EMPTY; B]; 3];
+            for it in items {
+                add(&mut bins, binner, it);
+            }
+            bins
         }
-        sweep(&bins, items.len(), bounds, binner, scale, bins_n, options)
+        if bins_n <= 8 {
+            sweep(on_stack::<8>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+        } else if bins_n <= 16 {
+            sweep(on_stack::<16>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+        } else {
+            sweep(on_stack::<MAX_BINS>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+        }
     }
 }
 
 /// Sweeps the bins of each axis for the split of least SAH cost.
 fn sweep(
-    bins: &Bins,
+    bins: [&[Bin]; 3],
     n: usize,
     bounds: &Aabb,
     binner: Binner,
-    scale: Vec3A,
-    bins_n: usize,
     options: &BuildOptions,
 ) -> Option<Split> {
     let parent_area = bounds.half_area().max(f32::MIN_POSITIVE);
     let mut best = (f32::INFINITY, 0, 0);
-    for axis in 0..3 {
+    let scale = binner.scale.to_array();
+    for (axis, bins) in bins.into_iter().enumerate() {
+        // A flat axis (all centroids in one bin) gives no split.
+        let bins_n = bins.len();
         if scale[axis] <= 0.0 {
             continue;
         }
-        let bins = &bins[axis];
         // Right-to-left sweep: area x count of everything right of each boundary.
         let mut right_cost = [0.0f32; MAX_BINS];
         let mut acc = Aabb::EMPTY;

@@ -43,14 +43,10 @@ impl Instances {
             let m = match by_arrays.get(&mesh.arrays()) {
                 Some(&m) => m,
                 None => {
-                    let prims =
-                        (0..mesh.indices.len() as u32)
-                            .filter_map(|t| {
-                                let v = mesh.local_triangle(t);
-                                ((v[1] - v[0]).cross(v[2] - v[0]) != glam::Vec3::ZERO)
-                                    .then_some(Prim::Triangle { v, shape: 0, prim: t })
-                            })
-                            .collect::<Vec<_>>();
+                    // The build leaves out degenerate triangles.
+                    let prims = (0..mesh.indices.len() as u32)
+                        .map(|t| Prim::Triangle { v: mesh.local_triangle(t), shape: 0, prim: t })
+                        .collect::<Vec<_>>();
                     if prims.len() > super::wide::MAX_PRIMS as usize {
                         return Err(TooLarge(prims.len()));
                     }
@@ -66,8 +62,11 @@ impl Instances {
         if placed.is_empty() {
             return Ok(None);
         }
-        let (nodes, order) =
-            build::tree(boxes.len(), |i| boxes[i], BuildOptions { max_leaf: 1, block: 1, ..options });
+        let Some((nodes, order)) =
+            build::tree(boxes.len(), |i| Some(boxes[i]), BuildOptions { max_leaf: 1, block: 1, ..options })
+        else {
+            return Ok(None);
+        };
         let placed = order.iter().map(|&i| placed[i as usize]).collect();
         Ok(Some(Instances { nodes, placed, meshes }))
     }

@@ -140,15 +140,12 @@ impl Bvh {
                 Geometry::Triangles(mesh) if mesh.instance.is_some() => {}
                 Geometry::Triangles(mesh) => {
                     use rayon::prelude::*;
-                    let triangles = (0..mesh.indices.len() as u32).into_par_iter().filter_map(|t| {
-                        let v = mesh.triangle(t);
-                        // Degenerate (zero-area) triangles can never be hit by the watertight
-                        // test; leaving them out keeps them from costing traversal.
-                        ((v[1] - v[0]).cross(v[2] - v[0]) != Vec3::ZERO).then_some(Prim::Triangle {
-                            v,
-                            shape: s as u32,
-                            prim: t,
-                        })
+                    // Every triangle, so rayon writes them in place; the build leaves out the
+                    // degenerate ones.
+                    let triangles = (0..mesh.indices.len() as u32).into_par_iter().map(|t| Prim::Triangle {
+                        v: mesh.triangle(t),
+                        shape: s as u32,
+                        prim: t,
                     });
                     prims.par_extend(triangles);
                 }

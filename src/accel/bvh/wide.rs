@@ -210,7 +210,7 @@ const FAR_SCALE: f32 = super::FAR_SCALE;
 
 impl Bvh8 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
-    /// opening the inner child of largest area until it has eight. The leaves are packed first,
+    /// opening the inner child of largest area until it has eight. The leaves are packed after,
     /// on all threads ([`Self::add_leaves`]). `order` maps the binary leaves' ranges to `prims`.
     pub fn collapse(binary: &[Node], prims: &[Prim], order: &[u32]) -> Bvh8 {
         let mut bvh = Bvh8 {
@@ -224,42 +224,40 @@ impl Bvh8 {
         if binary.is_empty() {
             return bvh;
         }
-        let leaves = bvh.add_leaves(binary, &Ordered { prims, order });
+        // The nodes first, each leaf noted where it goes; then the leaves in that order, so a
+        // node's leaves sit side by side.
+        let mut pending = Vec::with_capacity(binary.len() / 2 + 1);
         bvh.root = if binary[0].count > 0 {
-            leaves[0]
+            pending.push((0, 0, 0));
+            Child::EMPTY
         } else {
             bvh.nodes.push(Node8::EMPTY);
-            bvh.fill(binary, &leaves, 0, 0, 1);
+            bvh.fill(binary, &mut pending, 0, 0, 1);
             Child::inner(0)
         };
+        let leaves: Vec<usize> = pending.iter().map(|&(_, _, k)| k).collect();
+        let children = bvh.add_leaves(binary, &leaves, &Ordered { prims, order });
+        if binary[0].count > 0 {
+            bvh.root = children[0];
+        } else {
+            for (&(at, slot, _), &child) in pending.iter().zip(&children) {
+                bvh.nodes[at].children[slot] = child;
+            }
+        }
         bvh
     }
 
-    /// Packs every binary leaf's primitives into one or two [`Leaf4`] blocks side by side, the
-    /// leaves in the order of their primitives (so a subtree's leaves are near each other), on
-    /// all threads. Returns the reference to each binary leaf, by binary node index.
-    fn add_leaves(&mut self, binary: &[Node], prims: &Ordered) -> Vec<Child> {
+    /// Packs the primitives of binary leaves `leaves` into one or two [`Leaf4`] blocks each,
+    /// side by side, in that order, on all threads. Returns each one's reference.
+    fn add_leaves(&mut self, binary: &[Node], leaves: &[usize], prims: &Ordered) -> Vec<Child> {
         use rayon::prelude::*;
         // Blocks a leaf is given: enough for all its primitives (spheres, rare, leave some unused).
         let blocks_of = |leaf: &Node| leaf.count.div_ceil(4).max(1) as usize;
-        // The binary leaves in primitive order (left children first).
-        let mut leaves = Vec::with_capacity(binary.len() / 2 + 1);
-        let mut stack = vec![0usize];
-        let mut total = 0;
-        while let Some(i) = stack.pop() {
-            let n = &binary[i];
-            if n.count > 0 {
-                leaves.push((i, total));
-                total += blocks_of(n);
-            } else {
-                stack.push(n.first as usize + 1);
-                stack.push(n.first as usize);
-            }
-        }
+        let total = leaves.iter().map(|&i| blocks_of(&binary[i])).sum();
         self.leaves.par_extend((0..total).into_par_iter().map(|_| Leaf4::EMPTY));
         let mut slices = Vec::with_capacity(leaves.len());
         let mut rest = self.leaves.as_mut_slice();
-        for &(i, _) in &leaves {
+        for &i in leaves {
             let (mine, others) = std::mem::take(&mut rest).split_at_mut(blocks_of(&binary[i]));
             slices.push(mine);
             rest = others;
@@ -268,16 +266,17 @@ impl Bvh8 {
         let packed: Vec<(usize, u32)> = leaves
             .par_iter()
             .zip(slices.into_par_iter())
-            .map(|(&(i, _), blocks)| {
+            .map(|(&i, blocks)| {
                 let leaf = &binary[i];
                 let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
                 pack(blocks, prims.order[range].iter().map(|&p| &prims.prims[p as usize]))
             })
             .collect();
         // Spheres (rare) go to their own array, leaf by leaf.
-        let mut children = vec![Child::EMPTY; binary.len()];
-        for (&(i, first), &(used, spheres)) in leaves.iter().zip(&packed) {
-            children[i] = Child::leaf(first as u32, used as u32);
+        let mut children = Vec::with_capacity(leaves.len());
+        let mut first = 0;
+        for (&i, &(used, spheres)) in leaves.iter().zip(&packed) {
+            children.push(Child::leaf(first as u32, used as u32));
             if spheres > 0 {
                 self.leaves[first].spheres_first = self.spheres.len() as u32;
                 let leaf = &binary[i];
@@ -287,6 +286,7 @@ impl Bvh8 {
                     }
                 }
             }
+            first += blocks_of(&binary[i]);
         }
         children
     }
@@ -294,7 +294,14 @@ impl Bvh8 {
     /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
     /// of largest area opened until there are eight. A node's inner children are stored side by
     /// side, and so are its leaves, before any grandchild: what a ray visits next is near.
-    fn fill(&mut self, binary: &[Node], leaves: &[Child], index: usize, at: usize, level: usize) {
+    fn fill(
+        &mut self,
+        binary: &[Node],
+        leaves: &mut Vec<(usize, usize, usize)>,
+        index: usize,
+        at: usize,
+        level: usize,
+    ) {
         self.depth = self.depth.max(level);
         let n = &binary[index];
         let area = |i: usize| {
@@ -323,7 +330,8 @@ impl Bvh8 {
                 self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
             }
             self.nodes[at].children[slot] = if b.count > 0 {
-                leaves[k]
+                leaves.push((at, slot, k));
+                Child::EMPTY // until the leaves are packed
             } else {
                 self.nodes.push(Node8::EMPTY);
                 inner[inner_len] = (k, self.nodes.len() - 1);
