@@ -4,6 +4,7 @@
 //! crate ([`super::simd`], the only module with `unsafe`). A leaf is one or two blocks of (up
 //! to) four triangles, each block tested at once by the watertight test, four lanes wide.
 
+use arrayvec::ArrayVec;
 use wide::f32x4;
 
 use super::intersect::{gamma, sphere, RayTri};
@@ -57,12 +58,12 @@ impl Child {
 }
 
 /// A leaf's triangles, structure-of-arrays so that one SIMD pass tests all four: `v[3 * k + a]`
-/// holds axis `a` of vertex `k` of each triangle. Unused lanes repeat the first triangle, which
-/// can only report the same hit again. Spheres (rare) are kept aside and tested one by one.
+/// holds axis `a` of vertex `k` of each triangle. Unused lanes hold NaN vertices, which no ray
+/// hits, so the test needs no lane mask. Spheres (rare) are kept aside and tested one by one.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct Leaf4 {
-    v: [[f32; 4]; 9],
+    pub(super) v: [[f32; 4]; 9],
     shape: [u32; 4],
     prim: [u32; 4],
     triangles: u32,
@@ -71,8 +72,9 @@ pub struct Leaf4 {
 }
 
 impl Leaf4 {
-    const EMPTY: Leaf4 = Leaf4 {
-        v: [[0.0; 4]; 9],
+    /// No triangles: every lane's vertices are NaN, which no ray hits.
+    pub(super) const EMPTY: Leaf4 = Leaf4 {
+        v: [[f32::NAN; 4]; 9],
         shape: [0; 4],
         prim: [0; 4],
         triangles: 0,
@@ -82,9 +84,9 @@ impl Leaf4 {
 }
 
 /// Packs a leaf's primitives into `blocks` (empty, enough for all of them), four triangles a
-/// block, and counts its spheres in the first block. Unused lanes repeat lane 0 (a real
-/// triangle; with no triangles, lanes never run). Returns the blocks used (at least one) and
-/// the spheres, which the caller stores.
+/// block, and counts its spheres in the first block. Unused lanes keep the NaN vertices of
+/// [`Leaf4::EMPTY`]. Returns the blocks used (at least one) and the spheres, which the caller
+/// stores.
 fn pack<'a>(blocks: &mut [Leaf4], prims: impl Iterator<Item = &'a Prim>) -> (usize, u32) {
     let (mut triangles, mut spheres) = (0, 0);
     for prim in prims {
@@ -105,15 +107,6 @@ fn pack<'a>(blocks: &mut [Leaf4], prims: impl Iterator<Item = &'a Prim>) -> (usi
         }
     }
     let used = triangles.div_ceil(4).max(1);
-    for block in &mut blocks[..used] {
-        for lane in block.triangles.max(1) as usize..4 {
-            for row in block.v.iter_mut() {
-                row[lane] = row[0];
-            }
-            block.shape[lane] = block.shape[0];
-            block.prim[lane] = block.prim[0];
-        }
-    }
     blocks[0].spheres_count = spheres;
     (used, spheres)
 }
@@ -201,8 +194,8 @@ pub struct Bvh8 {
 /// Traversal stack depth: each level of the tree pushes at most seven entries, and collapsing
 /// never deepens the binary tree, whose depth the build bounds.
 const STACK: usize = (WIDTH - 1) * super::STACK + 1;
-/// The stack of trees shallow enough for it (every tree of a real scene): a ray sets up its
-/// stack before it starts, so a short one costs less.
+/// The stack of trees shallow enough for it (every tree of a real scene): a smaller frame. (The
+/// stacks are not initialised, so their length costs no time.)
 const SHORT_STACK: usize = 128;
 
 /// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
@@ -396,21 +389,36 @@ struct Entry {
 /// The watertight test of [`RayTri`] on the four triangles of a leaf at once: the same
 /// formulas lane by lane (including the double-precision retry when an edge function rounds to
 /// zero), so what holds for the scalar test holds here.
-struct RayTri4 {
+pub struct RayTri4 {
     origin: [f32x4; 3],
-    k: [usize; 3],
-    shear: [f32; 3],
+    /// The same origin, one value an axis (for kernels of other widths).
+    pub(super) o: [f32; 3],
+    pub(super) k: [usize; 3],
+    pub(super) shear: [f32; 3],
 }
 
 impl RayTri4 {
-    fn new(ray: &Ray) -> Self {
+    pub(super) fn new(ray: &Ray) -> Self {
         let (k, shear) = RayTri::axes(ray);
-        RayTri4 { origin: ray.origin.to_array().map(f32x4::splat), k, shear }
+        let o = ray.origin.to_array();
+        RayTri4 { origin: o.map(f32x4::splat), o, k, shear }
+    }
+
+    /// The nearest hit in two blocks side by side (a leaf of up to eight triangles), both
+    /// tested against `t_max`: `(t, lane, u, v)`, lanes 4 to 7 naming the second block's. Of
+    /// equal distances the lowest lane wins, as the eight-lane kernels choose.
+    #[inline(always)]
+    pub(super) fn hit_pair(&self, a: &Leaf4, b: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
+        let second = |(t, lane, u, v): (f32, usize, f32, f32)| (t, lane + 4, u, v);
+        match (self.hit(a, t_max), self.hit(b, t_max)) {
+            (Some(x), Some(y)) => Some(if y.0 < x.0 { second(y) } else { x }),
+            (x, y) => x.or(y.map(second)),
+        }
     }
 
     /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
     #[inline(always)]
-    fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
+    pub(super) fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
         let [kx, ky, kz] = self.k;
         let (sx, sy, sz) =
             (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
@@ -440,11 +448,10 @@ impl RayTri4 {
             }
             (u, v, w) = (f32x4::new(uu), f32x4::new(vv), f32x4::new(ww));
         }
-        let negative = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-        let positive = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
-        let inside = !(negative & positive);
-        let lanes = (1u32 << leaf.triangles) - 1;
-        if inside.to_bitmask() & lanes == 0 {
+        // All three edge functions of one sign (or zero): false for the NaN of unused lanes.
+        let inside = (u.simd_ge(zero) & v.simd_ge(zero) & w.simd_ge(zero))
+            | (u.simd_le(zero) & v.simd_le(zero) & w.simd_le(zero));
+        if inside.to_bitmask() == 0 {
             return None; // the common case: the ray passes beside all four
         }
         let det = u + v + w;
@@ -456,7 +463,7 @@ impl RayTri4 {
             & !det.simd_eq(zero)
             & t_signed.simd_gt(zero)
             & t_signed.simd_le(f32x4::splat(t_max) * det_abs);
-        if in_range.to_bitmask() & lanes == 0 {
+        if in_range.to_bitmask() == 0 {
             return None;
         }
         // Only now the bound on t's rounding error (t_error_bound, lane by lane).
@@ -473,7 +480,7 @@ impl RayTri4 {
             f32x4::splat(3.0) * (g(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e)
         };
         let valid = in_range & t_signed.simd_gt(bound);
-        let mut mask = valid.to_bitmask() & lanes;
+        let mut mask = valid.to_bitmask();
         if mask == 0 {
             return None;
         }
@@ -533,20 +540,22 @@ impl Bvh8 {
         let rt = RayTri4::new(ray);
         let mut best: Option<Hit> = None;
         let mut t_max = ray.t_max;
-        let mut stack = [Entry { child: Child::EMPTY, t: 0.0 }; N];
-        let mut sp = 0;
+        // Not initialised: a ray sets up no more of its stack than it uses.
+        let mut stack = ArrayVec::<Entry, N>::new();
         let mut current = Entry { child: self.root, t: 0.0 };
         loop {
             let child = current.child;
             if child.is_leaf() {
                 let blocks = &self.leaves[child.index()..child.index() + child.blocks()];
-                for leaf in blocks {
-                    if leaf.triangles > 0 {
-                        if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
-                            t_max = t;
-                            best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
-                        }
-                    }
+                // Two blocks are tested at once, eight lanes wide where the kernel can.
+                let found = match blocks {
+                    [a, b] => k.leaf_pair(&rt, a, b, t_max),
+                    _ => rt.hit(&blocks[0], t_max),
+                };
+                if let Some((t, lane, u, v)) = found {
+                    let leaf = &blocks[lane / 4];
+                    t_max = t;
+                    best = Some(Hit { t, shape: leaf.shape[lane % 4], prim: leaf.prim[lane % 4], u, v });
                 }
                 for s in self.leaf_spheres(&blocks[0]) {
                     if let Some(t) = sphere(ray, s.center, s.radius, t_max) {
@@ -569,36 +578,32 @@ impl Bvh8 {
                     }
                     // Several: push them ordered by decreasing entry distance (insertion into
                     // the top of the stack), then pop the nearest.
-                    let base = sp;
+                    let base = stack.len();
                     self.prefetch(k, first.child);
-                    stack[sp] = first;
-                    sp += 1;
+                    stack.push(first);
                     while mask != 0 {
                         let slot = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
                         let e = Entry { child: node.children[slot], t: t_near[slot] };
                         self.prefetch(k, e.child);
-                        let mut j = sp;
-                        while j > base && stack[j - 1].t < e.t {
-                            stack[j] = stack[j - 1];
+                        stack.push(e);
+                        let s = stack.as_mut_slice();
+                        let mut j = s.len() - 1;
+                        while j > base && s[j - 1].t < e.t {
+                            s[j] = s[j - 1];
                             j -= 1;
                         }
-                        stack[j] = e;
-                        sp += 1;
+                        s[j] = e;
                     }
-                    sp -= 1;
-                    current = stack[sp];
+                    current = stack.pop().unwrap_or(first);
                     continue;
                 }
             }
             // Pop the next entry that the closest hit so far has not ruled out.
             loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                if stack[sp].t <= t_max * FAR_SCALE {
-                    current = stack[sp];
+                let Some(e) = stack.pop() else { return best };
+                if e.t <= t_max * FAR_SCALE {
+                    current = e;
                     break;
                 }
             }
@@ -635,13 +640,16 @@ impl Bvh8 {
         }
         let rb = RayBox8::new(ray);
         let rt = RayTri4::new(ray);
-        let mut stack = [Child::EMPTY; N];
-        let mut sp = 0;
+        let mut stack = ArrayVec::<Child, N>::new();
         let mut current = self.root;
         loop {
             if current.is_leaf() {
                 let blocks = &self.leaves[current.index()..current.index() + current.blocks()];
-                if blocks.iter().any(|leaf| leaf.triangles > 0 && rt.hit(leaf, ray.t_max).is_some()) {
+                let found = match blocks {
+                    [a, b] => k.leaf_pair(&rt, a, b, ray.t_max).is_some(),
+                    _ => rt.hit(&blocks[0], ray.t_max).is_some(),
+                };
+                if found {
                     return true;
                 }
                 if self
@@ -657,16 +665,12 @@ impl Bvh8 {
                 while mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
-                    stack[sp] = node.children[slot];
-                    self.prefetch(k, stack[sp]);
-                    sp += 1;
+                    stack.push(node.children[slot]);
+                    self.prefetch(k, node.children[slot]);
                 }
             }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            current = stack[sp];
+            let Some(next) = stack.pop() else { return false };
+            current = next;
         }
     }
 }
