@@ -7,8 +7,7 @@
 
 use wide::f32x8;
 
-use super::intersect::gamma;
-use super::wide::{Bvh8, Leaf4, Node8, RayTri4};
+use super::wide::{Bvh8, Node8};
 use crate::accel::{Hit, Ray};
 
 /// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
@@ -51,15 +50,6 @@ pub trait BoxTest: Copy {
     /// no result). Traversal calls it for children it will visit after the nearest one.
     #[inline(always)]
     fn prefetch<T>(self, _item: &T) {}
-
-    /// The watertight test of two blocks side by side, both against `t_max`: the nearest hit
-    /// `(t, lane, u, v)`, lanes 4 to 7 naming the second block's, the lowest lane winning ties.
-    /// By default the four-lane test twice ([`RayTri4::hit_pair`]); a kernel may run all eight
-    /// lanes at once, with the same arithmetic lane by lane.
-    #[inline(always)]
-    fn leaf_pair(self, rt: &RayTri4, a: &Leaf4, b: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
-        rt.hit_pair(a, b, t_max)
-    }
 }
 
 /// The slab test through the `wide` crate: runs on every CPU.
@@ -150,136 +140,6 @@ impl BoxTest for Avx2 {
             let mut out = [0.0f32; 8];
             _mm256_storeu_ps(out.as_mut_ptr(), t_near);
             (out, mask)
-        }
-    }
-
-    /// The four-lane test's formulas on eight lanes at once (see `RayTri4::hit`): the same
-    /// operations in the same order, no fused multiply-add, so every lane's values equal the
-    /// four-lane test's bit for bit; the double-precision retry runs per block of four, as there.
-    #[inline(always)]
-    fn leaf_pair(self, rt: &RayTri4, a: &Leaf4, b: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
-        use std::arch::x86_64::*;
-        // SAFETY: `self` proves the CPU has AVX (`Avx2::detect`). Every load reads one row of
-        // a block, four f32 in bounds (`loadu` needs no alignment); stores write local arrays
-        // of eight f32.
-        unsafe {
-            let row = |r: usize| {
-                _mm256_insertf128_ps::<1>(
-                    _mm256_castps128_ps256(_mm_loadu_ps(a.v[r].as_ptr())),
-                    _mm_loadu_ps(b.v[r].as_ptr()),
-                )
-            };
-            let [kx, ky, kz] = rt.k;
-            let rel = |vertex: usize, axis: usize| {
-                _mm256_sub_ps(row(3 * vertex + axis), _mm256_set1_ps(rt.o[axis]))
-            };
-            let (sx, sy, sz) =
-                (_mm256_set1_ps(rt.shear[0]), _mm256_set1_ps(rt.shear[1]), _mm256_set1_ps(rt.shear[2]));
-            let (mul, sub, add) =
-                (|x, y| _mm256_mul_ps(x, y), |x, y| _mm256_sub_ps(x, y), |x, y| _mm256_add_ps(x, y));
-            let (az, bz, cz) = (rel(0, kz), rel(1, kz), rel(2, kz));
-            let ax = sub(rel(0, kx), mul(sx, az));
-            let ay = sub(rel(0, ky), mul(sy, az));
-            let bx = sub(rel(1, kx), mul(sx, bz));
-            let by = sub(rel(1, ky), mul(sy, bz));
-            let cx = sub(rel(2, kx), mul(sx, cz));
-            let cy = sub(rel(2, ky), mul(sy, cz));
-            let mut u = sub(mul(cx, by), mul(cy, bx));
-            let mut v = sub(mul(ax, cy), mul(ay, cx));
-            let mut w = sub(mul(bx, ay), mul(by, ax));
-            let zero = _mm256_setzero_ps();
-            let cmp_eq = |x| _mm256_cmp_ps::<_CMP_EQ_OQ>(x, zero);
-            let on_edge = _mm256_movemask_ps(_mm256_or_ps(_mm256_or_ps(cmp_eq(u), cmp_eq(v)), cmp_eq(w)));
-            if on_edge != 0 {
-                // On an edge: decide in f64, every lane of each block that has such a lane.
-                let store = |x: __m256| {
-                    let mut out = [0.0f32; 8];
-                    _mm256_storeu_ps(out.as_mut_ptr(), x);
-                    out
-                };
-                let (ax, ay, bx, by, cx, cy) =
-                    (store(ax), store(ay), store(bx), store(by), store(cx), store(cy));
-                let (mut uu, mut vv, mut ww) = (store(u), store(v), store(w));
-                for l in 0..8 {
-                    if on_edge & (0xf << (l & 4)) != 0 {
-                        let (ax, ay, bx, by, cx, cy) = (
-                            ax[l] as f64,
-                            ay[l] as f64,
-                            bx[l] as f64,
-                            by[l] as f64,
-                            cx[l] as f64,
-                            cy[l] as f64,
-                        );
-                        uu[l] = (cx * by - cy * bx) as f32;
-                        vv[l] = (ax * cy - ay * cx) as f32;
-                        ww[l] = (bx * ay - by * ax) as f32;
-                    }
-                }
-                (u, v, w) = (
-                    _mm256_loadu_ps(uu.as_ptr()),
-                    _mm256_loadu_ps(vv.as_ptr()),
-                    _mm256_loadu_ps(ww.as_ptr()),
-                );
-            }
-            let all = |x, y, z| _mm256_and_ps(_mm256_and_ps(x, y), z);
-            let ge = |x| _mm256_cmp_ps::<_CMP_GE_OQ>(x, zero);
-            let le = |x| _mm256_cmp_ps::<_CMP_LE_OQ>(x, zero);
-            // All three edge functions of one sign (or zero): false for NaN (unused) lanes.
-            let inside = _mm256_or_ps(all(ge(u), ge(v), ge(w)), all(le(u), le(v), le(w)));
-            if _mm256_movemask_ps(inside) == 0 {
-                return None;
-            }
-            let det = add(add(u, v), w);
-            let t_scaled = add(add(mul(u, mul(sz, az)), mul(v, mul(sz, bz))), mul(w, mul(sz, cz)));
-            let sign = _mm256_and_ps(det, _mm256_set1_ps(-0.0));
-            let (t_signed, det_abs) = (_mm256_xor_ps(t_scaled, sign), _mm256_xor_ps(det, sign));
-            let in_range = all(
-                _mm256_and_ps(inside, _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero)),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(t_signed, zero),
-                _mm256_cmp_ps::<_CMP_LE_OQ>(t_signed, mul(_mm256_set1_ps(t_max), det_abs)),
-            );
-            if _mm256_movemask_ps(in_range) == 0 {
-                return None;
-            }
-            let bound = {
-                let abs = |x| _mm256_andnot_ps(_mm256_set1_ps(-0.0), x);
-                let max3 = |x, y, z| _mm256_max_ps(_mm256_max_ps(abs(x), abs(y)), abs(z));
-                let (max_x, max_y) = (max3(ax, bx, cx), max3(ay, by, cy));
-                let max_z = max3(mul(sz, az), mul(sz, bz), mul(sz, cz));
-                let max_e = max3(u, v, w);
-                let g = |n: f32| _mm256_set1_ps(gamma(n));
-                let delta_x = mul(g(5.0), add(max_x, max_z));
-                let delta_y = mul(g(5.0), add(max_y, max_z));
-                let delta_z = mul(g(3.0), max_z);
-                let delta_e = mul(
-                    _mm256_set1_ps(2.0),
-                    add(add(mul(mul(g(2.0), max_x), max_y), mul(delta_y, max_x)), mul(delta_x, max_y)),
-                );
-                mul(
-                    _mm256_set1_ps(3.0),
-                    add(add(mul(mul(g(3.0), max_e), max_z), mul(delta_e, max_z)), mul(delta_z, max_e)),
-                )
-            };
-            let valid = _mm256_and_ps(in_range, _mm256_cmp_ps::<_CMP_GT_OQ>(t_signed, bound));
-            let mut mask = _mm256_movemask_ps(valid) as u32;
-            if mask == 0 {
-                return None;
-            }
-            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
-            let (mut t, mut uo, mut vo) = ([0.0f32; 8], [0.0f32; 8], [0.0f32; 8]);
-            _mm256_storeu_ps(t.as_mut_ptr(), mul(t_scaled, inv));
-            _mm256_storeu_ps(uo.as_mut_ptr(), mul(v, inv));
-            _mm256_storeu_ps(vo.as_mut_ptr(), mul(w, inv));
-            let mut best = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            while mask != 0 {
-                let l = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if t[l] < t[best] {
-                    best = l;
-                }
-            }
-            Some((t[best], best, uo[best], vo[best]))
         }
     }
 
@@ -396,82 +256,6 @@ mod tests {
             }
             // Enough boxes were hit for the comparison of distances to mean something.
             assert!(checked > 8_000, "only {checked} boxes hit");
-        }
-    }
-
-    /// The eight-lane leaf test gives the four-lane test's answer bit for bit (distance, lane,
-    /// u and v): on random triangles, on triangles of whole coordinates met by rays through
-    /// their vertices and along their edges (where the edge functions are zero and the
-    /// double-precision retry runs), and on the same triangle in both blocks (a tie).
-    #[test]
-    fn avx2_leaf_pair_equals_the_portable_one() {
-        #[cfg(target_arch = "x86_64")]
-        {
-            let Some(avx2) = Avx2::detect() else {
-                eprintln!("no AVX2 on this CPU: only the portable kernel runs here");
-                return;
-            };
-            let mut rng = Sampler::new(11, 1, 0);
-            let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
-            let (mut hits, mut second, mut on_grid) = (0, 0, 0);
-            for case in 0..20_000usize {
-                let grid = case % 4 == 0;
-                let count = 1 + case % 8;
-                let mut blocks = [Leaf4::EMPTY; 2];
-                let mut vertices = Vec::new();
-                for i in 0..count {
-                    let tri: [[f32; 3]; 3] = if grid {
-                        std::array::from_fn(|_| [f(4.0).round(), f(4.0).round(), f(4.0).round()])
-                    } else {
-                        std::array::from_fn(|_| [f(5.0), f(5.0), f(5.0)])
-                    };
-                    let tri = if case % 5 == 0 && i == 4 { vertices[0] } else { tri };
-                    for (k, vertex) in tri.iter().enumerate() {
-                        for (a, &x) in vertex.iter().enumerate() {
-                            blocks[i / 4].v[3 * k + a][i % 4] = x;
-                        }
-                    }
-                    vertices.push(tri);
-                }
-                let target = vertices[case % count];
-                let ray = if grid {
-                    // Along an axis, through a vertex or the middle of an edge: exact zeros.
-                    let p = if case % 8 == 0 {
-                        glam::Vec3::from(target[0])
-                    } else {
-                        (glam::Vec3::from(target[0]) + glam::Vec3::from(target[1])) * 0.5
-                    };
-                    let axis = case % 3;
-                    let mut dir = glam::Vec3::ZERO;
-                    dir[axis] = if case % 6 < 3 { 1.0 } else { -1.0 };
-                    Ray { origin: p - dir * 10.0, dir, t_max: f32::INFINITY }
-                } else {
-                    let w = [f(1.0).abs(), f(1.0).abs(), f(1.0).abs()];
-                    let sum = w[0] + w[1] + w[2] + 1e-6;
-                    let aim = (0..3)
-                        .fold(glam::Vec3::ZERO, |acc, k| acc + glam::Vec3::from(target[k]) * (w[k] / sum));
-                    let origin = glam::Vec3::new(f(12.0), f(12.0), f(12.0));
-                    let t_max = if case % 3 == 0 { f(30.0).abs() } else { f32::INFINITY };
-                    Ray { origin, dir: aim - origin, t_max }
-                };
-                let rt = RayTri4::new(&ray);
-                let portable = rt.hit_pair(&blocks[0], &blocks[1], ray.t_max);
-                let eight = avx2.leaf_pair(&rt, &blocks[0], &blocks[1], ray.t_max);
-                let bits = |h: Option<(f32, usize, f32, f32)>| {
-                    h.map(|(t, l, u, v)| (t.to_bits(), l, u.to_bits(), v.to_bits()))
-                };
-                assert_eq!(bits(portable), bits(eight), "case {case}: {ray:?}");
-                if let Some((_, lane, _, _)) = portable {
-                    hits += 1;
-                    second += usize::from(lane >= 4);
-                    on_grid += usize::from(grid);
-                }
-            }
-            // Both blocks' lanes and the exact edge cases were met often enough to mean something.
-            assert!(
-                hits > 10_000 && second > 2_000 && on_grid > 1_000,
-                "{hits} hits, {second} in the second block, {on_grid} on the grid"
-            );
         }
     }
 }

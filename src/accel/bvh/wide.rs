@@ -63,7 +63,7 @@ impl Child {
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct Leaf4 {
-    pub(super) v: [[f32; 4]; 9],
+    v: [[f32; 4]; 9],
     shape: [u32; 4],
     prim: [u32; 4],
     triangles: u32,
@@ -73,7 +73,7 @@ pub struct Leaf4 {
 
 impl Leaf4 {
     /// No triangles: every lane's vertices are NaN, which no ray hits.
-    pub(super) const EMPTY: Leaf4 = Leaf4 {
+    const EMPTY: Leaf4 = Leaf4 {
         v: [[f32::NAN; 4]; 9],
         shape: [0; 4],
         prim: [0; 4],
@@ -389,36 +389,21 @@ struct Entry {
 /// The watertight test of [`RayTri`] on the four triangles of a leaf at once: the same
 /// formulas lane by lane (including the double-precision retry when an edge function rounds to
 /// zero), so what holds for the scalar test holds here.
-pub struct RayTri4 {
+struct RayTri4 {
     origin: [f32x4; 3],
-    /// The same origin, one value an axis (for kernels of other widths).
-    pub(super) o: [f32; 3],
-    pub(super) k: [usize; 3],
-    pub(super) shear: [f32; 3],
+    k: [usize; 3],
+    shear: [f32; 3],
 }
 
 impl RayTri4 {
-    pub(super) fn new(ray: &Ray) -> Self {
+    fn new(ray: &Ray) -> Self {
         let (k, shear) = RayTri::axes(ray);
-        let o = ray.origin.to_array();
-        RayTri4 { origin: o.map(f32x4::splat), o, k, shear }
-    }
-
-    /// The nearest hit in two blocks side by side (a leaf of up to eight triangles), both
-    /// tested against `t_max`: `(t, lane, u, v)`, lanes 4 to 7 naming the second block's. Of
-    /// equal distances the lowest lane wins, as the eight-lane kernels choose.
-    #[inline(always)]
-    pub(super) fn hit_pair(&self, a: &Leaf4, b: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
-        let second = |(t, lane, u, v): (f32, usize, f32, f32)| (t, lane + 4, u, v);
-        match (self.hit(a, t_max), self.hit(b, t_max)) {
-            (Some(x), Some(y)) => Some(if y.0 < x.0 { second(y) } else { x }),
-            (x, y) => x.or(y.map(second)),
-        }
+        RayTri4 { origin: ray.origin.to_array().map(f32x4::splat), k, shear }
     }
 
     /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
     #[inline(always)]
-    pub(super) fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
+    fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
         let [kx, ky, kz] = self.k;
         let (sx, sy, sz) =
             (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
@@ -547,15 +532,11 @@ impl Bvh8 {
             let child = current.child;
             if child.is_leaf() {
                 let blocks = &self.leaves[child.index()..child.index() + child.blocks()];
-                // Two blocks are tested at once, eight lanes wide where the kernel can.
-                let found = match blocks {
-                    [a, b] => k.leaf_pair(&rt, a, b, t_max),
-                    _ => rt.hit(&blocks[0], t_max),
-                };
-                if let Some((t, lane, u, v)) = found {
-                    let leaf = &blocks[lane / 4];
-                    t_max = t;
-                    best = Some(Hit { t, shape: leaf.shape[lane % 4], prim: leaf.prim[lane % 4], u, v });
+                for leaf in blocks {
+                    if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
+                        t_max = t;
+                        best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
+                    }
                 }
                 for s in self.leaf_spheres(&blocks[0]) {
                     if let Some(t) = sphere(ray, s.center, s.radius, t_max) {
@@ -645,11 +626,7 @@ impl Bvh8 {
         loop {
             if current.is_leaf() {
                 let blocks = &self.leaves[current.index()..current.index() + current.blocks()];
-                let found = match blocks {
-                    [a, b] => k.leaf_pair(&rt, a, b, ray.t_max).is_some(),
-                    _ => rt.hit(&blocks[0], ray.t_max).is_some(),
-                };
-                if found {
+                if blocks.iter().any(|leaf| rt.hit(leaf, ray.t_max).is_some()) {
                     return true;
                 }
                 if self
