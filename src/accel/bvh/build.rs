@@ -105,16 +105,13 @@ pub(super) fn tree(
     }
     let tree = build_node(&mut items, 0, &options, 0, None);
     let mut nodes = Vec::with_capacity(2 * items.len().div_ceil(options.block.max(1)) + 1);
-    nodes.push(placeholder());
+    nodes.push(PLACEHOLDER);
     flatten(&tree, &mut nodes, 0);
     Some((nodes, items.iter().map(|it| it.index() as u32).collect()))
 }
 
+/// A node's place, taken before the node is known.
 const PLACEHOLDER: Node = Node { min: [0.0; 3], first: 0, max: [0.0; 3], count: 0 };
-
-fn placeholder() -> Node {
-    PLACEHOLDER
-}
 
 fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
     match tree {
@@ -129,8 +126,8 @@ fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
         }
         Tree::Inner { bounds, children } => {
             let first = nodes.len();
-            nodes.push(placeholder());
-            nodes.push(placeholder());
+            nodes.push(PLACEHOLDER);
+            nodes.push(PLACEHOLDER);
             nodes[at] =
                 Node { min: bounds.min.into(), first: first as u32, max: bounds.max.into(), count: 0 };
             flatten(&children[0], nodes, first);
@@ -208,7 +205,7 @@ fn build_node(
     let bounds = known.unwrap_or_else(|| bounds_of(items));
     if n <= PARALLEL_MIN {
         let mut nodes = Vec::with_capacity(2 * n.div_ceil(options.block.max(1)));
-        nodes.push(placeholder());
+        nodes.push(PLACEHOLDER);
         build_flat(&mut nodes, 0, items, offset, options, depth, bounds);
         return Tree::Flat(nodes);
     }
@@ -256,8 +253,8 @@ fn build_flat(
         }
         Decision::Split { mid, sides: [kl, kr] } => {
             let first = nodes.len();
-            nodes.push(placeholder());
-            nodes.push(placeholder());
+            nodes.push(PLACEHOLDER);
+            nodes.push(PLACEHOLDER);
             nodes[at] = Node { min: b.min.into(), first: first as u32, max: b.max.into(), count: 0 };
             let (left, right) = items.split_at_mut(mid);
             let kl = kl.unwrap_or_else(|| bounds_of(left));
