@@ -120,18 +120,15 @@ pub fn bench_accel(
 ) -> Result<BenchAccelReport, accel::AccelError> {
     // Memory first, one fresh build of each backend, each dropped before the next.
     let mut resident_growth_bytes = std::collections::BTreeMap::new();
-    let before = resident_bytes();
-    let one = accel::build_embree(scene, None)?;
-    if let (Some(a), Some(b)) = (before, resident_bytes()) {
-        resident_growth_bytes.insert(Backend::Embree.to_string(), b.saturating_sub(a));
+    let growth = [
+        (Backend::Embree, resident_growth(|| accel::build_embree(scene, None))?),
+        (Backend::Bvh, resident_growth(|| Bvh::new(scene))?),
+    ];
+    for (backend, grew) in growth {
+        if let Some(bytes) = grew {
+            resident_growth_bytes.insert(backend.to_string(), bytes);
+        }
     }
-    drop(one);
-    let before = resident_bytes();
-    let one = Bvh::new(scene)?;
-    if let (Some(a), Some(b)) = (before, resident_bytes()) {
-        resident_growth_bytes.insert(Backend::Bvh.to_string(), b.saturating_sub(a));
-    }
-    drop(one);
 
     let (embree, embree_build) = best_of(3, || {
         let start = Instant::now();
@@ -259,6 +256,18 @@ impl BenchAccelReport {
         }
         out
     }
+}
+
+/// How much the process's resident memory grew across `build` (what it built is dropped after),
+/// where the system reports resident memory.
+fn resident_growth<T, E: Into<accel::AccelError>>(
+    build: impl FnOnce() -> Result<T, E>,
+) -> Result<Option<u64>, accel::AccelError> {
+    let before = resident_bytes();
+    let built = build().map_err(Into::into)?;
+    let after = resident_bytes();
+    drop(built);
+    Ok(before.zip(after).map(|(a, b)| b.saturating_sub(a)))
 }
 
 /// The process's resident memory (VmRSS of /proc/self/status), where there is one.

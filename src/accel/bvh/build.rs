@@ -76,7 +76,7 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
         };
     };
     let wide = Bvh8::collapse(&nodes, &prims, &order);
-    let bounds = nodes.first().map(|n| Aabb { min: Vec3A::from(n.min), max: Vec3A::from(n.max) });
+    let bounds = nodes.first().map(Node::bounds);
     if options.keep_binary {
         let ordered = order.iter().map(|&i| prims[i as usize]).collect();
         Bvh { nodes, prims: ordered, bounds, wide, instances: None }
@@ -128,8 +128,7 @@ fn flatten(tree: &Tree, nodes: &mut Vec<Node>, at: usize) {
             let first = nodes.len();
             nodes.push(PLACEHOLDER);
             nodes.push(PLACEHOLDER);
-            nodes[at] =
-                Node { min: bounds.min.into(), first: first as u32, max: bounds.max.into(), count: 0 };
+            nodes[at] = Node::inner(bounds, first);
             flatten(&children[0], nodes, first);
             flatten(&children[1], nodes, first + 1);
         }
@@ -210,15 +209,7 @@ fn build_node(
         return Tree::Flat(nodes);
     }
     match decide(items, &bounds, options, depth) {
-        Decision::Leaf => {
-            let (b, _) = bounds;
-            Tree::Flat(vec![Node {
-                min: b.min.into(),
-                first: offset as u32,
-                max: b.max.into(),
-                count: n as u32,
-            }])
-        }
+        Decision::Leaf => Tree::Flat(vec![Node::leaf(&bounds.0, offset, n)]),
         Decision::Split { mid, sides: [kl, kr] } => {
             let (left, right) = items.split_at_mut(mid);
             let (l, r) = rayon::join(
@@ -241,21 +232,13 @@ fn build_flat(
     depth: usize,
     bounds: (Aabb, Aabb),
 ) {
-    let b = bounds.0;
     match decide(items, &bounds, options, depth) {
-        Decision::Leaf => {
-            nodes[at] = Node {
-                min: b.min.into(),
-                first: offset as u32,
-                max: b.max.into(),
-                count: items.len() as u32,
-            };
-        }
+        Decision::Leaf => nodes[at] = Node::leaf(&bounds.0, offset, items.len()),
         Decision::Split { mid, sides: [kl, kr] } => {
             let first = nodes.len();
             nodes.push(PLACEHOLDER);
             nodes.push(PLACEHOLDER);
-            nodes[at] = Node { min: b.min.into(), first: first as u32, max: b.max.into(), count: 0 };
+            nodes[at] = Node::inner(&bounds.0, first);
             let (left, right) = items.split_at_mut(mid);
             let kl = kl.unwrap_or_else(|| bounds_of(left));
             let kr = kr.unwrap_or_else(|| bounds_of(right));
@@ -392,6 +375,11 @@ fn add<const B: usize>(bins: &mut Bins<B>, binner: &Binner, item: &Item) {
     }
 }
 
+/// The first `n` bins of each axis: those in use.
+fn in_use<const B: usize>(bins: &Bins<B>, n: usize) -> [&[Bin]; 3] {
+    bins.each_ref().map(|axis| &axis[..n])
+}
+
 /// The cheapest binned SAH split over all three axes, binning every axis in one pass over the
 /// items (split across threads for large nodes).
 fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &BuildOptions) -> Option<Split> {
@@ -422,7 +410,7 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
                 }
                 a
             });
-        sweep(bins.each_ref().map(|axis| &axis[..bins_n]))
+        sweep(in_use(&bins, bins_n))
     } else {
         // Smaller nodes bin on the stack, in as few bins as they use: setting up bins costs as
         // much as binning a handful of items.
@@ -434,11 +422,11 @@ fn best_sah_split(items: &[Item], bounds: &Aabb, centroids: &Aabb, options: &Bui
             bins
         }
         if bins_n <= 8 {
-            sweep(on_stack::<8>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+            sweep(in_use(&on_stack::<8>(items, &binner), bins_n))
         } else if bins_n <= 16 {
-            sweep(on_stack::<16>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+            sweep(in_use(&on_stack::<16>(items, &binner), bins_n))
         } else {
-            sweep(on_stack::<MAX_BINS>(items, &binner).each_ref().map(|axis| &axis[..bins_n]))
+            sweep(in_use(&on_stack::<MAX_BINS>(items, &binner), bins_n))
         }
     }
 }

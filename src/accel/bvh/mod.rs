@@ -60,8 +60,27 @@ pub struct Node {
 }
 
 impl Node {
+    /// A leaf of the `count` primitives from `first` on, in `bounds`.
+    fn leaf(bounds: &Aabb, first: usize, count: usize) -> Node {
+        Node { min: bounds.min.into(), first: first as u32, max: bounds.max.into(), count: count as u32 }
+    }
+
+    /// An inner node whose children are `first` and `first + 1`.
+    fn inner(bounds: &Aabb, first: usize) -> Node {
+        Node { min: bounds.min.into(), first: first as u32, max: bounds.max.into(), count: 0 }
+    }
+
+    fn bounds(&self) -> Aabb {
+        Aabb { min: Vec3A::from(self.min), max: Vec3A::from(self.max) }
+    }
+
     fn is_leaf(&self) -> bool {
         self.count > 0
+    }
+
+    /// A leaf's primitives: their positions in the leaf order.
+    fn prims(&self) -> std::ops::Range<usize> {
+        self.first as usize..(self.first + self.count) as usize
     }
 }
 
@@ -205,12 +224,12 @@ impl Bvh {
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i];
-            let bounds = Aabb { min: Vec3A::from(n.min), max: Vec3A::from(n.max) };
+            let bounds = n.bounds();
             if n.is_leaf() {
                 if n.count as usize > max_leaf {
                     return Err(format!("leaf {i} holds {} primitives", n.count));
                 }
-                let range = n.first as usize..(n.first + n.count) as usize;
+                let range = n.prims();
                 for (p, prim) in range.clone().zip(&self.prims[range]) {
                     if std::mem::replace(&mut seen[p], true) {
                         return Err(format!("primitive {p} is in two leaves"));
@@ -338,7 +357,7 @@ fn closest(
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            if let Some(h) = leaf(n.first as usize..(n.first + n.count) as usize, &mut t_max) {
+            if let Some(h) = leaf(n.prims(), &mut t_max) {
                 best = Some(h);
             }
         } else {
@@ -392,7 +411,7 @@ fn any(nodes: &[Node], ray: &Ray, mut leaf: impl FnMut(std::ops::Range<usize>) -
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            if leaf(n.first as usize..(n.first + n.count) as usize) {
+            if leaf(n.prims()) {
                 return true;
             }
         } else {

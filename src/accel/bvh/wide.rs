@@ -244,42 +244,38 @@ impl Bvh8 {
     /// side by side, in that order, on all threads. Returns each one's reference.
     fn add_leaves(&mut self, binary: &[Node], leaves: &[usize], prims: &Ordered) -> Vec<Child> {
         use rayon::prelude::*;
-        // Blocks a leaf is given: enough for all its primitives (spheres, rare, leave some unused).
-        let blocks_of = |leaf: &Node| leaf.count.div_ceil(4).max(1) as usize;
-        let total = leaves.iter().map(|&i| blocks_of(&binary[i])).sum();
+        // Each leaf's first block: it is given enough for all its primitives (spheres, rare,
+        // leave some unused).
+        let mut starts = Vec::with_capacity(leaves.len() + 1);
+        starts.push(0);
+        for &i in leaves {
+            starts.push(starts[starts.len() - 1] + binary[i].count.div_ceil(4).max(1) as usize);
+        }
+        let total = starts[leaves.len()];
         self.leaves.par_extend((0..total).into_par_iter().map(|_| Leaf4::EMPTY));
         let mut slices = Vec::with_capacity(leaves.len());
         let mut rest = self.leaves.as_mut_slice();
-        for &i in leaves {
-            let (mine, others) = std::mem::take(&mut rest).split_at_mut(blocks_of(&binary[i]));
+        for pair in starts.windows(2) {
+            let (mine, others) = std::mem::take(&mut rest).split_at_mut(pair[1] - pair[0]);
             slices.push(mine);
             rest = others;
         }
+        let of = |i: usize| prims.order[binary[i].prims()].iter().map(|&p| &prims.prims[p as usize]);
         // Each leaf's blocks used and spheres.
-        let packed: Vec<(usize, u32)> = leaves
-            .par_iter()
-            .zip(slices.into_par_iter())
-            .map(|(&i, blocks)| {
-                let leaf = &binary[i];
-                let range = leaf.first as usize..(leaf.first + leaf.count) as usize;
-                pack(blocks, prims.order[range].iter().map(|&p| &prims.prims[p as usize]))
-            })
-            .collect();
+        let packed: Vec<(usize, u32)> =
+            leaves.par_iter().zip(slices.into_par_iter()).map(|(&i, blocks)| pack(blocks, of(i))).collect();
         // Spheres (rare) go to their own array, leaf by leaf.
         let mut children = Vec::with_capacity(leaves.len());
-        let mut first = 0;
-        for (&i, &(used, spheres)) in leaves.iter().zip(&packed) {
+        for ((&i, &first), &(used, spheres)) in leaves.iter().zip(&starts).zip(&packed) {
             children.push(Child::leaf(first as u32, used as u32));
             if spheres > 0 {
                 self.leaves[first].spheres_first = self.spheres.len() as u32;
-                let leaf = &binary[i];
-                for &p in &prims.order[leaf.first as usize..(leaf.first + leaf.count) as usize] {
-                    if let Prim::Sphere { center, radius, shape } = prims.prims[p as usize] {
+                for prim in of(i) {
+                    if let Prim::Sphere { center, radius, shape } = *prim {
                         self.spheres.push(SphereRef { center, radius, shape });
                     }
                 }
             }
-            first += blocks_of(&binary[i]);
         }
         children
     }
