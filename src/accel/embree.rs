@@ -451,11 +451,11 @@ impl CommittedScene {
             return;
         }
         for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
-            let mut valid = [0i32; PACKET];
+            let mut valid = Valid8([0; PACKET]);
             let mut packet = sys::RTCRayHit8::default();
             let (r, h) = (&mut packet.ray, &mut packet.hit);
             for (j, ray) in rays.iter().enumerate() {
-                valid[j] = -1;
+                valid.0[j] = -1;
                 (r.org_x[j], r.org_y[j], r.org_z[j]) = (ray.origin.x, ray.origin.y, ray.origin.z);
                 (r.dir_x[j], r.dir_y[j], r.dir_z[j]) = (ray.dir.x, ray.dir.y, ray.dir.z);
                 r.tfar[j] = ray.t_max;
@@ -526,6 +526,12 @@ impl Accel for CommittedScene {
 /// Rays in one of the packets [`CommittedScene::intersect_coherent`] traces.
 pub const PACKET: usize = 8;
 
+/// An 8-ray packet's valid mask, aligned to 32 bytes as `rtcIntersect8` requires: Embree's
+/// AVX-512 kernels load it with an aligned move, which faults on a 16-byte aligned array (its
+/// AVX2 kernels happened not to).
+#[repr(C, align(32))]
+struct Valid8([i32; PACKET]);
+
 /// Embree's hint of how rays traced together relate: camera rays of one pixel are coherent,
 /// bounce and shadow rays are not.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -562,11 +568,12 @@ fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit, coherence: Cohe
 }
 
 #[cfg(not(embree4))]
-fn intersect8(scene: sys::RTCScene, valid: &[i32; PACKET], packet: &mut sys::RTCRayHit8) {
+fn intersect8(scene: sys::RTCScene, valid: &Valid8, packet: &mut sys::RTCRayHit8) {
     let mut ctx = context(Coherence::Coherent);
-    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints, `packet` is an 8-ray
-    // packet aligned to 32 bytes (RTCRayHit8 carries align(32)), both valid for the call.
-    unsafe { sys::rtcIntersect8(valid.as_ptr(), scene, &mut ctx, packet) }
+    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints aligned to 32 bytes
+    // (`Valid8`), `packet` is an 8-ray packet aligned to 32 bytes (RTCRayHit8 carries
+    // align(32)), both valid for the call.
+    unsafe { sys::rtcIntersect8(valid.0.as_ptr(), scene, &mut ctx, packet) }
 }
 
 #[cfg(not(embree4))]
@@ -599,11 +606,12 @@ fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit, coherence: Cohe
 }
 
 #[cfg(embree4)]
-fn intersect8(scene: sys::RTCScene, valid: &[i32; PACKET], packet: &mut sys::RTCRayHit8) {
+fn intersect8(scene: sys::RTCScene, valid: &Valid8, packet: &mut sys::RTCRayHit8) {
     let mut args = arguments(Coherence::Coherent);
-    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints, `packet` is an 8-ray
-    // packet aligned to 32 bytes (RTCRayHit8 carries align(32)); all are valid for the call.
-    unsafe { sys::rtcIntersect8(valid.as_ptr(), scene, packet, &mut args) }
+    // SAFETY: `scene` is a live committed scene; `valid` holds 8 ints aligned to 32 bytes
+    // (`Valid8`), `packet` is an 8-ray packet aligned to 32 bytes (RTCRayHit8 carries
+    // align(32)); all are valid for the call.
+    unsafe { sys::rtcIntersect8(valid.0.as_ptr(), scene, packet, &mut args) }
 }
 
 #[cfg(embree4)]
