@@ -218,14 +218,17 @@ impl BenchAccelReport {
         );
         let t = &self.bvh_tree;
         out += &format!(
-            "bvh tree     {} nodes ({:.2} children each, depth {}), {} leaves ({:.2} triangles each), {:.1} bytes per triangle, {} slab test\n",
+            "bvh tree     {} nodes ({:.2} children each, depth {}), {} leaves ({:.2} triangles each), {:.1} bytes per triangle, {} slab test; SAH {:.3} (nodes {:.3}, leaves {:.3}, as Embree's statistics count it)\n",
             t.nodes,
             t.mean_children,
             t.depth,
             t.leaves,
             t.mean_leaf_triangles,
             t.bytes as f64 / self.triangles.max(1) as f64,
-            self.bvh_isa
+            self.bvh_isa,
+            t.sah_nodes + t.sah_leaves,
+            t.sah_nodes,
+            t.sah_leaves
         );
         let mb = |b: u64| b as f64 / 1e6;
         let per = |b: u64| b as f64 / self.triangles.max(1) as f64;

@@ -7,6 +7,7 @@
 mod build;
 mod instances;
 mod intersect;
+mod pages;
 pub mod simd;
 pub mod wide;
 

@@ -258,3 +258,62 @@ fn the_avx2_traversal_equals_the_portable_one() {
     // Both answers occur often, so the comparison covers hits and misses.
     assert!(hits > 1000 && hits < 19_000 && occluded > 1000, "{hits} hits, {occluded} occluded");
 }
+
+/// A quantised node's boxes hold the true ones on every plane and are at most two steps
+/// wider: random boxes, boxes far from the origin, boxes flat on an axis, a node of one box, and
+/// boxes near the ends of f32's range (which need only hold).
+#[test]
+fn quantised_boxes_hold_the_true_ones() {
+    use super::wide::Node8;
+    let mut rng = Sampler::new(11, 3, 0);
+    let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
+    let ulp = |x: f32| f32::EPSILON * x.abs().max(f32::MIN_POSITIVE);
+    let mut checked = 0;
+    for case in 0..3_000 {
+        let (offset, size) = match case % 4 {
+            0 => (0.0, 10.0),
+            1 => (1.0e6, 1.0e-2), // far from the origin: the decoded grid is coarser than a step
+            2 => (-50.0, 1.0e-3),
+            _ => (f(100.0), 1.0),
+        };
+        let n = 1 + case % 8;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|k| {
+                let lo = Vec3A::new(f(size), f(size), f(size)) + offset;
+                let mut extent = Vec3A::new(f(size).abs(), f(size).abs(), f(size).abs());
+                if case % 5 == 0 || (case % 3 == 0 && k == 0) {
+                    extent.z = 0.0; // flat on z (every box, or one)
+                }
+                Aabb { min: lo, max: lo + extent }
+            })
+            .collect();
+        let node = Node8::with_boxes(&boxes);
+        assert_eq!(node.valid, (1u32 << n) - 1);
+        for (slot, b) in boxes.iter().enumerate() {
+            let d = node.child_box(slot);
+            for a in 0..3 {
+                assert!(
+                    d.min[a] <= b.min[a] && d.max[a] >= b.max[a],
+                    "case {case} slot {slot} axis {a}: {d:?} does not hold {b:?}"
+                );
+                let slack = 2.0 * node.scale[a] + 4.0 * ulp(b.min[a]).max(ulp(b.max[a]));
+                assert!(
+                    b.min[a] - d.min[a] <= slack && d.max[a] - b.max[a] <= slack,
+                    "case {case} slot {slot} axis {a}: {d:?} is loose around {b:?}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 20_000);
+    // Near the ends of f32's range the box may grow to infinity, but must hold.
+    let huge = [
+        Aabb { min: Vec3A::splat(-3.0e38), max: Vec3A::splat(-2.9e38) },
+        Aabb { min: Vec3A::splat(2.9e38), max: Vec3A::splat(3.0e38) },
+    ];
+    let node = Node8::with_boxes(&huge);
+    for (slot, b) in huge.iter().enumerate() {
+        let d = node.child_box(slot);
+        assert!(d.min.cmple(b.min).all() && d.max.cmpge(b.max).all(), "{d:?} does not hold {b:?}");
+    }
+}

@@ -8,6 +8,7 @@ use arrayvec::ArrayVec;
 use wide::f32x4;
 
 use super::intersect::{gamma, sphere, RayTri};
+use super::pages::Pages;
 use super::simd::{BoxTest, Isa, Portable, RayBox8};
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
@@ -15,7 +16,8 @@ use crate::accel::{Hit, Ray};
 /// A reference to a child, 32 bits so a node's eight children take 32 bytes: an inner node is its
 /// index (top bit clear); a leaf the index of its first [`Leaf4`] with the top bit set, and the
 /// next bit set when a second block of four follows it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(transparent)]
 pub struct Child(u32);
 
 const LEAF: u32 = 1 << 31;
@@ -60,7 +62,7 @@ impl Child {
 /// A leaf's triangles, structure-of-arrays so that one SIMD pass tests all four: `v[3 * k + a]`
 /// holds axis `a` of vertex `k` of each triangle. Unused lanes hold NaN vertices, which no ray
 /// hits, so the test needs no lane mask. Spheres (rare) are kept aside and tested one by one.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 pub struct Leaf4 {
     v: [[f32; 4]; 9],
@@ -69,6 +71,8 @@ pub struct Leaf4 {
     triangles: u32,
     spheres_first: u32,
     spheres_count: u32,
+    /// To three cache lines, spelled out (the leaves live in [`Pages`], plain data).
+    _pad: u32,
 }
 
 impl Leaf4 {
@@ -80,6 +84,7 @@ impl Leaf4 {
         triangles: 0,
         spheres_first: 0,
         spheres_count: 0,
+        _pad: 0,
     };
 }
 
@@ -122,39 +127,99 @@ struct SphereRef {
 /// How many children an inner node has at most.
 pub const WIDTH: usize = 8;
 
-/// Eight children's boxes, axis by axis (empty slots hold an inverted box that no ray meets),
-/// and what each child is: 224 bytes, padded to four cache lines.
-#[derive(Clone, Copy, Debug)]
+/// Eight children's boxes, quantised to eight bits a plane against the node's own box (Ylitie
+/// et al. 2017, Embree's `QBVH8`), and what each child is: 105 bytes, two cache lines.
+///
+/// Plane `q` of axis `a` stands for `origin[a] + (q as f32) * scale[a]`, computed as written
+/// (one product, one sum, no fused multiply-add), by the build and by every kernel alike. The
+/// build picks each `q` so that this value lies outside the child's true box (never inside), so
+/// the slab test sees a box that holds the true one, and Ize's bound covers the test's own
+/// rounding as before. Empty slots are left out by `valid`.
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 pub struct Node8 {
-    /// min x, min y, min z, max x, max y, max z of the eight children.
-    pub bounds: [[f32; WIDTH]; 6],
+    /// min x, min y, min z, max x, max y, max z of the eight children, quantised.
+    pub q: [[u8; WIDTH]; 6],
+    pub origin: [f32; 3],
+    pub scale: [f32; 3],
     children: [Child; WIDTH],
+    /// Bit `s` set when slot `s` holds a child.
+    pub valid: u32,
+    /// To two cache lines, spelled out (the nodes live in [`Pages`], plain data).
+    _pad: [u32; 5],
 }
 
 impl Node8 {
     /// A node with every slot empty.
     pub const EMPTY: Node8 = Node8 {
-        bounds: [
-            [f32::INFINITY; WIDTH],
-            [f32::INFINITY; WIDTH],
-            [f32::INFINITY; WIDTH],
-            [f32::NEG_INFINITY; WIDTH],
-            [f32::NEG_INFINITY; WIDTH],
-            [f32::NEG_INFINITY; WIDTH],
-        ],
+        q: [[0; WIDTH]; 6],
+        origin: [0.0; 3],
+        scale: [0.0; 3],
         children: [Child::EMPTY; WIDTH],
+        valid: 0,
+        _pad: [0; 5],
     };
 
-    /// A node whose first child has the box `[min, max]` and whose others are empty.
-    #[cfg(test)]
-    pub(super) fn with_first_box(min: glam::Vec3, max: glam::Vec3) -> Node8 {
+    /// Plane `q` of axis `axis`, as every kernel computes it.
+    #[inline(always)]
+    pub fn decode(&self, axis: usize, q: u8) -> f32 {
+        self.origin[axis] + f32::from(q) * self.scale[axis]
+    }
+
+    /// A node whose first `boxes.len()` slots hold these boxes (at most eight, finite), their
+    /// children still empty, and whose other slots are empty.
+    pub fn with_boxes(boxes: &[super::Aabb]) -> Node8 {
+        debug_assert!(boxes.len() <= WIDTH);
         let mut node = Node8::EMPTY;
-        for a in 0..3 {
-            node.bounds[a][0] = min[a];
-            node.bounds[3 + a][0] = max[a];
+        let parent = boxes.iter().fold(super::Aabb::EMPTY, |b, c| b.union(c));
+        for axis in 0..3 {
+            let (lo, hi) = (parent.min[axis], parent.max[axis]);
+            node.origin[axis] = lo;
+            // The step (extent / 255, grown by what plane 255 falls short) whose last plane
+            // reaches the box's end: within a few ulps of it, so a node of one box is that box.
+            // (Capped so that it stays finite, and plane 0 is `lo` itself, even for a box wider
+            // than f32's range; plane 255 may then be infinite, which only widens the box.)
+            let mut scale = ((hi - lo) / 255.0).min(f32::MAX / 255.0);
+            while lo + 255.0 * scale < hi {
+                let short = hi - (lo + 255.0 * scale);
+                scale = (scale + short / 255.0).max(scale.next_up());
+            }
+            node.scale[axis] = scale;
+        }
+        let inv = node.scale.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 });
+        for (slot, b) in boxes.iter().enumerate() {
+            for (axis, &inv) in inv.iter().enumerate() {
+                let steps = |x: f32| (x - node.origin[axis]) * inv;
+                // Rounded outward (`as u8` truncates and saturates: a floor for the steps, which
+                // are not negative but by rounding), then moved until the decoded plane is
+                // outside the box.
+                let mut lo = steps(b.min[axis]) as u8;
+                while lo > 0 && node.decode(axis, lo) > b.min[axis] {
+                    lo -= 1;
+                }
+                let s = steps(b.max[axis]);
+                let mut hi = s as u8;
+                if f32::from(hi) < s {
+                    hi = hi.saturating_add(1);
+                }
+                while hi < u8::MAX && node.decode(axis, hi) < b.max[axis] {
+                    hi += 1;
+                }
+                node.q[axis][slot] = lo;
+                node.q[3 + axis][slot] = hi;
+            }
+            node.valid |= 1 << slot;
         }
         node
+    }
+
+    /// The box that slot `slot` stands for (it holds the child's true box).
+    pub fn child_box(&self, slot: usize) -> super::Aabb {
+        let plane = |row: usize| self.decode(row % 3, self.q[row][slot]);
+        super::Aabb {
+            min: glam::Vec3A::new(plane(0), plane(1), plane(2)),
+            max: glam::Vec3A::new(plane(3), plane(4), plane(5)),
+        }
     }
 }
 
@@ -171,6 +236,11 @@ pub struct WideStats {
     pub bytes: usize,
     /// Inner nodes on the longest path from the root.
     pub depth: usize,
+    /// The surface area heuristic as Embree's statistics report it (`verbose=2`), so the two
+    /// trees compare: each inner node's box area, and each leaf's area times its blocks, over
+    /// the root's area.
+    pub sah_nodes: f64,
+    pub sah_leaves: f64,
 }
 
 /// Primitives and the order the binary tree's leaf ranges index.
@@ -180,8 +250,10 @@ struct Ordered<'a> {
 }
 
 pub struct Bvh8 {
-    nodes: Vec<Node8>,
-    leaves: Vec<Leaf4>,
+    /// In huge pages where the OS offers them ([`Pages`]): rays in random order touch all of
+    /// both, far more 4 KiB pages than the TLB holds.
+    nodes: Pages<Node8>,
+    leaves: Pages<Leaf4>,
     spheres: Vec<SphereRef>,
     root: Child,
     /// The slab test this CPU runs best.
@@ -207,8 +279,8 @@ impl Bvh8 {
     /// on all threads ([`Self::add_leaves`]). `order` maps the binary leaves' ranges to `prims`.
     pub fn collapse(binary: &[Node], prims: &[Prim], order: &[u32]) -> Bvh8 {
         let mut bvh = Bvh8 {
-            nodes: Vec::with_capacity(binary.len() / 6 + 1),
-            leaves: Vec::new(),
+            nodes: Pages::default(),
+            leaves: Pages::default(),
             spheres: Vec::new(),
             root: Child::EMPTY,
             isa: Isa::best(),
@@ -220,12 +292,13 @@ impl Bvh8 {
         // The nodes first, each leaf noted where it goes; then the leaves in that order, so a
         // node's leaves sit side by side.
         let mut pending = Vec::with_capacity(binary.len() / 2 + 1);
+        let mut nodes = Vec::with_capacity(binary.len() / 6 + 1);
         bvh.root = if binary[0].count > 0 {
             pending.push((0, 0, 0));
             Child::EMPTY
         } else {
-            bvh.nodes.push(Node8::EMPTY);
-            bvh.fill(binary, &mut pending, 0, 0, 1);
+            nodes.push(Node8::EMPTY);
+            bvh.fill(binary, &mut nodes, &mut pending, 0, 0, 1);
             Child::inner(0)
         };
         let leaves: Vec<usize> = pending.iter().map(|&(_, _, k)| k).collect();
@@ -234,9 +307,10 @@ impl Bvh8 {
             bvh.root = children[0];
         } else {
             for (&(at, slot, _), &child) in pending.iter().zip(&children) {
-                bvh.nodes[at].children[slot] = child;
+                nodes[at].children[slot] = child;
             }
         }
+        bvh.nodes = Pages::copied(&nodes);
         bvh
     }
 
@@ -252,9 +326,9 @@ impl Bvh8 {
             starts.push(starts[starts.len() - 1] + binary[i].count.div_ceil(4).max(1) as usize);
         }
         let total = starts[leaves.len()];
-        self.leaves.par_extend((0..total).into_par_iter().map(|_| Leaf4::EMPTY));
+        self.leaves = Pages::filled(total, Leaf4::EMPTY);
         let mut slices = Vec::with_capacity(leaves.len());
-        let mut rest = self.leaves.as_mut_slice();
+        let mut rest = &mut self.leaves[..];
         for pair in starts.windows(2) {
             let (mine, others) = std::mem::take(&mut rest).split_at_mut(pair[1] - pair[0]);
             slices.push(mine);
@@ -286,6 +360,7 @@ impl Bvh8 {
     fn fill(
         &mut self,
         binary: &[Node],
+        nodes: &mut Vec<Node8>,
         leaves: &mut Vec<(usize, usize, usize)>,
         index: usize,
         at: usize,
@@ -310,26 +385,23 @@ impl Bvh8 {
             kids[len] = first + 1;
             len += 1;
         }
+        let boxes: ArrayVec<super::Aabb, WIDTH> = kids[..len].iter().map(|&k| binary[k].bounds()).collect();
+        nodes[at] = Node8::with_boxes(&boxes);
         let mut inner = [(0, 0); WIDTH];
         let mut inner_len = 0;
         for (slot, &k) in kids[..len].iter().enumerate() {
-            let b = &binary[k];
-            for axis in 0..3 {
-                self.nodes[at].bounds[axis][slot] = b.min[axis];
-                self.nodes[at].bounds[3 + axis][slot] = b.max[axis];
-            }
-            self.nodes[at].children[slot] = if b.count > 0 {
+            nodes[at].children[slot] = if binary[k].count > 0 {
                 leaves.push((at, slot, k));
                 Child::EMPTY // until the leaves are packed
             } else {
-                self.nodes.push(Node8::EMPTY);
-                inner[inner_len] = (k, self.nodes.len() - 1);
+                nodes.push(Node8::EMPTY);
+                inner[inner_len] = (k, nodes.len() - 1);
                 inner_len += 1;
-                Child::inner((self.nodes.len() - 1) as u32)
+                Child::inner((nodes.len() - 1) as u32)
             };
         }
         for &(k, node) in &inner[..inner_len] {
-            self.fill(binary, leaves, k, node, level + 1);
+            self.fill(binary, nodes, leaves, k, node, level + 1);
         }
     }
 
@@ -353,6 +425,7 @@ impl Bvh8 {
         let children: usize =
             self.nodes.iter().map(|n| n.children.iter().filter(|c| **c != Child::EMPTY).count()).sum();
         let triangles: usize = self.leaves.iter().map(|l| l.triangles as usize).sum();
+        let sah = self.sah();
         WideStats {
             nodes: self.nodes.len(),
             leaves: self.leaves.len(),
@@ -360,7 +433,41 @@ impl Bvh8 {
             mean_leaf_triangles: triangles as f64 / self.leaves.len().max(1) as f64,
             bytes: self.bytes(),
             depth: self.depth,
+            sah_nodes: sah.0,
+            sah_leaves: sah.1,
         }
+    }
+
+    /// Embree's SAH of the tree: (inner node areas, leaf areas times blocks), over the root's.
+    fn sah(&self) -> (f64, f64) {
+        let (mut nodes, mut leaves) = (0.0, 0.0);
+        if self.root == Child::EMPTY || self.root.is_leaf() {
+            return (0.0, if self.root == Child::EMPTY { 0.0 } else { self.root.blocks() as f64 });
+        }
+        let node_box = |n: &Node8| {
+            (0..WIDTH)
+                .filter(|&s| n.children[s] != Child::EMPTY)
+                .fold(super::Aabb::EMPTY, |b, s| b.union(&n.child_box(s)))
+        };
+        let root = node_box(&self.nodes[self.root.0 as usize]).half_area() as f64;
+        let mut stack = vec![self.root.0 as usize];
+        while let Some(i) = stack.pop() {
+            let n = &self.nodes[i];
+            nodes += node_box(n).half_area() as f64;
+            for slot in 0..WIDTH {
+                let c = n.children[slot];
+                if c == Child::EMPTY {
+                    continue;
+                }
+                if c.is_leaf() {
+                    leaves += n.child_box(slot).half_area() as f64 * c.blocks() as f64;
+                } else {
+                    stack.push(c.0 as usize);
+                }
+            }
+        }
+        let root = root.max(f64::MIN_POSITIVE);
+        (nodes / root, leaves / root)
     }
 
     /// The same tree traversed with the portable slab test (for tests and benchmarks).
