@@ -66,7 +66,7 @@ proptest! {
         let ray = ray_of(o, d);
         let node = Node { min: min.to_array(), first: 0, max: max.to_array(), count: 1 };
         let binary = RayBox::new(&ray).hit(&node, f32::INFINITY).is_some();
-        let (node8, rb) = (Node8::with_boxes(&[Aabb { min: min.into(), max: max.into() }]), RayBox8::new(&ray));
+        let (node8, rb) = (Node8::with_first_box(min, max), RayBox8::new(&ray));
         let portable = Portable.hit(&rb, &node8, f32::INFINITY).1 & 1 != 0;
         // The kernel this CPU runs (AVX2 on x86-64 machines that have it).
         let wide = Isa::best().hit(&rb, &node8, f32::INFINITY).1 & 1 != 0;

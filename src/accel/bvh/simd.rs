@@ -64,14 +64,12 @@ impl BoxTest for Portable {
         for axis in 0..3 {
             let o = f32x8::splat(rb.origin[axis]);
             let inv = f32x8::splat(rb.inv_dir[axis]);
-            let (origin, scale) = (f32x8::splat(node.origin[axis]), f32x8::splat(node.scale[axis]));
-            let plane = |row: usize| origin + f32x8::new(node.q[row].map(f32::from)) * scale;
-            let a = (plane(rb.near[axis]) - o) * inv;
-            let b = (plane(rb.far[axis]) - o) * inv;
+            let a = (f32x8::new(node.bounds[rb.near[axis]]) - o) * inv;
+            let b = (f32x8::new(node.bounds[rb.far[axis]]) - o) * inv;
             t_near = t_near.fast_max(a);
             t_far = t_far.fast_min(b);
         }
-        let mask = t_near.simd_le(t_far * f32x8::splat(FAR_SCALE)).to_bitmask() & node.valid;
+        let mask = t_near.simd_le(t_far * f32x8::splat(FAR_SCALE)).to_bitmask();
         (t_near.to_array(), mask)
     }
 }
@@ -122,29 +120,23 @@ impl BoxTest for Avx2 {
     #[inline(always)]
     fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: `self` proves the CPU has AVX and AVX2 (`Avx2::detect`). Each load reads one
-        // whole row of `node.q`, eight bytes, in bounds; `loadl_epi64` needs no alignment.
+        // SAFETY: `self` proves the CPU has AVX (`Avx2::detect`). The loads read whole rows
+        // of `node.bounds`, eight f32 each, in bounds; `loadu` needs no alignment.
         unsafe {
             let mut t_near = _mm256_setzero_ps();
             let mut t_far = _mm256_set1_ps(t_max);
             for axis in 0..3 {
                 let o = _mm256_set1_ps(rb.origin[axis]);
                 let inv = _mm256_set1_ps(rb.inv_dir[axis]);
-                let (origin, scale) = (_mm256_set1_ps(node.origin[axis]), _mm256_set1_ps(node.scale[axis]));
-                // origin + q * scale, as `Node8::decode`: the bytes widened to i32, then f32.
-                let plane = |row: &[u8; 8]| {
-                    let q = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(row.as_ptr().cast())));
-                    _mm256_add_ps(origin, _mm256_mul_ps(q, scale))
-                };
-                let lo = plane(&node.q[rb.near[axis]]);
-                let hi = plane(&node.q[rb.far[axis]]);
+                let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
+                let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
                 // max and min return their second operand when one is NaN, as `wide`'s
                 // fast_max and fast_min do; none arises (finite 1/d, see RayBox8::new).
                 t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
                 t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
             }
             let far = _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE));
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32 & node.valid;
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
             let mut out = [0.0f32; 8];
             _mm256_storeu_ps(out.as_mut_ptr(), t_near);
             (out, mask)
@@ -208,7 +200,7 @@ mod tests {
     use crate::render::sampler::Sampler;
 
     /// The AVX2 slab test gives the portable test's distances and masks bit for bit, on random
-    /// quantised boxes (some slots empty, some boxes thin, some behind the ray) and random rays, including rays with
+    /// boxes (some empty, some thin, some behind the ray) and random rays, including rays with
     /// zero direction components and rays starting on a box's planes.
     #[test]
     fn avx2_box_test_equals_the_portable_one() {
@@ -222,29 +214,29 @@ mod tests {
             let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
             let mut checked = 0;
             for case in 0..20_000 {
-                let mut boxes = [crate::accel::bvh::Aabb::EMPTY; 8];
-                for (slot, b) in boxes.iter_mut().enumerate() {
-                    let thin = (case + slot) % 7 == 0;
-                    let lo = glam::Vec3A::new(f(10.0), f(10.0), f(10.0));
-                    let mut extent = glam::Vec3A::new(f(4.0).abs(), f(4.0).abs(), f(4.0).abs());
-                    if thin {
-                        extent.y = 0.0;
-                    }
-                    *b = crate::accel::bvh::Aabb { min: lo, max: lo + extent };
-                }
-                let mut node = Node8::with_boxes(&boxes);
+                let mut node = Node8::EMPTY;
                 for slot in 0..8 {
                     if (case + slot) % 5 == 0 {
-                        node.valid &= !(1 << slot); // an empty slot
+                        continue; // an empty slot: its inverted box stays
+                    }
+                    let thin = (case + slot) % 7 == 0;
+                    for a in 0..3 {
+                        let lo = f(10.0);
+                        let extent = if thin && a == 1 { 0.0 } else { f(4.0).abs() };
+                        node.bounds[a][slot] = lo;
+                        node.bounds[3 + a][slot] = lo + extent;
                     }
                 }
                 let mut origin = glam::Vec3::new(f(12.0), f(12.0), f(12.0));
                 if case % 11 == 0 {
-                    origin.x = node.child_box(1).min.x; // on a plane
+                    origin.x = node.bounds[0][1]; // on a plane
                 }
                 // Aimed near the centre of one slot's box, so most boxes are met or just missed.
                 let slot = case % 8;
-                let aim = glam::Vec3::from(node.child_box(slot).centroid());
+                let centre = glam::Vec3::from_array(std::array::from_fn(|a| {
+                    0.5 * (node.bounds[a][slot] + node.bounds[3 + a][slot])
+                }));
+                let aim = if centre.is_finite() { centre } else { glam::Vec3::ZERO };
                 let mut dir = aim - origin + glam::Vec3::new(f(1.0), f(1.0), f(1.0));
                 if case % 13 == 0 {
                     dir.y = 0.0;

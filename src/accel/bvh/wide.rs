@@ -127,99 +127,51 @@ struct SphereRef {
 /// How many children an inner node has at most.
 pub const WIDTH: usize = 8;
 
-/// Eight children's boxes, quantised to eight bits a plane against the node's own box (Ylitie
-/// et al. 2017, Embree's `QBVH8`), and what each child is: 105 bytes, two cache lines.
-///
-/// Plane `q` of axis `a` stands for `origin[a] + (q as f32) * scale[a]`, computed as written
-/// (one product, one sum, no fused multiply-add), by the build and by every kernel alike. The
-/// build picks each `q` so that this value lies outside the child's true box (never inside), so
-/// the slab test sees a box that holds the true one, and Ize's bound covers the test's own
-/// rounding as before. Empty slots are left out by `valid`.
+/// Eight children's boxes, axis by axis (empty slots hold an inverted box that no ray meets),
+/// and what each child is: 224 bytes, padded to four cache lines.
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 pub struct Node8 {
-    /// min x, min y, min z, max x, max y, max z of the eight children, quantised.
-    pub q: [[u8; WIDTH]; 6],
-    pub origin: [f32; 3],
-    pub scale: [f32; 3],
+    /// min x, min y, min z, max x, max y, max z of the eight children.
+    pub bounds: [[f32; WIDTH]; 6],
     children: [Child; WIDTH],
-    /// Bit `s` set when slot `s` holds a child.
-    pub valid: u32,
-    /// To two cache lines, spelled out (the nodes live in [`Pages`], plain data).
-    _pad: [u32; 5],
+    /// To four cache lines, spelled out (the nodes live in [`Pages`], plain data).
+    _pad: [u32; 8],
 }
 
 impl Node8 {
     /// A node with every slot empty.
     pub const EMPTY: Node8 = Node8 {
-        q: [[0; WIDTH]; 6],
-        origin: [0.0; 3],
-        scale: [0.0; 3],
+        bounds: [
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+        ],
         children: [Child::EMPTY; WIDTH],
-        valid: 0,
-        _pad: [0; 5],
+        _pad: [0; 8],
     };
 
-    /// Plane `q` of axis `axis`, as every kernel computes it.
-    #[inline(always)]
-    pub fn decode(&self, axis: usize, q: u8) -> f32 {
-        self.origin[axis] + f32::from(q) * self.scale[axis]
-    }
-
-    /// A node whose first `boxes.len()` slots hold these boxes (at most eight, finite), their
-    /// children still empty, and whose other slots are empty.
-    pub fn with_boxes(boxes: &[super::Aabb]) -> Node8 {
-        debug_assert!(boxes.len() <= WIDTH);
-        let mut node = Node8::EMPTY;
-        let parent = boxes.iter().fold(super::Aabb::EMPTY, |b, c| b.union(c));
-        for axis in 0..3 {
-            let (lo, hi) = (parent.min[axis], parent.max[axis]);
-            node.origin[axis] = lo;
-            // The step (extent / 255, grown by what plane 255 falls short) whose last plane
-            // reaches the box's end: within a few ulps of it, so a node of one box is that box.
-            // (Capped so that it stays finite, and plane 0 is `lo` itself, even for a box wider
-            // than f32's range; plane 255 may then be infinite, which only widens the box.)
-            let mut scale = ((hi - lo) / 255.0).min(f32::MAX / 255.0);
-            while lo + 255.0 * scale < hi {
-                let short = hi - (lo + 255.0 * scale);
-                scale = (scale + short / 255.0).max(scale.next_up());
-            }
-            node.scale[axis] = scale;
-        }
-        let inv = node.scale.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 });
-        for (slot, b) in boxes.iter().enumerate() {
-            for (axis, &inv) in inv.iter().enumerate() {
-                let steps = |x: f32| (x - node.origin[axis]) * inv;
-                // Rounded outward (`as u8` truncates and saturates: a floor for the steps, which
-                // are not negative but by rounding), then moved until the decoded plane is
-                // outside the box.
-                let mut lo = steps(b.min[axis]) as u8;
-                while lo > 0 && node.decode(axis, lo) > b.min[axis] {
-                    lo -= 1;
-                }
-                let s = steps(b.max[axis]);
-                let mut hi = s as u8;
-                if f32::from(hi) < s {
-                    hi = hi.saturating_add(1);
-                }
-                while hi < u8::MAX && node.decode(axis, hi) < b.max[axis] {
-                    hi += 1;
-                }
-                node.q[axis][slot] = lo;
-                node.q[3 + axis][slot] = hi;
-            }
-            node.valid |= 1 << slot;
-        }
-        node
-    }
-
-    /// The box that slot `slot` stands for (it holds the child's true box).
+    /// The box of slot `slot`.
     pub fn child_box(&self, slot: usize) -> super::Aabb {
-        let plane = |row: usize| self.decode(row % 3, self.q[row][slot]);
+        let plane = |row: usize| self.bounds[row][slot];
         super::Aabb {
             min: glam::Vec3A::new(plane(0), plane(1), plane(2)),
             max: glam::Vec3A::new(plane(3), plane(4), plane(5)),
         }
+    }
+
+    /// A node whose first child has the box `[min, max]` and whose others are empty.
+    #[cfg(test)]
+    pub(super) fn with_first_box(min: glam::Vec3, max: glam::Vec3) -> Node8 {
+        let mut node = Node8::EMPTY;
+        for a in 0..3 {
+            node.bounds[a][0] = min[a];
+            node.bounds[3 + a][0] = max[a];
+        }
+        node
     }
 }
 
@@ -385,12 +337,15 @@ impl Bvh8 {
             kids[len] = first + 1;
             len += 1;
         }
-        let boxes: ArrayVec<super::Aabb, WIDTH> = kids[..len].iter().map(|&k| binary[k].bounds()).collect();
-        nodes[at] = Node8::with_boxes(&boxes);
         let mut inner = [(0, 0); WIDTH];
         let mut inner_len = 0;
         for (slot, &k) in kids[..len].iter().enumerate() {
-            nodes[at].children[slot] = if binary[k].count > 0 {
+            let b = &binary[k];
+            for axis in 0..3 {
+                nodes[at].bounds[axis][slot] = b.min[axis];
+                nodes[at].bounds[3 + axis][slot] = b.max[axis];
+            }
+            nodes[at].children[slot] = if b.count > 0 {
                 leaves.push((at, slot, k));
                 Child::EMPTY // until the leaves are packed
             } else {
@@ -425,7 +380,7 @@ impl Bvh8 {
         let children: usize =
             self.nodes.iter().map(|n| n.children.iter().filter(|c| **c != Child::EMPTY).count()).sum();
         let triangles: usize = self.leaves.iter().map(|l| l.triangles as usize).sum();
-        let sah = self.sah();
+        let (sah_nodes, sah_leaves) = self.sah();
         WideStats {
             nodes: self.nodes.len(),
             leaves: self.leaves.len(),
@@ -433,14 +388,13 @@ impl Bvh8 {
             mean_leaf_triangles: triangles as f64 / self.leaves.len().max(1) as f64,
             bytes: self.bytes(),
             depth: self.depth,
-            sah_nodes: sah.0,
-            sah_leaves: sah.1,
+            sah_nodes,
+            sah_leaves,
         }
     }
 
     /// Embree's SAH of the tree: (inner node areas, leaf areas times blocks), over the root's.
     fn sah(&self) -> (f64, f64) {
-        let (mut nodes, mut leaves) = (0.0, 0.0);
         if self.root == Child::EMPTY || self.root.is_leaf() {
             return (0.0, if self.root == Child::EMPTY { 0.0 } else { self.root.blocks() as f64 });
         }
@@ -449,7 +403,8 @@ impl Bvh8 {
                 .filter(|&s| n.children[s] != Child::EMPTY)
                 .fold(super::Aabb::EMPTY, |b, s| b.union(&n.child_box(s)))
         };
-        let root = node_box(&self.nodes[self.root.0 as usize]).half_area() as f64;
+        let root = (node_box(&self.nodes[self.root.0 as usize]).half_area() as f64).max(f64::MIN_POSITIVE);
+        let (mut nodes, mut leaves) = (0.0, 0.0);
         let mut stack = vec![self.root.0 as usize];
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i];
@@ -466,7 +421,6 @@ impl Bvh8 {
                 }
             }
         }
-        let root = root.max(f64::MIN_POSITIVE);
         (nodes / root, leaves / root)
     }
 
