@@ -39,8 +39,12 @@ fn bench(c: &mut Criterion) {
     for (name, scene) in scenes() {
         let embree = build_embree(&scene, None).expect("embree");
         let bvh = Bvh::new(&scene).expect("bvh");
-        // The same tree with the portable slab test: what the AVX2 kernel is worth.
+        // The same tree with the portable slab test and (where the CPU runs both) with the
+        // AVX2 kernels beside the AVX-512 ones: what each kernel is worth.
         let portable = Bvh::new(&scene).expect("bvh").portable();
+        let avx2 = lightsplit::accel::bvh::simd::Isa::avx2()
+            .filter(|_| bvh.isa().name() == "avx512")
+            .map(|isa| Bvh::new(&scene).expect("bvh").with_isa(isa));
         let sets = RaySets::generate(&scene, &embree, 50_000, 1);
 
         let mut builds = c.benchmark_group(format!("build/{name}"));
@@ -63,6 +67,11 @@ fn bench(c: &mut Criterion) {
             group.bench_function(BenchmarkId::from_parameter("bvh-portable"), |b| {
                 b.iter(|| one.install(|| trace_pass(&portable, rays, kind)))
             });
+            if let Some(avx2) = &avx2 {
+                group.bench_function(BenchmarkId::from_parameter("bvh-avx2"), |b| {
+                    b.iter(|| one.install(|| trace_pass(avx2, rays, kind)))
+                });
+            }
             group.finish();
         }
     }

@@ -207,7 +207,12 @@ impl Bvh {
     /// The same tree, traversed with the portable slab test whatever the CPU has (for tests and
     /// benchmarks; the instance level keeps its meshes' choice).
     pub fn portable(self) -> Bvh {
-        Bvh { wide: self.wide.portable(), ..self }
+        self.with_isa(simd::Isa::Portable)
+    }
+
+    /// The same tree, traversed with kernels `isa` (for tests and benchmarks).
+    pub fn with_isa(self, isa: simd::Isa) -> Bvh {
+        Bvh { wide: self.wide.with_isa(isa), ..self }
     }
 
     /// How many shapes place a shared mesh, and how many distinct meshes they place.

@@ -155,22 +155,112 @@ impl BoxTest for Avx2 {
     }
 }
 
+/// Proof that this CPU has AVX-512 F and VL besides AVX and AVX2: obtained only from
+/// [`Avx512::detect`].
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub struct Avx512 {
+    avx2: Avx2,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Avx512 {
+    /// The proof, when this CPU has the features.
+    pub fn detect() -> Option<Avx512> {
+        let avx2 = Avx2::detect()?;
+        (std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl"))
+            .then_some(Avx512 { avx2 })
+    }
+
+    /// The closest hit, by a traversal compiled for AVX-512 (32 vector registers, so the
+    /// ray's values stay in registers beside the triangle test's).
+    pub fn intersect(self, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all
+        // that `intersect_avx512` is compiled for.
+        unsafe { intersect_avx512(self, bvh, ray) }
+    }
+
+    /// Any hit, by a traversal compiled for AVX-512.
+    pub fn occluded(self, bvh: &Bvh8, ray: &Ray) -> bool {
+        // SAFETY: as in `intersect`: AVX, AVX2, AVX-512 F and VL were detected.
+        unsafe { occluded_avx512(self, bvh, ray) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+fn intersect_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+    bvh.intersect_with(ray, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+fn occluded_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray) -> bool {
+    bvh.occluded_with(ray, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+impl BoxTest for Avx512 {
+    /// The AVX2 test's arithmetic, its comparison into a mask register.
+    #[inline(always)]
+    fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
+        use std::arch::x86_64::*;
+        // SAFETY: `self` proves the CPU has AVX, AVX-512 F and VL (`Avx512::detect`). The
+        // loads read whole rows of `node.bounds`, eight f32 each, in bounds; `loadu` needs no
+        // alignment.
+        unsafe {
+            let mut t_near = _mm256_setzero_ps();
+            let mut t_far = _mm256_set1_ps(t_max);
+            for axis in 0..3 {
+                let o = _mm256_set1_ps(rb.origin[axis]);
+                let inv = _mm256_set1_ps(rb.inv_dir[axis]);
+                let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
+                let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
+                t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
+                t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
+            }
+            let far = _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE));
+            let mask = u32::from(_mm256_cmp_ps_mask::<_CMP_LE_OQ>(t_near, far));
+            let mut out = [0.0f32; 8];
+            _mm256_storeu_ps(out.as_mut_ptr(), t_near);
+            (out, mask)
+        }
+    }
+
+    #[inline(always)]
+    fn prefetch<T>(self, item: &T) {
+        self.avx2.prefetch(item)
+    }
+}
+
 /// The kernels this CPU runs best, chosen once per tree.
 #[derive(Clone, Copy, Debug)]
 pub enum Isa {
     Portable,
     #[cfg(target_arch = "x86_64")]
     Avx2(Avx2),
+    #[cfg(target_arch = "x86_64")]
+    Avx512(Avx512),
 }
 
 impl Isa {
-    /// AVX2 where this CPU has it, else portable.
+    /// AVX-512 where this CPU has it, else AVX2, else portable.
     pub fn best() -> Isa {
         #[cfg(target_arch = "x86_64")]
-        if let Some(k) = Avx2::detect() {
-            return Isa::Avx2(k);
+        if let Some(k) = Avx512::detect() {
+            return Isa::Avx512(k);
         }
-        Isa::Portable
+        Isa::avx2().unwrap_or(Isa::Portable)
+    }
+
+    /// The AVX2 kernels, where this CPU has them (tests and benchmarks compare them with the
+    /// others on a CPU that also has AVX-512).
+    pub fn avx2() -> Option<Isa> {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = Avx2::detect() {
+            return Some(Isa::Avx2(k));
+        }
+        None
     }
 
     /// The kernels' name, as reports print it.
@@ -179,6 +269,8 @@ impl Isa {
             Isa::Portable => "portable",
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2(_) => "avx2",
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(_) => "avx512",
         }
     }
 }
@@ -190,6 +282,8 @@ impl BoxTest for Isa {
             Isa::Portable => Portable.hit(rb, node, t_max),
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2(k) => k.hit(rb, node, t_max),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(k) => k.hit(rb, node, t_max),
         }
     }
 }
@@ -199,17 +293,31 @@ mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
 
-    /// The AVX2 slab test gives the portable test's distances and masks bit for bit, on random
-    /// boxes (some empty, some thin, some behind the ray) and random rays, including rays with
-    /// zero direction components and rays starting on a box's planes.
+    /// The AVX2 slab test gives the portable test's distances and masks bit for bit.
     #[test]
     fn avx2_box_test_equals_the_portable_one() {
         #[cfg(target_arch = "x86_64")]
+        match Avx2::detect() {
+            Some(k) => equals_the_portable_box_test(k),
+            None => eprintln!("no AVX2 on this CPU: only the portable kernel runs here"),
+        }
+    }
+
+    /// The AVX-512 slab test gives the portable test's distances and masks bit for bit.
+    #[test]
+    fn avx512_box_test_equals_the_portable_one() {
+        #[cfg(target_arch = "x86_64")]
+        match Avx512::detect() {
+            Some(k) => equals_the_portable_box_test(k),
+            None => eprintln!("no AVX-512 on this CPU: its kernel is not checked here"),
+        }
+    }
+
+    /// Kernel `kernel` against the portable one, on random boxes (some empty, some thin, some
+    /// behind the ray) and random rays, including rays with zero direction components and rays
+    /// starting on a box's planes.
+    fn equals_the_portable_box_test(kernel: impl BoxTest + std::fmt::Debug) {
         {
-            let Some(avx2) = Avx2::detect() else {
-                eprintln!("no AVX2 on this CPU: only the portable kernel runs here");
-                return;
-            };
             let mut rng = Sampler::new(7, 1, 0);
             let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
             let mut checked = 0;
@@ -245,8 +353,8 @@ mod tests {
                 let ray = Ray { origin, dir, t_max };
                 let rb = RayBox8::new(&ray);
                 let (tp, mp) = Portable.hit(&rb, &node, t_max);
-                let (ta, ma) = avx2.hit(&rb, &node, t_max);
-                assert_eq!(mp, ma, "masks differ for {ray:?}");
+                let (ta, ma) = kernel.hit(&rb, &node, t_max);
+                assert_eq!(mp, ma, "{kernel:?}: masks differ for {ray:?}");
                 for s in 0..8 {
                     if mp & (1 << s) != 0 {
                         assert_eq!(tp[s].to_bits(), ta[s].to_bits(), "slot {s} of {ray:?}");

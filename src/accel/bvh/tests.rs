@@ -223,18 +223,30 @@ fn rays_leaving_a_surface_do_not_hit_it() {
     }
 }
 
-/// The traversal compiled for AVX2 (where this CPU has it) finds exactly the hits of the same
-/// tree traversed with the portable slab test: closest hits bit for bit, and any-hit answers,
-/// on rays from inside and outside a triangle soup, toward it and past it, some with zero
-/// direction components and some with a finite reach.
+/// The traversals compiled for AVX2 and for AVX-512 (where this CPU has them) find exactly the
+/// hits of the same tree traversed with the portable slab test: closest hits bit for bit, and
+/// any-hit answers, on rays from inside and outside a triangle soup, toward it and past it,
+/// some with zero direction components and some with a finite reach.
 #[test]
 fn the_avx2_traversal_equals_the_portable_one() {
-    let scene = soup(3000, 11);
-    let fast = Bvh::new(&scene).expect("builds");
-    if fast.isa().name() == "portable" {
-        eprintln!("no AVX2 on this CPU: only the portable traversal runs here");
-        return;
+    match super::simd::Isa::avx2() {
+        Some(isa) => traversal_equals_the_portable_one(isa),
+        None => eprintln!("no AVX2 on this CPU: only the portable traversal runs here"),
     }
+}
+
+#[test]
+fn the_avx512_traversal_equals_the_portable_one() {
+    match super::simd::Isa::best() {
+        isa if isa.name() == "avx512" => traversal_equals_the_portable_one(isa),
+        _ => eprintln!("no AVX-512 on this CPU: its traversal is not checked here"),
+    }
+}
+
+fn traversal_equals_the_portable_one(isa: super::simd::Isa) {
+    let scene = soup(3000, 11);
+    let fast = Bvh::new(&scene).expect("builds").with_isa(isa);
+    assert_eq!(fast.isa().name(), isa.name());
     let portable = Bvh::new(&scene).expect("builds").portable();
     assert_eq!(portable.isa().name(), "portable");
     let mut rng = Sampler::new(5, 0, 0);

@@ -424,9 +424,10 @@ impl Bvh8 {
         (nodes / root, leaves / root)
     }
 
-    /// The same tree traversed with the portable slab test (for tests and benchmarks).
-    pub fn portable(mut self) -> Bvh8 {
-        self.isa = Isa::Portable;
+    /// The same tree traversed with kernels `isa` (for tests and benchmarks; `isa` exists
+    /// only where this CPU runs it).
+    pub fn with_isa(mut self, isa: Isa) -> Bvh8 {
+        self.isa = isa;
         self
     }
 
@@ -549,6 +550,8 @@ impl Bvh8 {
             Isa::Portable => self.intersect_with(ray, Portable),
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2(k) => k.intersect(self, ray),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(k) => k.intersect(self, ray),
         }
     }
 
@@ -558,6 +561,8 @@ impl Bvh8 {
             Isa::Portable => self.occluded_with(ray, Portable),
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2(k) => k.occluded(self, ray),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(k) => k.occluded(self, ray),
         }
     }
 
