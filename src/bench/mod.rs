@@ -61,7 +61,7 @@ pub struct BenchAccelReport {
     pub build_seconds: std::collections::BTreeMap<String, f64>,
     /// The BVH's wide tree: nodes, leaves, fill and bytes.
     pub bvh_tree: crate::accel::bvh::wide::WideStats,
-    /// The BVH's slab test (`avx2` or `portable`).
+    /// The BVH's slab test (`avx512`, `avx2` or `portable`).
     pub bvh_isa: &'static str,
     /// Bytes the BVH holds, exactly ([`Bvh::bytes`]).
     pub bvh_bytes: usize,
