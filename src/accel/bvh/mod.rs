@@ -107,7 +107,7 @@ pub struct Bvh {
     instances: Option<Box<instances::Instances>>,
 }
 
-/// A scene with more primitives than the BVH's 28-bit primitive references can name.
+/// A scene with more primitives than the BVH's 30-bit child references can reach.
 #[derive(Debug, thiserror::Error)]
 #[error("the scene has {0} primitives; lightsplit's BVH holds at most {max} (use --accel embree)", max = wide::MAX_PRIMS)]
 pub struct TooLarge(pub usize);

@@ -30,24 +30,9 @@ enum Store<T> {
     Mapped(memmap2::MmapMut),
 }
 
-impl<T: Pod + Send + Sync> Pages<T> {
-    /// `len` copies of `value`, written on all threads.
-    pub fn filled(len: usize, value: T) -> Pages<T> {
-        use rayon::prelude::*;
-        let mut pages = Pages::zeroed(len);
-        pages.par_iter_mut().for_each(|x| *x = value);
-        pages
-    }
-
-    /// A copy of `items`.
-    pub fn copied(items: &[T]) -> Pages<T> {
-        let mut pages = Pages::zeroed(items.len());
-        pages.copy_from_slice(items);
-        pages
-    }
-
-    /// `len` all-zero values (a mapping starts zeroed).
-    fn zeroed(len: usize) -> Pages<T> {
+impl<T: Pod> Pages<T> {
+    /// `len` all-zero values (a mapping starts zeroed, so nothing is written).
+    pub fn zeroed(len: usize) -> Pages<T> {
         let bytes = len * std::mem::size_of::<T>();
         // A mapping is page aligned, which every `T` here (64 bytes at most) is content with.
         if bytes >= MAPPED_MIN && std::mem::align_of::<T>() <= 4096 {
@@ -111,11 +96,15 @@ mod tests {
     /// a mapped array's elements are where a slice of them says.
     #[test]
     fn small_on_the_heap_large_mapped_both_hold_their_values() {
-        let small = Pages::filled(1000, [7u32; 16]);
+        let mut small = Pages::zeroed(1000);
         assert!(!small.is_mapped());
+        assert!(small.iter().all(|x| *x == [0u32; 16]));
+        small.fill([7u32; 16]);
         assert!(small.iter().all(|x| *x == [7; 16]));
         let items: Vec<[u32; 16]> = (0..100_000u32).map(|i| [i; 16]).collect();
-        let mut large = Pages::copied(&items);
+        let mut large = Pages::zeroed(items.len());
+        assert!(large.iter().all(|x| *x == [0u32; 16]));
+        large.copy_from_slice(&items);
         assert!(large.is_mapped(), "{} bytes", large.len() * 64);
         assert_eq!(large.len(), items.len());
         assert!(large.iter().zip(&items).all(|(a, b)| a == b));

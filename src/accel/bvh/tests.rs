@@ -270,3 +270,29 @@ fn traversal_equals_the_portable_one(isa: super::simd::Isa) {
     // Both answers occur often, so the comparison covers hits and misses.
     assert!(hits > 1000 && hits < 19_000 && occluded > 1000, "{hits} hits, {occluded} occluded");
 }
+
+/// The wide tree's array holds every node and leaf block once, each node's leaves right after
+/// it (the layout the traversal's memory reads count on), on a soup, on a grid of shared edges
+/// and on a scene of one leaf.
+#[test]
+fn each_node_is_followed_by_its_leaves() {
+    for (name, scene) in [("soup", soup(3000, 5)), ("one leaf", soup(3, 1))] {
+        let bvh = Bvh::new(&scene).expect("builds");
+        bvh.wide.check_layout().unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    let n = 40;
+    let positions: Vec<Vec3> = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| Vec3::new(i as f32, ((i * j) % 7) as f32 * 0.1, j as f32)))
+        .collect();
+    let indices: Vec<[u32; 3]> = (0..n)
+        .flat_map(|j| {
+            (0..n).flat_map(move |i| {
+                let v = |a: u32, b: u32| b * (n + 1) + a;
+                [[v(i, j), v(i + 1, j), v(i, j + 1)], [v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)]]
+            })
+        })
+        .collect();
+    let grid = Bvh::new(&scene_of(vec![mesh(positions, indices)])).expect("builds");
+    assert!(grid.wide.node_count() > 10);
+    grid.wide.check_layout().expect("grid");
+}

@@ -13,9 +13,10 @@ use super::simd::{BoxTest, Isa, Portable, RayBox8};
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
-/// A reference to a child, 32 bits so a node's eight children take 32 bytes: an inner node is its
-/// index (top bit clear); a leaf the index of its first [`Leaf4`] with the top bit set, and the
-/// next bit set when a second block of four follows it.
+/// A reference to a child, 32 bits so a node's eight children take 32 bytes: the cache line of
+/// the tree's array where it starts, for an inner node with the top bit clear; for a leaf (its
+/// first [`Leaf4`]) with the top bit set, and the next bit set when a second block of four
+/// follows it.
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
 pub struct Child(u32);
@@ -24,8 +25,10 @@ const LEAF: u32 = 1 << 31;
 const TWO: u32 = 1 << 30;
 /// The most primitives a leaf can hold: two blocks of four triangles.
 pub const MAX_LEAF: u32 = 8;
-/// The most primitives a tree can hold (every leaf block index fits below [`TWO`]).
-pub const MAX_PRIMS: u32 = TWO - 1;
+/// The most primitives a tree can hold: every line index fits below [`TWO`]. With n primitives
+/// there are at most n leaf blocks of three lines, and fewer than n nodes of four (each has two
+/// children at least), so fewer than 7 n lines.
+pub const MAX_PRIMS: u32 = TWO / 8 - 1;
 
 impl Child {
     const EMPTY: Child = Child(u32::MAX);
@@ -201,11 +204,40 @@ struct Ordered<'a> {
     order: &'a [u32],
 }
 
+/// A cache line of the tree's array: nodes take [`NODE_LINES`], leaf blocks [`LEAF_LINES`].
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C, align(64))]
+struct Line([u8; 64]);
+
+const NODE_LINES: usize = std::mem::size_of::<Node8>() / 64;
+const LEAF_LINES: usize = std::mem::size_of::<Leaf4>() / 64;
+const _: () = assert!(
+    NODE_LINES * 64 == std::mem::size_of::<Node8>() && LEAF_LINES * 64 == std::mem::size_of::<Leaf4>()
+);
+
+/// What [`Bvh8::walk`] finds.
+struct Walk {
+    children: usize,
+    triangles: usize,
+    sah_nodes: f64,
+    sah_leaves: f64,
+}
+
+/// What [`Bvh8::lay_out`] places: a node (its index in the collapse) or a leaf (its note).
+#[derive(Clone, Copy)]
+enum Item {
+    Node(usize),
+    Leaf(usize),
+}
+
 pub struct Bvh8 {
-    /// In huge pages where the OS offers them ([`Pages`]): rays in random order touch all of
-    /// both, far more 4 KiB pages than the TLB holds.
-    nodes: Pages<Node8>,
-    leaves: Pages<Leaf4>,
+    /// Nodes and leaf blocks, depth first, each node followed by its leaves ([`Self::lay_out`]);
+    /// a child names the line it starts at. In huge pages where the OS offers them
+    /// ([`Pages`]): rays in random order touch all of it, far more 4 KiB pages than the TLB
+    /// holds.
+    lines: Pages<Line>,
+    node_count: usize,
+    block_count: usize,
     spheres: Vec<SphereRef>,
     root: Child,
     /// The slab test this CPU runs best.
@@ -227,12 +259,14 @@ const FAR_SCALE: f32 = super::FAR_SCALE;
 
 impl Bvh8 {
     /// Collapses a binary tree: each wide node takes its binary node's children, then keeps
-    /// opening the inner child of largest area until it has eight. The leaves are packed after,
-    /// on all threads ([`Self::add_leaves`]). `order` maps the binary leaves' ranges to `prims`.
+    /// opening the inner child of largest area until it has eight. Then the nodes and leaves are
+    /// laid out in one array ([`Self::lay_out`]) and the leaves packed on all threads. `order`
+    /// maps the binary leaves' ranges to `prims`.
     pub fn collapse(binary: &[Node], prims: &[Prim], order: &[u32]) -> Bvh8 {
         let mut bvh = Bvh8 {
-            nodes: Pages::default(),
-            leaves: Pages::default(),
+            lines: Pages::default(),
+            node_count: 0,
+            block_count: 0,
             spheres: Vec::new(),
             root: Child::EMPTY,
             isa: Isa::best(),
@@ -241,74 +275,198 @@ impl Bvh8 {
         if binary.is_empty() {
             return bvh;
         }
-        // The nodes first, each leaf noted where it goes; then the leaves in that order, so a
-        // node's leaves sit side by side.
+        // The nodes first, each leaf noted where it goes (node, slot, binary leaf).
         let mut pending = Vec::with_capacity(binary.len() / 2 + 1);
         let mut nodes = Vec::with_capacity(binary.len() / 6 + 1);
-        bvh.root = if binary[0].count > 0 {
+        if binary[0].count > 0 {
             pending.push((0, 0, 0));
-            Child::EMPTY
         } else {
             nodes.push(Node8::EMPTY);
             bvh.fill(binary, &mut nodes, &mut pending, 0, 0, 1);
-            Child::inner(0)
-        };
-        let leaves: Vec<usize> = pending.iter().map(|&(_, _, k)| k).collect();
-        let children = bvh.add_leaves(binary, &leaves, &Ordered { prims, order });
-        if binary[0].count > 0 {
-            bvh.root = children[0];
-        } else {
-            for (&(at, slot, _), &child) in pending.iter().zip(&children) {
-                nodes[at].children[slot] = child;
-            }
         }
-        bvh.nodes = Pages::copied(&nodes);
+        bvh.lay_out(binary, &nodes, &pending, &Ordered { prims, order });
         bvh
     }
 
-    /// Packs the primitives of binary leaves `leaves` into one or two [`Leaf4`] blocks each,
-    /// side by side, in that order, on all threads. Returns each one's reference.
-    fn add_leaves(&mut self, binary: &[Node], leaves: &[usize], prims: &Ordered) -> Vec<Child> {
+    /// Lays the tree out in one array of cache lines, depth first, each node followed by its
+    /// leaves' blocks and then by its inner children's subtrees (as Embree's allocator places
+    /// them): the read of a node that leads to a leaf opens the memory row the leaf is in and
+    /// wakes the hardware prefetcher for it. Writes the nodes with their children's places,
+    /// then packs every leaf's primitives on all threads.
+    fn lay_out(
+        &mut self,
+        binary: &[Node],
+        nodes: &[Node8],
+        pending: &[(usize, usize, usize)],
+        prims: &Ordered,
+    ) {
         use rayon::prelude::*;
-        // Each leaf's first block: it is given enough for all its primitives (spheres, rare,
-        // leave some unused).
-        let mut starts = Vec::with_capacity(leaves.len() + 1);
-        starts.push(0);
-        for &i in leaves {
-            starts.push(starts[starts.len() - 1] + binary[i].count.div_ceil(4).max(1) as usize);
+        // Each node's leaves: `fill` notes a node's leaves together.
+        let mut leaves_of = vec![0..0; nodes.len().max(1)];
+        for (p, &(at, _, _)) in pending.iter().enumerate() {
+            if leaves_of[at].is_empty() {
+                leaves_of[at] = p..p;
+            }
+            leaves_of[at].end = p + 1;
         }
-        let total = starts[leaves.len()];
-        self.leaves = Pages::filled(total, Leaf4::EMPTY);
-        let mut slices = Vec::with_capacity(leaves.len());
-        let mut rest = &mut self.leaves[..];
-        for pair in starts.windows(2) {
-            let (mine, others) = std::mem::take(&mut rest).split_at_mut(pair[1] - pair[0]);
-            slices.push(mine);
+        // A leaf gets blocks for all its primitives (spheres, rare, leave some unused).
+        let blocks_of = |p: usize| binary[pending[p].2].count.div_ceil(4).max(1) as usize;
+        // Where each node and each leaf starts, in lines, and the order they are met in.
+        let (mut node_line, mut leaf_line) = (vec![0u32; nodes.len()], vec![0u32; pending.len()]);
+        let mut items = Vec::with_capacity(nodes.len() + pending.len());
+        let mut cursor = 0usize;
+        let mut stack = Vec::new();
+        if nodes.is_empty() {
+            leaf_line[0] = 0;
+            items.push(Item::Leaf(0));
+            cursor = LEAF_LINES * blocks_of(0);
+        } else {
+            stack.push(0);
+        }
+        while let Some(n) = stack.pop() {
+            node_line[n] = cursor as u32;
+            items.push(Item::Node(n));
+            cursor += NODE_LINES;
+            for p in leaves_of[n].clone() {
+                leaf_line[p] = cursor as u32;
+                items.push(Item::Leaf(p));
+                cursor += LEAF_LINES * blocks_of(p);
+            }
+            // Inner children in slot order: pushed in reverse, popped first to last.
+            for c in nodes[n].children.iter().rev().filter(|c| **c != Child::EMPTY && !c.is_leaf()) {
+                stack.push(c.0 as usize);
+            }
+        }
+        self.node_count = nodes.len();
+        // Every line is written below: a node, or a leaf block set up empty first.
+        self.lines = Pages::zeroed(cursor);
+        // Each item's lines, split off in the order they lie.
+        let mut rest = &mut self.lines[..];
+        let mut node_slices = Vec::with_capacity(nodes.len());
+        let mut leaf_slices = Vec::with_capacity(pending.len());
+        for item in &items {
+            let len = match *item {
+                Item::Node(_) => NODE_LINES,
+                Item::Leaf(p) => LEAF_LINES * blocks_of(p),
+            };
+            let (mine, others) = std::mem::take(&mut rest).split_at_mut(len);
+            match *item {
+                Item::Node(n) => node_slices.push((n, mine)),
+                Item::Leaf(p) => leaf_slices.push((p, mine)),
+            }
             rest = others;
         }
-        let of = |i: usize| prims.order[binary[i].prims()].iter().map(|&p| &prims.prims[p as usize]);
+        let of = |p: usize| {
+            let i = pending[p].2;
+            prims.order[binary[i].prims()].iter().map(|&q| &prims.prims[q as usize])
+        };
         // Each leaf's blocks used and spheres.
-        let packed: Vec<(usize, u32)> =
-            leaves.par_iter().zip(slices.into_par_iter()).map(|(&i, blocks)| pack(blocks, of(i))).collect();
+        let packed: Vec<(usize, usize, u32)> = leaf_slices
+            .into_par_iter()
+            .map(|(p, lines)| {
+                let blocks: &mut [Leaf4] = bytemuck::cast_slice_mut(lines);
+                blocks.fill(Leaf4::EMPTY);
+                let (used, spheres) = pack(blocks, of(p));
+                (p, used, spheres)
+            })
+            .collect();
+        let mut children = vec![Child::EMPTY; pending.len()];
+        for &(p, used, _) in &packed {
+            children[p] = Child::leaf(leaf_line[p], used as u32);
+        }
+        for (n, lines) in node_slices {
+            let mut node = nodes[n];
+            for c in node.children.iter_mut().filter(|c| **c != Child::EMPTY) {
+                *c = Child::inner(node_line[c.0 as usize]);
+            }
+            for p in leaves_of[n].clone() {
+                node.children[pending[p].1] = children[p];
+            }
+            bytemuck::cast_slice_mut::<Line, Node8>(lines)[0] = node;
+        }
+        self.block_count = packed.iter().map(|&(_, used, _)| used).sum();
         // Spheres (rare) go to their own array, leaf by leaf.
-        let mut children = Vec::with_capacity(leaves.len());
-        for ((&i, &first), &(used, spheres)) in leaves.iter().zip(&starts).zip(&packed) {
-            children.push(Child::leaf(first as u32, used as u32));
+        for &(p, _, spheres) in &packed {
             if spheres > 0 {
-                self.leaves[first].spheres_first = self.spheres.len() as u32;
-                for prim in of(i) {
+                let first = self.spheres.len() as u32;
+                self.blocks_mut(children[p])[0].spheres_first = first;
+                for prim in of(p) {
                     if let Prim::Sphere { center, radius, shape } = *prim {
                         self.spheres.push(SphereRef { center, radius, shape });
                     }
                 }
             }
         }
-        children
+        self.root = if nodes.is_empty() { children[0] } else { Child::inner(node_line[0]) };
+    }
+
+    /// Checks the layout: every line belongs to exactly one node or leaf block, and each node's
+    /// leaves follow it directly, in slot order. Returns the first violation found.
+    #[cfg(test)]
+    pub(super) fn check_layout(&self) -> Result<(), String> {
+        let mut owner = vec![false; self.lines.len()];
+        let mut claim = |start: usize, len: usize, what: &str| -> Result<(), String> {
+            let lines =
+                owner.get_mut(start..start + len).ok_or(format!("{what} at {start} runs past the array"))?;
+            if lines.iter().any(|&taken| taken) {
+                return Err(format!("{what} at {start} overlaps another"));
+            }
+            lines.fill(true);
+            Ok(())
+        };
+        if self.root == Child::EMPTY {
+            return Ok(());
+        }
+        let mut stack = vec![self.root];
+        while let Some(c) = stack.pop() {
+            if c.is_leaf() {
+                claim(c.index(), LEAF_LINES * c.blocks(), "leaf")?;
+                continue;
+            }
+            claim(c.0 as usize, NODE_LINES, "node")?;
+            let mut next = c.0 as usize + NODE_LINES;
+            for &child in self.node(c).children.iter().filter(|k| **k != Child::EMPTY) {
+                if child.is_leaf() {
+                    if child.index() != next {
+                        return Err(format!(
+                            "a leaf of the node at {} starts at {}, not {next}",
+                            c.0,
+                            child.index()
+                        ));
+                    }
+                    next += LEAF_LINES * child.blocks();
+                }
+                stack.push(child);
+            }
+        }
+        match owner.iter().position(|&taken| !taken) {
+            Some(line) => Err(format!("line {line} belongs to nothing")),
+            None => Ok(()),
+        }
+    }
+
+    /// Inner node `child`.
+    #[inline(always)]
+    fn node(&self, child: Child) -> &Node8 {
+        let at = child.0 as usize;
+        &bytemuck::cast_slice::<Line, Node8>(&self.lines[at..at + NODE_LINES])[0]
+    }
+
+    /// Leaf `child`'s blocks.
+    #[inline(always)]
+    fn blocks(&self, child: Child) -> &[Leaf4] {
+        let at = child.index();
+        bytemuck::cast_slice(&self.lines[at..at + LEAF_LINES * child.blocks()])
+    }
+
+    fn blocks_mut(&mut self, child: Child) -> &mut [Leaf4] {
+        let at = child.index();
+        bytemuck::cast_slice_mut(&mut self.lines[at..at + LEAF_LINES * child.blocks()])
     }
 
     /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
-    /// of largest area opened until there are eight. A node's inner children are stored side by
-    /// side, and so are its leaves, before any grandchild: what a ray visits next is near.
+    /// of largest area opened until there are eight. (Where the nodes go in memory is decided
+    /// after, by [`Self::lay_out`].)
     fn fill(
         &mut self,
         binary: &[Node],
@@ -361,7 +519,7 @@ impl Bvh8 {
     }
 
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
+        self.node_count
     }
 
     fn leaf_spheres(&self, leaf: &Leaf4) -> &[SphereRef] {
@@ -370,58 +528,61 @@ impl Bvh8 {
 
     /// Bytes of nodes, leaves and spheres, exactly.
     pub fn bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<Node8>()
-            + self.leaves.len() * std::mem::size_of::<Leaf4>()
-            + self.spheres.len() * std::mem::size_of::<SphereRef>()
+        self.lines.len() * std::mem::size_of::<Line>() + self.spheres.len() * std::mem::size_of::<SphereRef>()
     }
 
     /// Counts and sizes of the tree.
     pub fn stats(&self) -> WideStats {
-        let children: usize =
-            self.nodes.iter().map(|n| n.children.iter().filter(|c| **c != Child::EMPTY).count()).sum();
-        let triangles: usize = self.leaves.iter().map(|l| l.triangles as usize).sum();
-        let (sah_nodes, sah_leaves) = self.sah();
+        let walk = self.walk();
         WideStats {
-            nodes: self.nodes.len(),
-            leaves: self.leaves.len(),
-            mean_children: children as f64 / self.nodes.len().max(1) as f64,
-            mean_leaf_triangles: triangles as f64 / self.leaves.len().max(1) as f64,
+            nodes: self.node_count,
+            leaves: self.block_count,
+            mean_children: walk.children as f64 / self.node_count.max(1) as f64,
+            mean_leaf_triangles: walk.triangles as f64 / self.block_count.max(1) as f64,
             bytes: self.bytes(),
             depth: self.depth,
-            sah_nodes,
-            sah_leaves,
+            sah_nodes: walk.sah_nodes,
+            sah_leaves: walk.sah_leaves,
         }
     }
 
-    /// Embree's SAH of the tree: (inner node areas, leaf areas times blocks), over the root's.
-    fn sah(&self) -> (f64, f64) {
+    /// One walk over the tree: its children and triangles, and Embree's SAH of it (inner node
+    /// areas, and leaf areas times blocks, over the root's area).
+    fn walk(&self) -> Walk {
+        let mut walk = Walk { children: 0, triangles: 0, sah_nodes: 0.0, sah_leaves: 0.0 };
+        let count = |blocks: &[Leaf4]| blocks.iter().map(|b| b.triangles as usize).sum::<usize>();
         if self.root == Child::EMPTY || self.root.is_leaf() {
-            return (0.0, if self.root == Child::EMPTY { 0.0 } else { self.root.blocks() as f64 });
+            if self.root != Child::EMPTY {
+                walk.triangles = count(self.blocks(self.root));
+                walk.sah_leaves = self.root.blocks() as f64;
+            }
+            return walk;
         }
         let node_box = |n: &Node8| {
             (0..WIDTH)
                 .filter(|&s| n.children[s] != Child::EMPTY)
                 .fold(super::Aabb::EMPTY, |b, s| b.union(&n.child_box(s)))
         };
-        let root = (node_box(&self.nodes[self.root.0 as usize]).half_area() as f64).max(f64::MIN_POSITIVE);
-        let (mut nodes, mut leaves) = (0.0, 0.0);
-        let mut stack = vec![self.root.0 as usize];
-        while let Some(i) = stack.pop() {
-            let n = &self.nodes[i];
-            nodes += node_box(n).half_area() as f64;
+        let root = (node_box(self.node(self.root)).half_area() as f64).max(f64::MIN_POSITIVE);
+        let mut stack = vec![self.root];
+        while let Some(c) = stack.pop() {
+            let n = self.node(c);
+            walk.sah_nodes += node_box(n).half_area() as f64 / root;
             for slot in 0..WIDTH {
                 let c = n.children[slot];
                 if c == Child::EMPTY {
                     continue;
                 }
+                walk.children += 1;
                 if c.is_leaf() {
-                    leaves += n.child_box(slot).half_area() as f64 * c.blocks() as f64;
+                    walk.triangles += count(self.blocks(c));
+                    walk.sah_leaves += n.child_box(slot).half_area() as f64 * c.blocks() as f64 / root;
                 } else {
-                    stack.push(c.0 as usize);
+                    stack.push(c);
                 }
             }
         }
-        (nodes / root, leaves / root)
+        walk
     }
 
     /// The same tree traversed with kernels `isa` (for tests and benchmarks; `isa` exists
@@ -593,7 +754,7 @@ impl Bvh8 {
         loop {
             let child = current.child;
             if child.is_leaf() {
-                let blocks = &self.leaves[child.index()..child.index() + child.blocks()];
+                let blocks = self.blocks(child);
                 for leaf in blocks {
                     if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
                         t_max = t;
@@ -607,7 +768,7 @@ impl Bvh8 {
                     }
                 }
             } else {
-                let node = &self.nodes[child.0 as usize];
+                let node = self.node(child);
                 // Empty slots hold inverted boxes, so the mask never names them.
                 let (t_near, mut mask) = k.hit(&rb, node, t_max);
                 if mask != 0 {
@@ -657,11 +818,11 @@ impl Bvh8 {
     #[inline(always)]
     fn prefetch<K: BoxTest>(&self, k: K, child: Child) {
         if child.is_leaf() {
-            for leaf in self.leaves.iter().skip(child.index()).take(child.blocks()) {
+            for leaf in self.blocks(child) {
                 k.prefetch(leaf);
             }
-        } else if let Some(node) = self.nodes.get(child.0 as usize) {
-            k.prefetch(node);
+        } else {
+            k.prefetch(self.node(child));
         }
     }
 
@@ -687,7 +848,7 @@ impl Bvh8 {
         let mut current = self.root;
         loop {
             if current.is_leaf() {
-                let blocks = &self.leaves[current.index()..current.index() + current.blocks()];
+                let blocks = self.blocks(current);
                 if blocks.iter().any(|leaf| rt.hit(leaf, ray.t_max).is_some()) {
                     return true;
                 }
@@ -699,7 +860,7 @@ impl Bvh8 {
                     return true;
                 }
             } else {
-                let node = &self.nodes[current.0 as usize];
+                let node = self.node(current);
                 let (_, mut mask) = k.hit(&rb, node, ray.t_max);
                 while mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
