@@ -115,27 +115,45 @@ fn occluded_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray) -> bool {
     bvh.occluded_with(ray, k)
 }
 
+/// The slab arithmetic of both x86 kernels: each child's entry distance and its exit distance
+/// grown by Ize's factor, for the kernel's comparison.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn slab8(
+    _proof: Avx2,
+    rb: &RayBox8,
+    node: &Node8,
+    t_max: f32,
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    // SAFETY: `_proof` shows the CPU has AVX (`Avx2::detect`). The loads read whole rows of
+    // `node.bounds`, eight f32 each, in bounds; `loadu` needs no alignment.
+    unsafe {
+        let mut t_near = _mm256_setzero_ps();
+        let mut t_far = _mm256_set1_ps(t_max);
+        for axis in 0..3 {
+            let o = _mm256_set1_ps(rb.origin[axis]);
+            let inv = _mm256_set1_ps(rb.inv_dir[axis]);
+            let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
+            let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
+            // max and min return their second operand when one is NaN, as `wide`'s fast_max
+            // and fast_min do; none arises (finite 1/d, see RayBox8::new).
+            t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
+            t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
+        }
+        (t_near, _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE)))
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 impl BoxTest for Avx2 {
     #[inline(always)]
     fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: `self` proves the CPU has AVX (`Avx2::detect`). The loads read whole rows
-        // of `node.bounds`, eight f32 each, in bounds; `loadu` needs no alignment.
+        let (t_near, far) = slab8(self, rb, node, t_max);
+        // SAFETY: `self` proves the CPU has AVX (`Avx2::detect`); the store writes the eight
+        // f32 of `out`.
         unsafe {
-            let mut t_near = _mm256_setzero_ps();
-            let mut t_far = _mm256_set1_ps(t_max);
-            for axis in 0..3 {
-                let o = _mm256_set1_ps(rb.origin[axis]);
-                let inv = _mm256_set1_ps(rb.inv_dir[axis]);
-                let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
-                let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
-                // max and min return their second operand when one is NaN, as `wide`'s
-                // fast_max and fast_min do; none arises (finite 1/d, see RayBox8::new).
-                t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
-                t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
-            }
-            let far = _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE));
             let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, far)) as u32;
             let mut out = [0.0f32; 8];
             _mm256_storeu_ps(out.as_mut_ptr(), t_near);
@@ -205,21 +223,10 @@ impl BoxTest for Avx512 {
     #[inline(always)]
     fn hit(self, rb: &RayBox8, node: &Node8, t_max: f32) -> ([f32; 8], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: `self` proves the CPU has AVX, AVX-512 F and VL (`Avx512::detect`). The
-        // loads read whole rows of `node.bounds`, eight f32 each, in bounds; `loadu` needs no
-        // alignment.
+        let (t_near, far) = slab8(self.avx2, rb, node, t_max);
+        // SAFETY: `self` proves the CPU has AVX, AVX-512 F and VL (`Avx512::detect`); the
+        // store writes the eight f32 of `out`.
         unsafe {
-            let mut t_near = _mm256_setzero_ps();
-            let mut t_far = _mm256_set1_ps(t_max);
-            for axis in 0..3 {
-                let o = _mm256_set1_ps(rb.origin[axis]);
-                let inv = _mm256_set1_ps(rb.inv_dir[axis]);
-                let lo = _mm256_loadu_ps(node.bounds[rb.near[axis]].as_ptr());
-                let hi = _mm256_loadu_ps(node.bounds[rb.far[axis]].as_ptr());
-                t_near = _mm256_max_ps(t_near, _mm256_mul_ps(_mm256_sub_ps(lo, o), inv));
-                t_far = _mm256_min_ps(t_far, _mm256_mul_ps(_mm256_sub_ps(hi, o), inv));
-            }
-            let far = _mm256_mul_ps(t_far, _mm256_set1_ps(FAR_SCALE));
             let mask = u32::from(_mm256_cmp_ps_mask::<_CMP_LE_OQ>(t_near, far));
             let mut out = [0.0f32; 8];
             _mm256_storeu_ps(out.as_mut_ptr(), t_near);
