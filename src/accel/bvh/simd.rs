@@ -323,54 +323,53 @@ mod tests {
     /// Kernel `kernel` against the portable one, on random boxes (some empty, some thin, some
     /// behind the ray) and random rays, including rays with zero direction components and rays
     /// starting on a box's planes.
+    #[cfg(target_arch = "x86_64")]
     fn equals_the_portable_box_test(kernel: impl BoxTest + std::fmt::Debug) {
-        {
-            let mut rng = Sampler::new(7, 1, 0);
-            let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
-            let mut checked = 0;
-            for case in 0..20_000 {
-                let mut node = Node8::EMPTY;
-                for slot in 0..8 {
-                    if (case + slot) % 5 == 0 {
-                        continue; // an empty slot: its inverted box stays
-                    }
-                    let thin = (case + slot) % 7 == 0;
-                    for a in 0..3 {
-                        let lo = f(10.0);
-                        let extent = if thin && a == 1 { 0.0 } else { f(4.0).abs() };
-                        node.bounds[a][slot] = lo;
-                        node.bounds[3 + a][slot] = lo + extent;
-                    }
+        let mut rng = Sampler::new(7, 1, 0);
+        let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
+        let mut checked = 0;
+        for case in 0..20_000 {
+            let mut node = Node8::EMPTY;
+            for slot in 0..8 {
+                if (case + slot) % 5 == 0 {
+                    continue; // an empty slot: its inverted box stays
                 }
-                let mut origin = glam::Vec3::new(f(12.0), f(12.0), f(12.0));
-                if case % 11 == 0 {
-                    origin.x = node.bounds[0][1]; // on a plane
+                let thin = (case + slot) % 7 == 0;
+                for a in 0..3 {
+                    let lo = f(10.0);
+                    let extent = if thin && a == 1 { 0.0 } else { f(4.0).abs() };
+                    node.bounds[a][slot] = lo;
+                    node.bounds[3 + a][slot] = lo + extent;
                 }
-                // Aimed near the centre of one slot's box, so most boxes are met or just missed.
-                let slot = case % 8;
-                let centre = glam::Vec3::from_array(std::array::from_fn(|a| {
-                    0.5 * (node.bounds[a][slot] + node.bounds[3 + a][slot])
-                }));
-                let aim = if centre.is_finite() { centre } else { glam::Vec3::ZERO };
-                let mut dir = aim - origin + glam::Vec3::new(f(1.0), f(1.0), f(1.0));
-                if case % 13 == 0 {
-                    dir.y = 0.0;
-                }
-                let t_max = if case % 3 == 0 { f32::INFINITY } else { f(20.0).abs() };
-                let ray = Ray { origin, dir, t_max };
-                let rb = RayBox8::new(&ray);
-                let (tp, mp) = Portable.hit(&rb, &node, t_max);
-                let (ta, ma) = kernel.hit(&rb, &node, t_max);
-                assert_eq!(mp, ma, "{kernel:?}: masks differ for {ray:?}");
-                for s in 0..8 {
-                    if mp & (1 << s) != 0 {
-                        assert_eq!(tp[s].to_bits(), ta[s].to_bits(), "slot {s} of {ray:?}");
-                    }
-                }
-                checked += mp.count_ones();
             }
-            // Enough boxes were hit for the comparison of distances to mean something.
-            assert!(checked > 8_000, "only {checked} boxes hit");
+            let mut origin = glam::Vec3::new(f(12.0), f(12.0), f(12.0));
+            if case % 11 == 0 {
+                origin.x = node.bounds[0][1]; // on a plane
+            }
+            // Aimed near the centre of one slot's box, so most boxes are met or just missed.
+            let slot = case % 8;
+            let centre = glam::Vec3::from_array(std::array::from_fn(|a| {
+                0.5 * (node.bounds[a][slot] + node.bounds[3 + a][slot])
+            }));
+            let aim = if centre.is_finite() { centre } else { glam::Vec3::ZERO };
+            let mut dir = aim - origin + glam::Vec3::new(f(1.0), f(1.0), f(1.0));
+            if case % 13 == 0 {
+                dir.y = 0.0;
+            }
+            let t_max = if case % 3 == 0 { f32::INFINITY } else { f(20.0).abs() };
+            let ray = Ray { origin, dir, t_max };
+            let rb = RayBox8::new(&ray);
+            let (tp, mp) = Portable.hit(&rb, &node, t_max);
+            let (ta, ma) = kernel.hit(&rb, &node, t_max);
+            assert_eq!(mp, ma, "{kernel:?}: masks differ for {ray:?}");
+            for s in 0..8 {
+                if mp & (1 << s) != 0 {
+                    assert_eq!(tp[s].to_bits(), ta[s].to_bits(), "slot {s} of {ray:?}");
+                }
+            }
+            checked += mp.count_ones();
         }
+        // Enough boxes were hit for the comparison of distances to mean something.
+        assert!(checked > 8_000, "only {checked} boxes hit");
     }
 }

@@ -74,7 +74,8 @@ pub struct Leaf4 {
     triangles: u32,
     spheres_first: u32,
     spheres_count: u32,
-    /// To three cache lines, spelled out (the leaves live in [`Pages`], plain data).
+    /// To three cache lines, spelled out (blocks are cast from the tree's [`Line`]s, plain
+    /// data).
     _pad: u32,
 }
 
@@ -138,7 +139,7 @@ pub struct Node8 {
     /// min x, min y, min z, max x, max y, max z of the eight children.
     pub bounds: [[f32; WIDTH]; 6],
     children: [Child; WIDTH],
-    /// To four cache lines, spelled out (the nodes live in [`Pages`], plain data).
+    /// To four cache lines, spelled out (nodes are cast from the tree's [`Line`]s, plain data).
     _pad: [u32; 8],
 }
 
@@ -311,25 +312,25 @@ impl Bvh8 {
         }
         // A leaf gets blocks for all its primitives (spheres, rare, leave some unused).
         let blocks_of = |p: usize| binary[pending[p].2].count.div_ceil(4).max(1) as usize;
-        // Where each node and each leaf starts, in lines, and the order they are met in.
+        // Where each node and each leaf starts, in lines, and the order they are met in, each
+        // with its length in lines.
         let (mut node_line, mut leaf_line) = (vec![0u32; nodes.len()], vec![0u32; pending.len()]);
         let mut items = Vec::with_capacity(nodes.len() + pending.len());
         let mut cursor = 0usize;
         let mut stack = Vec::new();
         if nodes.is_empty() {
-            leaf_line[0] = 0;
-            items.push(Item::Leaf(0));
-            cursor = LEAF_LINES * blocks_of(0);
+            items.push((Item::Leaf(0), LEAF_LINES * blocks_of(0)));
+            cursor = items[0].1;
         } else {
             stack.push(0);
         }
         while let Some(n) = stack.pop() {
             node_line[n] = cursor as u32;
-            items.push(Item::Node(n));
+            items.push((Item::Node(n), NODE_LINES));
             cursor += NODE_LINES;
             for p in leaves_of[n].clone() {
                 leaf_line[p] = cursor as u32;
-                items.push(Item::Leaf(p));
+                items.push((Item::Leaf(p), LEAF_LINES * blocks_of(p)));
                 cursor += LEAF_LINES * blocks_of(p);
             }
             // Inner children in slot order: pushed in reverse, popped first to last.
@@ -344,13 +345,9 @@ impl Bvh8 {
         let mut rest = &mut self.lines[..];
         let mut node_slices = Vec::with_capacity(nodes.len());
         let mut leaf_slices = Vec::with_capacity(pending.len());
-        for item in &items {
-            let len = match *item {
-                Item::Node(_) => NODE_LINES,
-                Item::Leaf(p) => LEAF_LINES * blocks_of(p),
-            };
+        for &(item, len) in &items {
             let (mine, others) = std::mem::take(&mut rest).split_at_mut(len);
-            match *item {
+            match item {
                 Item::Node(n) => node_slices.push((n, mine)),
                 Item::Leaf(p) => leaf_slices.push((p, mine)),
             }
