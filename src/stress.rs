@@ -596,6 +596,7 @@ fn add_mesh(scene: &mut Scene, name: &str, triangles: &[[Vec3; 3]], emission: Ve
             normals: None,
             uvs: None,
             instance: None,
+            world: None,
         }),
         material,
         emission,

@@ -8,7 +8,7 @@
 //!
 //! [`Features`]: super::features::Features
 
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
@@ -17,6 +17,7 @@ use super::sampler::{Dim, Sampler};
 use super::surface::{apply_height, apply_normal_map, surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
+use crate::scene::texture::Texture;
 use crate::scene::{Scene, Shape};
 
 /// What the integrator reads for every path: the scene, its accelerator and its lights. `F` is
@@ -388,27 +389,39 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
         let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
         let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
+        // Where a solid texture is read (in f64, exact on planes the scene file makes exact);
+        // an image texture reads only `s.uv`.
+        let point = |t: &Texture| match t.is_solid() {
+            true => scene.solid_point(&shape.geometry, s.prim, s.bary, s.p),
+            false => DVec3::ZERO,
+        };
         if let Some((t, height)) = maps.bump {
-            ns = scene.textures[t as usize].bump(height, s.p, s.uv, ns, ng);
+            let texture = &scene.textures[t as usize];
+            ns = texture.bump(height, point(texture), s.uv, ns, ng);
         }
         if let Some((t, scale)) = maps.height {
             // Central differences of the height, half a texel (at most 1/1024) either side: the
             // bilinear lookup is linear within a texel, so this is the local slope.
             let texture = &scene.textures[t as usize];
             let d = texture.texel().min(1.0 / 1024.0);
-            let h = |du: f32, dv: f32| scale * texture.scalar(s.p, s.uv + Vec2::new(du, dv));
+            let p = point(texture);
+            let h = |du: f32, dv: f32| scale * texture.scalar(p, s.uv + Vec2::new(du, dv));
             let (dhdu, dhdv) = ((h(d, 0.0) - h(-d, 0.0)) / (2.0 * d), (h(0.0, d) - h(0.0, -d)) / (2.0 * d));
             let bent = apply_height(ns, s.dpdu, s.dpdv, dhdu, dhdv);
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         if let Some((t, scale)) = maps.normal {
-            let c = scene.textures[t as usize].color(s.p, s.uv) * 2.0 - Vec3::ONE;
+            let texture = &scene.textures[t as usize];
+            let c = texture.color(point(texture), s.uv) * 2.0 - Vec3::ONE;
             let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
             // A normal bent below the surface would reflect from under it: kept above.
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         let textured = |constant: Vec3| match maps.color {
-            Some(t) => scene.textures[t as usize].color(s.p, s.uv),
+            Some(t) => {
+                let texture = &scene.textures[t as usize];
+                texture.color(point(texture), s.uv)
+            }
             None => constant,
         };
         // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
@@ -418,7 +431,8 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let material = &scene.materials[shape.material as usize];
         let metal_rough = |metallic: f32, roughness: f32| match maps.metal_rough {
             Some(t) => {
-                let c = scene.textures[t as usize].color(s.p, s.uv);
+                let texture = &scene.textures[t as usize];
+                let c = texture.color(point(texture), s.uv);
                 (metallic * c.z, roughness * c.y)
             }
             None => (metallic, roughness),

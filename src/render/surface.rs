@@ -26,6 +26,9 @@ pub struct Surface {
     /// normal map (zero elsewhere).
     pub dpdu: Vec3,
     pub dpdv: Vec3,
+    /// The hit's primitive and barycentrics, for [`Scene::solid_point`].
+    pub prim: u32,
+    pub bary: (f32, f32),
 }
 
 impl Surface {
@@ -160,6 +163,8 @@ fn surface_from(
                 magnitude: sphere_magnitude(*center, *radius),
                 dpdu: Vec3::ZERO,
                 dpdv: Vec3::ZERO,
+                prim: hit.prim,
+                bary: (hit.u, hit.v),
             }
         }
         Geometry::Triangles(mesh) => {
@@ -201,7 +206,7 @@ fn surface_from(
                 }
                 _ => (Vec3::ZERO, Vec3::ZERO),
             };
-            Surface { p, ng, ns, uv, magnitude, dpdu, dpdv }
+            Surface { p, ng, ns, uv, magnitude, dpdu, dpdv, prim: hit.prim, bary: (u, v) }
         }
     }
 }

@@ -602,6 +602,7 @@ fn part_mesh(primitive: &Primitive, part: &Part, at: &Placement) -> Mesh {
                 normals: primitive.normals.clone(),
                 uvs: primitive.uvs.clone(),
                 instance: Some(Box::new(instance)),
+                world: None,
             };
         }
     }
@@ -622,6 +623,7 @@ fn part_mesh(primitive: &Primitive, part: &Part, at: &Placement) -> Mesh {
         }),
         uvs: primitive.uvs.clone(),
         instance: None,
+        world: None,
     }
 }
 

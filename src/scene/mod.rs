@@ -20,7 +20,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
+use glam::{Affine3A, DVec3, Mat3A, Vec2, Vec3, Vec3A};
 
 pub use file::{FilterSection, KernelSpec};
 
@@ -121,6 +121,10 @@ pub struct Mesh {
     /// accelerators trace the mesh once, in its own coordinates (Embree instances, the BVH's
     /// second level); [`Mesh::triangle`] gives the placed corners.
     pub instance: Option<Box<Instance>>,
+    /// The vertices in the scene file's own coordinates (f64, not camera-relative), kept only
+    /// where the mesh's material reads a solid texture: [`Scene::solid_point`] interpolates them,
+    /// so a plane that lies on a checker's cell boundary reads the same cell in every sample.
+    pub world: Option<Arc<[DVec3]>>,
 }
 
 /// Where a shared mesh is placed: an affine map from its own coordinates into the scene's that
@@ -181,7 +185,7 @@ impl Mesh {
         normals: Option<Arc<[Vec3]>>,
         uvs: Option<Arc<[Vec2]>>,
     ) -> Mesh {
-        Mesh { positions, indices, normals, uvs, instance: None }
+        Mesh { positions, indices, normals, uvs, instance: None, world: None }
     }
 
     /// The three corners of triangle `prim`, placed in the scene.
@@ -367,10 +371,43 @@ pub struct Maps {
     pub height: Option<(u32, f32)>,
 }
 
+impl Maps {
+    /// Whether these maps read a solid texture of `textures` (as the colour or the bump).
+    pub fn read_solid(&self, textures: &[texture::Texture]) -> bool {
+        [self.color, self.bump.map(|(t, _)| t)]
+            .into_iter()
+            .flatten()
+            .any(|t| textures.get(t as usize).is_some_and(texture::Texture::is_solid))
+    }
+}
+
 impl Scene {
     /// The textures material `m` reads.
     pub fn maps(&self, m: u32) -> Maps {
         self.maps.get(m as usize).copied().unwrap_or_default()
+    }
+
+    /// Whether material `m` reads a solid texture (its colour or its bump): its meshes keep
+    /// their vertices in f64 ([`Mesh::world`]).
+    pub fn reads_solid_texture(&self, m: u32) -> bool {
+        self.maps(m).read_solid(&self.textures)
+    }
+
+    /// The point at which a solid texture is read: on a mesh that keeps its vertices in f64,
+    /// triangle `prim` at barycentrics `(u, v)` as `a + u (b - a) + v (c - a)` in the scene
+    /// file's coordinates, so a point is exact where the geometry is (on a plane at y = 0, y is
+    /// 0 in every sample, not a rounding error either side of a cell boundary); elsewhere the
+    /// camera-relative point `p` plus the scene's origin.
+    pub fn solid_point(&self, geometry: &Geometry, prim: u32, (u, v): (f32, f32), p: Vec3) -> DVec3 {
+        if let Geometry::Triangles(Mesh { world: Some(world), indices, .. }) = geometry {
+            if let Some(&[ia, ib, ic]) = indices.get(prim as usize) {
+                let at = |i: u32| world.get(i as usize).copied();
+                if let (Some(a), Some(b), Some(c)) = (at(ia), at(ib), at(ic)) {
+                    return a + (b - a) * u as f64 + (c - a) * v as f64;
+                }
+            }
+        }
+        self.origin + p.as_dvec3()
     }
 }
 

@@ -30,7 +30,14 @@ pub fn terrain(resolution: u32, size: f32, height: f32, seed: u32) -> Mesh {
             [[a, d, e], [a, e, b]]
         })
         .collect();
-    Mesh { positions: positions.into(), indices: indices.into(), normals: None, uvs: None, instance: None }
+    Mesh {
+        positions: positions.into(),
+        indices: indices.into(),
+        normals: None,
+        uvs: None,
+        instance: None,
+        world: None,
+    }
 }
 
 #[cfg(test)]

@@ -117,6 +117,7 @@ pub fn teapot(n: u32) -> Mesh {
         normals: Some(normals.into()),
         uvs: None,
         instance: None,
+        world: None,
     }
 }
 

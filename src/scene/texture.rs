@@ -34,9 +34,6 @@ pub enum Texture {
         a: Vec3,
         b: Vec3,
         size: f32,
-        /// The scene's origin ([`Scene::origin`](super::Scene::origin)): a solid pattern is
-        /// fixed in the world, read at the origin plus the (camera-relative) point.
-        origin: DVec3,
     },
     /// A solid noise pattern at `frequency` features a unit, blending `a` (at 0) to `b` (at 1).
     Noise {
@@ -46,8 +43,6 @@ pub enum Texture {
         frequency: f32,
         octaves: u32,
         seed: u32,
-        /// As a checker's.
-        origin: DVec3,
     },
     /// An image (linear RGB, top row first) over the unit square of (u, v), repeated `repeat`
     /// times in each direction; v = 0 is the image's bottom row.
@@ -70,7 +65,6 @@ fn turbulence(seed: u32, p: Vec3, octaves: u32) -> f32 {
 }
 
 impl Texture {
-    /// The scalar in [0, 1] of a pattern texture at `p`, or the luminance of a colour.
     /// Half the size of a texel in texture coordinates (an image's; 1 for anything else).
     pub fn texel(&self) -> f32 {
         match self {
@@ -81,14 +75,20 @@ impl Texture {
         }
     }
 
-    pub fn scalar(&self, p: Vec3, uv: Vec2) -> f32 {
+    /// The scalar in [0, 1] of a pattern texture at `p`, or the luminance of a colour.
+    ///
+    /// `p` is the point in the scene file's own coordinates (f64, not camera-relative): a solid
+    /// pattern is fixed in the world, and a point exact where the geometry is exact (see
+    /// [`Scene::solid_point`](super::Scene::solid_point)) picks the same cell for every sample
+    /// of a plane on a cell boundary.
+    pub fn scalar(&self, p: DVec3, uv: Vec2) -> f32 {
         match self {
-            Texture::Checker { size, origin, .. } => {
-                let c = ((*origin + p.as_dvec3()) / size.max(1e-12) as f64).floor();
+            Texture::Checker { size, .. } => {
+                let c = (p / size.max(1e-12) as f64).floor();
                 ((c.x + c.y + c.z) as i64).rem_euclid(2) as f32
             }
-            Texture::Noise { pattern, frequency, octaves, seed, origin, .. } => {
-                let q = ((*origin + p.as_dvec3()) * *frequency as f64).as_vec3();
+            Texture::Noise { pattern, frequency, octaves, seed, .. } => {
+                let q = (p * *frequency as f64).as_vec3();
                 let t = match pattern {
                     Pattern::Perlin => 0.5 + 0.5 * perlin(*seed, q),
                     Pattern::Fbm => 0.5 + 0.5 * fbm(*seed, q, *octaves, 0.5),
@@ -101,8 +101,9 @@ impl Texture {
         }
     }
 
-    /// The colour at point `p` with surface parameters `uv`.
-    pub fn color(&self, p: Vec3, uv: Vec2) -> Vec3 {
+    /// The colour at point `p` (in the scene file's coordinates, as for [`Texture::scalar`])
+    /// with surface parameters `uv`.
+    pub fn color(&self, p: DVec3, uv: Vec2) -> Vec3 {
         match self {
             Texture::Constant(c) => *c,
             Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. } => a.lerp(*b, self.scalar(p, uv)),
@@ -129,15 +130,15 @@ impl Texture {
     /// The normal `n` bent by this texture read as a height field of amplitude `height` along
     /// the normal (Blinn 1978): the height's gradient in the tangent plane tilts the normal.
     /// The result is unit length and kept on the side of the geometric normal `ng`.
-    pub fn bump(&self, height: f32, p: Vec3, uv: Vec2, n: Vec3, ng: Vec3) -> Vec3 {
+    pub fn bump(&self, height: f32, p: DVec3, uv: Vec2, n: Vec3, ng: Vec3) -> Vec3 {
         let d = self.step();
-        let h = |q: Vec3| self.scalar(q, uv);
+        let h = |q: DVec3| self.scalar(q, uv);
         // Only the gradient along the surface bends the normal: forward differences along two
         // tangents, three lookups.
         let frame = Frame::new(n);
         let h0 = h(p);
-        let tangential =
-            (frame.s * (h(p + frame.s * d) - h0) + frame.t * (h(p + frame.t * d) - h0)) * (height / d);
+        let step = |t: Vec3| h(p + (t * d).as_dvec3()) - h0;
+        let tangential = (frame.s * step(frame.s) + frame.t * step(frame.t)) * (height / d);
         let bent = (n - tangential).normalize_or(n);
         // A steep bump must not turn the shading normal below the surface.
         if bent.dot(ng) > 0.05 {
@@ -171,15 +172,7 @@ mod tests {
     use super::*;
 
     fn noise(pattern: Pattern) -> Texture {
-        Texture::Noise {
-            pattern,
-            a: Vec3::ZERO,
-            b: Vec3::ONE,
-            frequency: 3.0,
-            octaves: 5,
-            seed: 4,
-            origin: DVec3::ZERO,
-        }
+        Texture::Noise { pattern, a: Vec3::ZERO, b: Vec3::ONE, frequency: 3.0, octaves: 5, seed: 4 }
     }
 
     #[test]
@@ -188,7 +181,7 @@ mod tests {
             let t = noise(pattern);
             let (mut lo, mut hi) = (1.0f32, 0.0f32);
             for i in 0..5000 {
-                let p = Vec3::new(i as f32 * 0.0731, (i % 71) as f32 * 0.113, (i % 17) as f32 * 0.29);
+                let p = DVec3::new(i as f64 * 0.0731, (i % 71) as f64 * 0.113, (i % 17) as f64 * 0.29);
                 let s = t.scalar(p, Vec2::ZERO);
                 assert_eq!(s, t.scalar(p, Vec2::ZERO));
                 assert!((0.0..=1.0).contains(&s), "{pattern:?}: {s}");
@@ -204,7 +197,7 @@ mod tests {
         let t = noise(Pattern::Turbulence);
         let mut tilted = 0;
         for i in 0..2000 {
-            let p = Vec3::new(i as f32 * 0.013, 0.0, (i % 37) as f32 * 0.021);
+            let p = DVec3::new(i as f64 * 0.013, 0.0, (i % 37) as f64 * 0.021);
             // A shading normal a little off the geometric one, as on a smooth mesh.
             let ng = Vec3::Y;
             let n = Vec3::new(0.1 * ((i % 7) as f32 - 3.0) / 3.0, 1.0, 0.0).normalize();
@@ -217,7 +210,7 @@ mod tests {
         }
         assert!(tilted > 1000, "the bump hardly bends anything ({tilted})");
         // A constant texture has no gradient: the normal is unchanged.
-        let flat = Texture::Constant(Vec3::ONE).bump(1.0, Vec3::ONE, Vec2::ZERO, Vec3::Y, Vec3::Y);
+        let flat = Texture::Constant(Vec3::ONE).bump(1.0, DVec3::ONE, Vec2::ZERO, Vec3::Y, Vec3::Y);
         assert_eq!(flat, Vec3::Y);
     }
 
@@ -228,8 +221,8 @@ mod tests {
         img.set(0, 1, Vec3::new(0.0, 1.0, 0.0)); // bottom left
         let t = Texture::Image { image: Arc::new(img), repeat: Vec2::ONE };
         // Pixel centres: (0.25, 0.75) is the top-left pixel, (0.25, 0.25) the bottom-left.
-        assert_eq!(t.color(Vec3::ZERO, Vec2::new(0.25, 0.75)), Vec3::new(1.0, 0.0, 0.0));
-        assert_eq!(t.color(Vec3::ZERO, Vec2::new(0.25, 0.25)), Vec3::new(0.0, 1.0, 0.0));
-        assert_eq!(t.color(Vec3::ZERO, Vec2::new(1.25, -0.75)), Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.75)), Vec3::new(1.0, 0.0, 0.0));
+        assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.25)), Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(t.color(DVec3::ZERO, Vec2::new(1.25, -0.75)), Vec3::new(0.0, 1.0, 0.0));
     }
 }

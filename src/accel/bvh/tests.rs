@@ -43,6 +43,7 @@ pub(super) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
         normals: None,
         uvs: None,
         instance: None,
+        world: None,
     })
 }
 

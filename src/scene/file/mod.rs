@@ -195,6 +195,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         material::materials(&ctx, &materials, &textures, &texture_ids)?;
     let mut builder = shape::Builder::default();
     builder.textures_before = textures.len() as u32;
+    builder.solid = maps.iter().map(|m| m.read_solid(&textures)).collect();
     for s in &shapes {
         shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
     }

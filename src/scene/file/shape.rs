@@ -142,6 +142,9 @@ pub(super) struct Builder {
     pub lights: Vec<crate::scene::Light>,
     /// What the user should know of how glTF shapes were read.
     pub notes: Vec<String>,
+    /// By the scene file's material index, whether it reads a solid texture (its meshes keep
+    /// their vertices in f64, [`Mesh::world`]).
+    pub solid: Vec<bool>,
 }
 
 impl Builder {
@@ -183,9 +186,22 @@ impl Transform {
         }
     }
 
+    /// A point of the shape in the scene file's coordinates.
+    fn world(&self, p: DVec3) -> DVec3 {
+        self.linear * p + self.translate
+    }
+
     /// A point of the shape, relative to the scene's origin.
     fn point(&self, p: DVec3) -> Vec3 {
-        (self.linear * p + self.translate - self.origin).as_vec3()
+        (self.world(p) - self.origin).as_vec3()
+    }
+
+    /// Placed vertices, relative to the scene's origin, and in the scene file's coordinates
+    /// too where `solid` (the material reads a solid texture; see [`Mesh::world`]).
+    fn vertices(&self, p: &[DVec3], solid: bool) -> (Arc<[Vec3A]>, Option<Arc<[DVec3]>>) {
+        let world: Vec<DVec3> = p.iter().map(|&q| self.world(q)).collect();
+        let relative = world.iter().map(|&q| Vec3A::from((q - self.origin).as_vec3())).collect();
+        (relative, solid.then(|| world.into()))
     }
 
     /// Normals under the transform (by the inverse transpose of the linear part).
@@ -228,6 +244,7 @@ pub(super) fn add(
         },
         None => None,
     };
+    let solid = material.is_some_and(|m| out.solid.get(m as usize).copied().unwrap_or(false));
     let default_material = |materials: &mut Vec<Material>| -> u32 {
         materials.push(Material::Diffuse { albedo: Vec3::splat(0.8) });
         (materials.len() - 1) as u32
@@ -249,8 +266,8 @@ pub(super) fn add(
             if v.len() != 4 {
                 return ctx.err(span, format!("a quad needs 4 `vertices`, not {}", v.len()));
             }
-            let p: Vec<Vec3> = v.iter().map(|&p| transform.point(dv3(p))).collect();
-            let mut quad = mesh(&p, &[[0, 1, 2], [0, 2, 3]]);
+            let p: Vec<DVec3> = v.iter().map(|&p| dv3(p)).collect();
+            let mut quad = mesh(transform.vertices(&p, solid), &[[0, 1, 2], [0, 2, 3]]);
             // An image's bottom left, bottom right, top right and top left.
             quad.uvs = Some([Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y].into());
             Geometry::Triangles(quad)
@@ -261,8 +278,7 @@ pub(super) fn add(
                 return ctx.err(span, "a box's `min` must be below its `max` on every axis");
             }
             let (p, i) = box_mesh(lo, hi);
-            let p: Vec<Vec3> = p.iter().map(|&q| transform.point(q)).collect();
-            Geometry::Triangles(mesh(&p, &i))
+            Geometry::Triangles(mesh(transform.vertices(&p, solid), &i))
         }
         ShapeKind::Mesh(MeshFile { file }) => {
             let line = Some(line_of(ctx.text, span.start));
@@ -358,18 +374,21 @@ pub(super) fn add(
                 } else {
                     part.material.as_ref().map_or(Vec3::ZERO, |m| m.emission)
                 };
-                let positions: Vec<Vec3> = part.positions.iter().map(|&p| transform.point(p)).collect();
+                // (A mesh file's own materials read no solid texture: `solid` is the scene
+                // file's material's.)
+                let (positions, world) = transform.vertices(&part.positions, solid);
                 let normals = part.normals.map(|n| transform.normals(&n));
                 let object_name = c.object.clone().unwrap_or_else(|| format!("{name}/{}", part.name));
                 let object = out.object(&object_name);
                 out.shapes.push(Shape {
                     name: format!("{name}/{}", part.name),
                     geometry: Geometry::Triangles(Mesh {
-                        positions: positions.iter().map(|&p| Vec3A::from(p)).collect(),
+                        positions,
                         indices: part.indices.into(),
                         normals,
                         uvs: part.uvs.map(Into::into),
                         instance: None,
+                        world,
                     }),
                     material: part_material,
                     emission: part_emission,
@@ -431,8 +450,8 @@ pub(super) fn add(
             }
             let height = t.height.map_or(1.0, |v| v.0);
             let mut mesh = procedural::terrain(resolution, size, height, t.seed.unwrap_or(0));
-            mesh.positions =
-                mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.as_dvec3()))).collect();
+            let p: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+            (mesh.positions, mesh.world) = transform.vertices(&p, solid);
             Geometry::Triangles(mesh)
         }
         ShapeKind::Teapot(t) => {
@@ -447,8 +466,8 @@ pub(super) fn add(
                 None => 8,
             };
             let mut mesh = teapot::teapot(resolution);
-            mesh.positions =
-                mesh.positions.iter().map(|&p| Vec3A::from(transform.point(p.as_dvec3()))).collect();
+            let p: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+            (mesh.positions, mesh.world) = transform.vertices(&p, solid);
             mesh.normals = mesh.normals.map(|n| transform.normals(&n));
             Geometry::Triangles(mesh)
         }
@@ -459,14 +478,8 @@ pub(super) fn add(
     Ok(())
 }
 
-fn mesh(p: &[Vec3], indices: &[[u32; 3]]) -> Mesh {
-    Mesh {
-        positions: p.iter().map(|&q| Vec3A::from(q)).collect(),
-        indices: indices.into(),
-        normals: None,
-        uvs: None,
-        instance: None,
-    }
+fn mesh((positions, world): (Arc<[Vec3A]>, Option<Arc<[DVec3]>>), indices: &[[u32; 3]]) -> Mesh {
+    Mesh { positions, indices: indices.into(), normals: None, uvs: None, instance: None, world }
 }
 
 /// An axis-aligned box as 12 triangles wound counter-clockwise seen from outside.

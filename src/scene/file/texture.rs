@@ -148,7 +148,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             if size <= 0.0 {
                 return ctx.err(span, "a checker's `size` must be positive");
             }
-            return Ok(Texture::Checker { a, b, size, origin: ctx.origin });
+            return Ok(Texture::Checker { a, b, size });
         }
         TextureKind::Image(i) => {
             let image = colour_image(&dir.join(&i.file))
@@ -173,15 +173,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
     if !(1..=16).contains(&octaves) {
         return ctx.err(span, "`octaves` must lie between 1 and 16");
     }
-    Ok(Texture::Noise {
-        pattern,
-        a,
-        b,
-        frequency,
-        octaves,
-        seed: noise.seed.unwrap_or(0),
-        origin: ctx.origin,
-    })
+    Ok(Texture::Noise { pattern, a, b, frequency, octaves, seed: noise.seed.unwrap_or(0) })
 }
 
 #[cfg(test)]
