@@ -22,6 +22,11 @@ pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 /// The largest mesh or image texture read, unless `LIGHTSPLIT_MAX_INPUT_BYTES` says otherwise.
 pub const MAX_INPUT_BYTES: u64 = 4 << 30;
 
+/// The most elements (vertices, indices, faces) one glTF accessor or PLY element may declare:
+/// 2^28, 3 GiB of f32 positions. A count is also checked against the bytes that can back it
+/// and the memory available before anything is allocated.
+pub const MAX_ELEMENTS: u64 = 1 << 28;
+
 /// The most worker threads: 16 a core (at least 64). More only costs memory and start-up.
 pub fn max_threads() -> usize {
     16 * std::thread::available_parallelism().map_or(4, usize::from).max(4)

@@ -13,6 +13,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod data;
+
 use glam::{DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 
 use crate::scene::image::Image;
@@ -21,6 +23,8 @@ use crate::scene::{
     Camera, FilmSettings, Geometry, Instance, Light, Maps, Material, Mesh, RenderSettings, Scene, SceneError,
     Shape,
 };
+use data::Buffers;
+use gltf::mesh::{Mode, Semantic};
 
 /// Photometric to radiometric units: glTF lights are in candela (point, spot) and lux
 /// (directional); a watt of light at 555 nm is 683 lumens, the ratio Blender's importer uses.
@@ -158,48 +162,20 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     }
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not valid glTF: {e}"))?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let mut files = Vec::new();
-    // External files, checked first so that a missing one is named.
-    let external = |uri: &str, what: String, files: &mut Vec<PathBuf>| -> Result<(), String> {
-        if uri.starts_with("data:") {
-            return Ok(());
-        }
-        let decoded = String::from_utf8_lossy(&urlencoding::decode_binary(uri.as_bytes())).into_owned();
-        let file = base.join(&decoded);
-        crate::scene::limits::check_input_file(&file).map_err(|e| format!("{what}: {e}"))?;
-        files.push(file);
-        Ok(())
-    };
-    for b in document.buffers() {
-        if let gltf::buffer::Source::Uri(uri) = b.source() {
-            external(uri, format!("buffer {} `{uri}`", b.index()), &mut files)?;
-        }
-    }
-    for i in document.images() {
-        if let gltf::image::Source::Uri { uri, .. } = i.source() {
-            external(uri, format!("image {} `{uri}`", i.index()), &mut files)?;
-        }
-    }
-    let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| format!("buffers: {e}"))?;
+    let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let root = document.as_json();
+    let mut buffers = Buffers::load(root, blob, base)?;
     let mut notes = Vec::new();
 
-    // Images: decoded once per colour space they are used in.
+    // Images: decoded when a material first uses them, once per colour space.
     let mut images: Vec<Arc<Image>> = Vec::new();
     let mut image_ids: HashMap<(usize, bool), usize> = HashMap::new();
-    let raw = if document.textures().len() > 0 {
-        gltf::import_images(&document, Some(base), &buffers).map_err(|e| format!("images: {e}"))?
-    } else {
-        Vec::new()
-    };
     let mut image_of = |texture: gltf::Texture, srgb: bool| -> Result<(usize, Arc<Image>), String> {
         let source = texture.source().index();
         if let Some(&id) = image_ids.get(&(source, srgb)) {
             return Ok((id, images[id].clone()));
         }
-        let data =
-            raw.get(source).ok_or_else(|| format!("texture {}: no image {source}", texture.index()))?;
-        let image = decode(data, srgb).map_err(|e| format!("image {source}: {e}"))?;
+        let image = buffers.image(source, srgb).map_err(|e| format!("image {source}: {e}"))?;
         let image = Arc::new(image);
         images.push(image.clone());
         image_ids.insert((source, srgb), images.len() - 1);
@@ -227,6 +203,13 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         }
         if !emission.is_finite() || emission.min_element() < 0.0 {
             return Err(format!("material `{name}`: a negative or non-finite emissive factor"));
+        }
+        if emission.max_element() > crate::scene::limits::MAX_EMISSION {
+            return Err(format!(
+                "material `{name}`: an emission of {:e}, over the {:e} a surface may emit",
+                emission.max_element(),
+                crate::scene::limits::MAX_EMISSION
+            ));
         }
         let normal_texture = match m.normal_texture() {
             Some(t) if t.tex_coord() != 0 => {
@@ -261,20 +244,17 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         images,
         camera: None,
         lights: Vec::new(),
-        files,
+        files: Vec::new(),
         notes,
     };
     // Each mesh's primitives, read the first time a node uses it.
     let mut read: HashMap<usize, std::ops::Range<usize>> = HashMap::new();
-    // Depth first, in the document's order (the stack holds what is left in reverse).
+    check_trees(&document, &scene)?;
+    // Depth first, in the document's order (the stack holds what is left in reverse). The
+    // nodes form trees (checked above), so each is visited once.
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     stack.reverse();
-    let mut visited = 0usize;
     while let Some((node, parent)) = stack.pop() {
-        visited += 1;
-        if visited > 1 << 24 {
-            return Err("its node hierarchy does not end (a node is its own ancestor)".into());
-        }
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(|x| x as f64)));
         let world = parent * local;
         if !world.is_finite() {
@@ -326,7 +306,44 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         stack.extend(node.children().map(|c| (c, world)));
         stack[first..].reverse();
     }
+    out.files = std::mem::take(&mut buffers.files);
     Ok(out)
+}
+
+/// Checks that the nodes form disjoint trees, as glTF requires, before they are walked: no node
+/// is its own child or the child of two nodes, and the scene's roots have no parent and are
+/// listed once. A cycle (which would never end) or a node shared by several parents (whose
+/// placements multiply with each level: 2^40 of them from 40 nodes) is one error naming the
+/// node, found in time linear in the file.
+fn check_trees(document: &gltf::Document, scene: &gltf::Scene) -> Result<(), String> {
+    let mut parent: Vec<Option<usize>> = vec![None; document.nodes().len()];
+    for node in document.nodes() {
+        for child in node.children() {
+            let (n, c) = (node.index(), child.index());
+            if c == n {
+                return Err(format!("node {n} is its own child"));
+            }
+            if let Some(p) = parent[c] {
+                return Err(format!(
+                    "node {c} is a child of both node {p} and node {n} (glTF nodes form trees)"
+                ));
+            }
+            parent[c] = Some(n);
+        }
+    }
+    // With one parent at most, a cycle has no root: it would show as a root with a parent, or
+    // not at all (a cycle no root reaches is never walked).
+    let mut listed = vec![false; parent.len()];
+    for root in scene.nodes() {
+        let r = root.index();
+        if let Some(p) = parent[r] {
+            return Err(format!("node {r} is a root of the scene and a child of node {p}"));
+        }
+        if std::mem::replace(&mut listed[r], true) {
+            return Err(format!("node {r} is listed twice among the scene's roots"));
+        }
+    }
+    Ok(())
 }
 
 /// A light in the world of its node.
@@ -337,6 +354,10 @@ fn punctual(light: &gltf::khr_lights_punctual::Light, world: &DMat4) -> Result<P
     }
     let position = (*world * DVec4::W).truncate();
     let direction = (*world * DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero();
+    let directed = !matches!(light.kind(), gltf::khr_lights_punctual::Kind::Point);
+    if directed && direction == DVec3::ZERO {
+        return Err("its node's transform leaves it no direction (a zero scale)".into());
+    }
     Ok(match light.kind() {
         gltf::khr_lights_punctual::Kind::Directional => {
             PunctualLight::Directional { direction, irradiance: power }
@@ -360,27 +381,44 @@ fn punctual(light: &gltf::khr_lights_punctual::Light, world: &DMat4) -> Result<P
 }
 
 /// Adds a mesh's triangle primitives, in its own coordinates, to `out.primitives`.
-fn add_mesh(out: &mut Gltf, buffers: &[gltf::buffer::Data], mesh: &gltf::Mesh) -> Result<(), String> {
+fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), String> {
+    use gltf::json::accessor::{ComponentType as C, Type};
     let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
     for (k, primitive) in mesh.primitives().enumerate() {
         let here = format!("mesh `{mesh_name}` primitive {k}");
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let positions: Vec<[f32; 3]> =
-            reader.read_positions().ok_or(format!("{here}: no positions"))?.collect();
-        if let Some(i) = positions.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
-            return Err(format!("{here}: position {i} is not finite (NaN or infinite)"));
+        let mode = primitive.mode();
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            out.notes.push(format!("{here}: {mode:?} are not rendered"));
+            continue;
         }
-        let n = positions.len();
-        let list: Vec<u32> = match reader.read_indices() {
-            Some(i) => i.into_u32().collect(),
+        let attribute = |semantic: Semantic| primitive.get(&semantic).map(|a| a.index());
+        let position = attribute(Semantic::Positions).ok_or(format!("{here}: no positions"))?;
+        let floats = |a: usize, what: &str, dims: Type, types: &[C]| {
+            buffers.floats(a, what, dims, types).map_err(|e| format!("{here}: {e}"))
+        };
+        let positions = floats(position, "POSITION", Type::Vec3, &[C::F32])?;
+        if let Some(i) = positions.iter().position(|x| !x.is_finite()) {
+            return Err(format!("{here}: position {} is not finite (NaN or infinite)", i / 3));
+        }
+        let n = positions.len() / 3;
+        let list: Vec<u32> = match primitive.indices() {
+            Some(a) => buffers.indices(a.index()).map_err(|e| format!("{here}: {e}"))?,
             None => (0..n as u32).collect(),
         };
         if let Some(&bad) = list.iter().find(|&&i| i as usize >= n) {
             return Err(format!("{here}: index {bad} is out of range ({n} vertices)"));
         }
-        let indices: Vec<[u32; 3]> = match primitive.mode() {
-            gltf::mesh::Mode::Triangles => list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
-            gltf::mesh::Mode::TriangleStrip => (2..list.len())
+        let indices: Vec<[u32; 3]> = match mode {
+            Mode::Triangles => {
+                if list.len() % 3 != 0 {
+                    return Err(format!(
+                        "{here}: {} indices (or vertices) do not make whole triangles (a multiple of 3)",
+                        list.len()
+                    ));
+                }
+                list.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
+            }
+            Mode::TriangleStrip => (2..list.len())
                 .map(|i| {
                     if i % 2 == 0 {
                         [list[i - 2], list[i - 1], list[i]]
@@ -389,31 +427,28 @@ fn add_mesh(out: &mut Gltf, buffers: &[gltf::buffer::Data], mesh: &gltf::Mesh) -
                     }
                 })
                 .collect(),
-            gltf::mesh::Mode::TriangleFan => {
-                (2..list.len()).map(|i| [list[0], list[i - 1], list[i]]).collect()
-            }
-            other => {
-                out.notes.push(format!("{here}: {other:?} are not rendered"));
-                continue;
-            }
+            _ => (2..list.len()).map(|i| [list[0], list[i - 1], list[i]]).collect(),
         };
-        let normals = match reader.read_normals() {
-            Some(ns) => {
-                let ns: Vec<[f32; 3]> = ns.collect();
-                if ns.len() != n || ns.iter().any(|v| !v.iter().all(|x| x.is_finite())) {
+        if indices.is_empty() {
+            return Err(format!("{here}: {} indices (or vertices) draw no triangle", list.len()));
+        }
+        let normals = match attribute(Semantic::Normals) {
+            Some(a) => {
+                let ns = floats(a, "NORMAL", Type::Vec3, &[C::F32])?;
+                if ns.len() != 3 * n || ns.iter().any(|x| !x.is_finite()) {
                     return Err(format!("{here}: its normals are not one finite vector a vertex"));
                 }
-                Some(ns.iter().map(|&v| Vec3::from(v).normalize_or_zero()).collect())
+                Some(ns.chunks_exact(3).map(|v| Vec3::new(v[0], v[1], v[2]).normalize_or_zero()).collect())
             }
             None => None,
         };
-        let uvs = match reader.read_tex_coords(0) {
-            Some(t) => {
-                let t: Vec<[f32; 2]> = t.into_f32().collect();
-                if t.len() != n || t.iter().any(|v| !v.iter().all(|x| x.is_finite())) {
+        let uvs = match attribute(Semantic::TexCoords(0)) {
+            Some(a) => {
+                let t = floats(a, "TEXCOORD_0", Type::Vec2, &[C::F32, C::U8, C::U16])?;
+                if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
                     return Err(format!("{here}: its texture coordinates are not one finite pair a vertex"));
                 }
-                Some(t.iter().map(|&[u, v]| Vec2::new(u, 1.0 - v)).collect())
+                Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect())
             }
             None => None,
         };
@@ -423,7 +458,7 @@ fn add_mesh(out: &mut Gltf, buffers: &[gltf::buffer::Data], mesh: &gltf::Mesh) -
         }
         out.primitives.push(Primitive {
             name: format!("{mesh_name}/{k}"),
-            positions: positions.iter().map(|&p| Vec3A::from(p)).collect(),
+            positions: positions.chunks_exact(3).map(|p| Vec3A::new(p[0], p[1], p[2])).collect(),
             indices: indices.into(),
             normals,
             uvs,
@@ -432,56 +467,6 @@ fn add_mesh(out: &mut Gltf, buffers: &[gltf::buffer::Data], mesh: &gltf::Mesh) -
         });
     }
     Ok(())
-}
-
-/// Decodes a glTF image to linear RGB: 8- and 16-bit values from sRGB when `srgb`, float ones
-/// as they are.
-fn decode(data: &gltf::image::Data, srgb: bool) -> Result<Image, String> {
-    use gltf::image::Format;
-    let (channels, bytes) = match data.format {
-        Format::R8 => (1, 1),
-        Format::R8G8 => (2, 1),
-        Format::R8G8B8 => (3, 1),
-        Format::R8G8B8A8 => (4, 1),
-        Format::R16 => (1, 2),
-        Format::R16G16 => (2, 2),
-        Format::R16G16B16 => (3, 2),
-        Format::R16G16B16A16 => (4, 2),
-        Format::R32G32B32FLOAT => (3, 4),
-        Format::R32G32B32A32FLOAT => (4, 4),
-    };
-    let n = data.width as usize * data.height as usize;
-    if data.pixels.len() < n * channels * bytes || n == 0 {
-        return Err("fewer pixels than its size".into());
-    }
-    let value = |i: usize| -> f32 {
-        let b = &data.pixels[i * bytes..(i + 1) * bytes];
-        let x = match bytes {
-            1 => b[0] as f32 / 255.0,
-            2 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
-            _ => return f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        };
-        if srgb {
-            crate::scene::image::srgb_to_linear(x)
-        } else {
-            x
-        }
-    };
-    let pixels = (0..n)
-        .map(|p| {
-            let c = |k: usize| value(p * channels + k.min(channels - 1));
-            // Grey and grey-alpha images are grey in every channel.
-            if channels <= 2 {
-                Vec3::splat(c(0))
-            } else {
-                Vec3::new(c(0), c(1), c(2))
-            }
-        })
-        .collect::<Vec<_>>();
-    if pixels.iter().any(|p| !p.is_finite()) {
-        return Err("a pixel is NaN or infinite".into());
-    }
-    Ok(Image { width: data.width, height: data.height, pixels })
 }
 
 /// Where a glTF's world goes in a scene: a linear map and a translation (in the scene file's
@@ -658,10 +643,12 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
         notes.push("no camera: framing the model's bounds from the front".into());
         GltfCamera { position: centre + back * distance, forward: -back, up: DVec3::Y, fov, aspect: None }
     });
-    if camera.forward == DVec3::ZERO || camera.up == DVec3::ZERO || !(camera.fov > 0.0 && camera.fov < 180.0)
-    {
+    // Both axes are unit or zero: an up along the view direction (a node whose transform turns
+    // its camera's y axis onto its z axis) leaves the image's orientation undefined.
+    if camera.forward.cross(camera.up).length() < 1e-6 || !(camera.fov > 0.0 && camera.fov < 180.0) {
         return Err(error(
-            "its camera cannot be oriented (a zero axis or a field of view outside (0, 180))".into(),
+            "its camera cannot be oriented (a zero axis, an up parallel to the view direction, or a field of view outside (0, 180))"
+                .into(),
         ));
     }
     let origin = camera.position;
