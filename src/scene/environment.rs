@@ -25,6 +25,10 @@ pub struct EnvironmentMap {
     pub uniform: bool,
 }
 
+/// The largest sum of an environment map's sampling weights (luminance times the sine of the
+/// row's angle): two orders of magnitude inside f32, in which the sampling tables add them.
+const OVERFLOW: f64 = 1e36;
+
 impl EnvironmentMap {
     /// Reads a lat-long map (`.exr`, `.hdr`, `.pfm`; anything else as 8-bit sRGB) and scales it.
     /// It must be non-empty, exactly twice as wide as high, and finite and non-negative
@@ -58,7 +62,16 @@ impl EnvironmentMap {
             return Err(format!("`scale` {scale} makes the environment map overflow"));
         }
         let a = rotate_degrees.to_radians();
-        Ok(EnvironmentMap { image, turn: (a.sin(), a.cos()), uniform: false })
+        let map = EnvironmentMap { image, turn: (a.sin(), a.cos()), uniform: false };
+        // Sampling sums the weights of each row and then of the rows in f32: a map whose sum
+        // overflows there (every RGBE pixel `ff ff ff ff`, 1.7e38) would be sampled as black.
+        let total: f64 = map.weights(false).iter().map(|&x| x as f64).sum();
+        if total > OVERFLOW {
+            return Err(format!(
+                "the environment map's pixels sum to {total:.2e}, beyond the {OVERFLOW:e} its sampling can add up: scale it down"
+            ));
+        }
+        Ok(map)
     }
 
     /// The point of the map's unit square (u across, v down) that direction `dir` (unit, in the

@@ -27,6 +27,12 @@ pub const MAX_INPUT_BYTES: u64 = 4 << 30;
 /// and the memory available before anything is allocated.
 pub const MAX_ELEMENTS: u64 = 1 << 28;
 
+/// The farthest a shape may reach from the camera, in scene units. The triangle tests of both
+/// backends multiply coordinates in f32, whose products overflow from about 1.8e19: a vertex at
+/// 3e38 wrote an infinite depth through the BVH while Embree dropped its triangle, and a glTF
+/// placed at a scale of 1e20 vanished on both. 1e15 keeps the products eight orders inside f32.
+pub const MAX_COORDINATE: f32 = 1e15;
+
 /// The most worker threads: 16 a core (at least 64). More only costs memory and start-up.
 pub fn max_threads() -> usize {
     16 * std::thread::available_parallelism().map_or(4, usize::from).max(4)
@@ -76,12 +82,29 @@ pub fn render_bytes(width: u32, height: u32) -> u64 {
     width as u64 * height as u64 * 400
 }
 
-/// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), if known.
+/// The memory this process can still have: the machine's available memory (`MemAvailable` of
+/// `/proc/meminfo`), or what is left of the process's address-space limit (`ulimit -v`, less
+/// the `VmSize` already mapped) if that is lower; `None` if neither is known.
 pub fn available_bytes() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    let machine = (|| {
+        let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+        let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    })();
+    let limit = (|| {
+        let text = std::fs::read_to_string("/proc/self/limits").ok()?;
+        let line = text.lines().find(|l| l.starts_with("Max address space"))?;
+        let limit = line.split_whitespace().nth(3)?.parse::<u64>().ok()?;
+        let status = std::fs::read_to_string("/proc/self/status").ok()?;
+        let size = status.lines().find(|l| l.starts_with("VmSize:"))?;
+        let kib: u64 = size.split_whitespace().nth(1)?.parse().ok()?;
+        Some(limit.saturating_sub(kib * 1024))
+    })();
+    match (machine, limit) {
+        (Some(m), Some(l)) => Some(m.min(l)),
+        (m, l) => m.or(l),
+    }
 }
 
 /// Refuses a render that would not fit in the memory available.

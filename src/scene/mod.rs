@@ -31,6 +31,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Some("gltf" | "glb") => gltf::scene(path),
         _ => file::load(path),
     }
+    .and_then(|scene| scene.check_extent().map(|()| scene))
 }
 
 /// A bad scene file: one message naming the file and, where known, the line.
@@ -421,6 +422,32 @@ impl Scene {
                 Geometry::Sphere { .. } => 0,
             })
             .sum()
+    }
+
+    /// Refuses a shape that reaches farther from the camera than [`limits::MAX_COORDINATE`],
+    /// naming it: beyond it, f32 ray arithmetic cannot trace it.
+    pub fn check_extent(&self) -> Result<(), SceneError> {
+        let max = limits::MAX_COORDINATE;
+        for shape in &self.shapes {
+            let reach = match &shape.geometry {
+                Geometry::Sphere { center, radius } => center.abs().max_element() + radius.abs(),
+                Geometry::Triangles(mesh) => (0..mesh.positions.len() as u32)
+                    .map(|k| mesh.vertex(k).abs().max_element())
+                    .fold(0.0f32, f32::max),
+            };
+            // (Every coordinate is finite: the readers refuse NaN and infinities.)
+            if reach > max {
+                return Err(SceneError::new(
+                    &self.path,
+                    None,
+                    format!(
+                        "shape `{}` reaches {reach:.1e} from the camera, beyond the {max:e} that rays in f32 can trace: move it or scale it down",
+                        shape.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Axis-aligned bounds of all shapes, `(min, max)`; a point at the origin when empty.

@@ -228,10 +228,12 @@ impl Body<'_> {
                 if ty.is_integer() { "whole number" } else { "number" }
             )
         };
-        if ty.is_integer() {
-            word.parse::<i64>().map(|v| v as f64).map_err(|_| bad())
-        } else {
-            word.parse::<f64>().map_err(|_| bad())
+        // Each value as its declared type holds it (a `float` rounded to f32, as in a binary
+        // file).
+        match ty {
+            Scalar::F64 => word.parse::<f64>().map_err(|_| bad()),
+            Scalar::F32 => word.parse::<f32>().map(f64::from).map_err(|_| bad()),
+            _ => word.parse::<i64>().map(|v| v as f64).map_err(|_| bad()),
         }
     }
 

@@ -151,8 +151,8 @@ fn component(bytes: &[u8], ty: ComponentType, normalized: bool) -> f64 {
 /// Refuses an allocation of `bytes` for `what` that the memory available cannot hold.
 pub fn check_memory(bytes: u64, what: &str) -> Result<(), String> {
     match limits::available_bytes() {
-        Some(have) if bytes > have / 2 => Err(format!(
-            "{what} would take {:.1} GiB, more than half the {:.1} GiB available",
+        Some(have) if bytes > have => Err(format!(
+            "{what} would take {:.2} GiB, more than the {:.2} GiB available",
             bytes as f64 / (1u64 << 30) as f64,
             have as f64 / (1u64 << 30) as f64
         )),
@@ -295,8 +295,10 @@ impl<'a> Buffers<'a> {
         let here = |e: String| format!("accessor {a} ({what}): {e}");
         if layout.dims != dims || !types.contains(&layout.ty) {
             let names: Vec<&str> = types.iter().map(|&t| type_name(t)).collect();
+            let quantized =
+                if layout.ty == ComponentType::F32 { "" } else { " (KHR_mesh_quantization is not read)" };
             return Err(here(format!(
-                "{:?} of {}, where {:?} of {} is read",
+                "{:?} of {}, where {:?} of {} is read{quantized}",
                 layout.dims,
                 type_name(layout.ty),
                 dims,
@@ -421,7 +423,7 @@ impl<'a> Buffers<'a> {
 /// Decodes a PNG or JPEG (the format from its bytes, not its stated MIME type) to linear RGB,
 /// 8- and 16-bit values from sRGB when `srgb`, float ones as they are.
 pub fn decode(bytes: &[u8], srgb: bool) -> Result<Image, String> {
-    use image::ImageReader;
+    use image::{ImageDecoder, ImageReader};
     let reader =
         || ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string());
     let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
@@ -429,11 +431,16 @@ pub fn decode(bytes: &[u8], srgb: bool) -> Result<Image, String> {
     if pixels == 0 || width > limits::MAX_SIZE || height > limits::MAX_SIZE {
         return Err(format!("a size of {width}x{height} (each side 1 to {} pixels)", limits::MAX_SIZE));
     }
-    // The decoder's buffer (up to 16 bytes a pixel) and the linear image (12).
-    check_memory(pixels * 28, &format!("a {width}x{height} image"))?;
-    let mut limited = reader()?;
-    limited.no_limits();
-    let decoded = limited.decode().map_err(|e| e.to_string())?;
+    let mut decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
+    // The decoder's buffer and the linear image (12 bytes a pixel).
+    let bytes_per_pixel = decoder.color_type().bytes_per_pixel() as u64;
+    check_memory(pixels * (bytes_per_pixel + 12), &format!("a {width}x{height} image"))?;
+    // The size is checked: the decoder's own limit (512 MiB) would refuse an 8K 16-bit map.
+    let mut limits = image::Limits::no_limits();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    decoder.set_limits(limits).map_err(|e| e.to_string())?;
+    let decoded = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
     let curve = |x: f32| if srgb { srgb_to_linear(x) } else { x };
     let pixels: Vec<glam::Vec3> = match decoded.color().bytes_per_pixel() / decoded.color().channel_count() {
         1 => decoded

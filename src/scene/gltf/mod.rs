@@ -161,7 +161,24 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         return Err("the file is empty (0 bytes)".into());
     }
     let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not valid glTF: {e}"))?;
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| format!("not valid glTF: {e}"))?;
+    // The crate's validation reads a primitive's POSITION accessor before it checks that the
+    // accessor exists (and panics if it does not): that one index is checked first.
+    let json = document.into_json();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (k, primitive) in mesh.primitives.iter().enumerate() {
+            for (semantic, a) in &primitive.attributes {
+                if a.value() >= json.accessors.len() {
+                    return Err(format!(
+                        "not valid glTF: mesh {m} primitive {k}: attribute {semantic:?} names accessor {}, of {}",
+                        a.value(),
+                        json.accessors.len()
+                    ));
+                }
+            }
+        }
+    }
+    let document = gltf::Document::from_json(json).map_err(|e| format!("not valid glTF: {e}"))?;
     let base = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let root = document.as_json();
     let mut buffers = Buffers::load(root, blob, base)?;
@@ -410,7 +427,7 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
         }
         let indices: Vec<[u32; 3]> = match mode {
             Mode::Triangles => {
-                if list.len() % 3 != 0 {
+                if !list.len().is_multiple_of(3) {
                     return Err(format!(
                         "{here}: {} indices (or vertices) do not make whole triangles (a multiple of 3)",
                         list.len()
