@@ -1,23 +1,23 @@
 //! The path integrator, shaped as pbrt-v4's `PathIntegrator::Li`: at every vertex, emission;
 //! next-event estimation with multiple importance sampling (power heuristic) at non-delta
 //! vertices; a BSDF sample, classified by its lobe's tag alone; one Russian roulette; and a
-//! depth limit. It never names a material: scattering is [`super::bsdf`]'s. Generic over the
+//! depth limit. It never names a material: [`super::material`] makes a hit's BSDF. Generic over the
 //! accelerator, so each backend gets its own monomorphised copy and no dynamic dispatch per ray,
 //! and over the [`Features`] a render needs (a const bit set), so a feature the scene and its
 //! outputs cannot use is compiled out of that render's copy, not skipped by a branch.
 //!
 //! [`Features`]: super::features::Features
 
-use glam::{DVec3, Vec2, Vec3};
+use glam::Vec3;
 
-use super::bsdf::{with_bsdf, Bsdf, BsdfSample, Lobe};
+use super::bsdf::{Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
+use super::material::{Shading, UseBsdf};
 use super::sampler::{Dim, Sampler};
-use super::surface::{apply_height, apply_normal_map, surface_with, FaceNormals, Surface};
+use super::surface::{surface_with, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
-use crate::scene::texture::Texture;
 use crate::scene::{Scene, Shape};
 
 /// What the integrator reads for every path: the scene, its accelerator and its lights. `F` is
@@ -256,7 +256,10 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         self.trace(ray, None, sampler, rays, record)
     }
 
-    /// The path from `ray`, whose closest hit is `first` when already traced.
+    /// The path from `ray`, whose closest hit is `first` when already traced: at each vertex,
+    /// its emission, then scattering through its material (next-event estimation, a BSDF
+    /// sample, Russian roulette), until the path leaves the scene, ends or reaches the depth
+    /// limit.
     #[inline(always)]
     fn trace<R: Record>(
         &self,
@@ -267,179 +270,113 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         record: &mut R,
     ) -> PathSample {
         let scene = self.scene;
-        let mut out = PathSample::default();
-        let mut path = PathState {
-            beta: Vec3::ONE,
-            class: PathClass::default(),
-            after_delta: true,
-            bsdf_pdf: 0.0,
-            prev_p: ray.origin,
-            travelled: 0.0,
+        let mut walk = Walk {
+            out: PathSample::default(),
+            path: PathState {
+                beta: Vec3::ONE,
+                class: PathClass::default(),
+                after_delta: true,
+                bsdf_pdf: 0.0,
+                prev_p: ray.origin,
+                travelled: 0.0,
+            },
+            sampler,
+            rays,
         };
         for depth in 0.. {
-            sampler.start_bounce(depth);
-            *rays += 1;
+            walk.sampler.start_bounce(depth);
+            *walk.rays += 1;
             let hit = match first.take() {
                 Some(hit) => hit,
                 None => self.accel.intersect(&ray),
             };
             let Some(hit) = hit else {
-                record.escaped(depth, ray.dir, path.beta);
-                self.escaped(&mut out, &path, ray.dir);
+                record.escaped(depth, ray.dir, walk.path.beta);
+                self.escaped(&mut walk.out, &walk.path, ray.dir);
                 break;
             };
             let s = surface_with(scene, self.faces, &ray, &hit);
             let shape = &scene.shapes[hit.shape as usize];
-            record.vertex(depth, &shape.name, s.p, path.beta, out.beauty);
+            record.vertex(depth, &shape.name, s.p, walk.path.beta, walk.out.beauty);
             let wo = -ray.dir;
-            path.travelled += hit.t * ray.dir.length();
-            self.emitted(&mut out, &path, hit.shape, shape, &s, wo);
+            walk.path.travelled += hit.t * ray.dir.length();
+            self.emitted(&mut walk.out, &walk.path, hit.shape, shape, &s, wo);
             if depth >= self.max_depth {
                 break;
             }
-
             // Without a light a path can hit, the ray after the last vertex could only find one:
             // not traced.
             let last = F & MIS == 0 && depth + 1 >= self.max_depth;
-            match self.scatter_at(shape, &s, wo, &mut out, &mut path, last, depth, sampler, rays) {
+            let vertex = Vertex { shape, s: &s, wo, depth, last };
+            match self.scatter_at(&mut walk, &vertex) {
                 Some(next) => ray = next,
                 None => break,
             }
         }
-        out
+        walk.out
+    }
+
+    /// Scatters the path at a hit through its material's BSDF, with the shading and geometric
+    /// normals both turned to the side the path came from (surfaces are two-sided), the
+    /// shading one bent by the material's maps.
+    #[inline(always)]
+    fn scatter_at(&self, walk: &mut Walk, v: &Vertex) -> Option<Ray> {
+        let s = v.s;
+        let ng = if s.ng.dot(v.wo) >= 0.0 { s.ng } else { -s.ng };
+        let shading = Shading::new(self.scene, v.shape, s, F & TEXTURES != 0);
+        let ns = shading.normal(ng);
+        // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
+        let at = Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo: v.wo, object: v.shape.object };
+        // Entering when the ray meets the outside, the side the geometric normal points to.
+        let entering = s.ng.dot(v.wo) > 0.0;
+        shading.with_bsdf(ns, entering, Scatter { integrator: self, walk, at: &at, v })
     }
 
     /// Scatters the path at a reflecting vertex through `bsdf`: the vertex's bookkeeping,
     /// next-event estimation at a non-delta vertex, a BSDF sample classified by its lobe, one
-    /// Russian roulette. The next ray, or `None` where the path ends; `last` ends it after
+    /// Russian roulette. The next ray, or `None` where the path ends; `v.last` ends it after
     /// next-event estimation.
-    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn scatter<B: Bsdf>(
-        &self,
-        bsdf: &B,
-        out: &mut PathSample,
-        path: &mut PathState,
-        at: &Reflecting,
-        s: &Surface,
-        last: bool,
-        depth: u32,
-        sampler: &mut Sampler,
-        rays: &mut u64,
-    ) -> Option<Ray> {
+    fn scatter<B: Bsdf>(&self, walk: &mut Walk, bsdf: &B, at: &Reflecting, v: &Vertex) -> Option<Ray> {
         if !bsdf.scatters(at.wo) {
             return None;
         }
-        let before = path.class;
+        let before = walk.path.class;
         // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see it
         // even when the path ends here; one of several lobes, once a lobe is sampled.
-        let travelled = path.travelled;
+        let travelled = walk.path.travelled;
         let vertex = |out: &mut PathSample, class: &mut PathClass, lobe: Lobe| {
             out.vertex::<F>(class, lobe, at.object, at.ns, travelled, bsdf.albedo(lobe));
         };
         if let Some(lobe) = bsdf.lobe() {
-            vertex(out, &mut path.class, lobe);
+            vertex(&mut walk.out, &mut walk.path.class, lobe);
         }
         if bsdf.lobe() != Some(Lobe::Delta) {
-            self.next_event(out, path, before, bsdf, at, sampler, rays);
+            self.next_event(walk, before, bsdf, at);
         }
-        if last {
+        if v.last {
             return None;
         }
 
-        let bs = bsdf.sample(at.wo, sampler)?;
+        let bs = bsdf.sample(at.wo, walk.sampler)?;
         // A non-delta direction under the geometric surface is an artefact of the shading
         // normal: dropped. A delta one is exact (and glass transmits).
         if !bs.wi.is_finite() || (!bs.lobe.is_delta() && at.ng.dot(bs.wi) <= 0.0) {
             return None;
         }
         if bsdf.lobe().is_none() {
-            vertex(out, &mut path.class, bs.lobe);
+            vertex(&mut walk.out, &mut walk.path.class, bs.lobe);
         }
-        if !path.scatter(&bs, at.p) {
+        if !walk.path.scatter(&bs, at.p) {
             return None;
         }
         // Russian roulette once the path has had a chance to gather light, after non-delta
         // bounces only: a delta bounce draws no random number and keeps its throughput.
-        if !bs.lobe.is_delta() && depth >= 2 && !path.survives(sampler) {
+        if !bs.lobe.is_delta() && v.depth >= 2 && !walk.path.survives(walk.sampler) {
             return None;
         }
-        let origin = if bs.wi.dot(at.ng) > 0.0 { at.origin } else { s.origin(-at.ng) };
+        let origin = if bs.wi.dot(at.ng) > 0.0 { at.origin } else { v.s.origin(-at.ng) };
         Some(Ray::new(origin, bs.wi))
-    }
-
-    /// Scatters the path at a hit on `shape` through its material's BSDF, with the shading and
-    /// geometric normals both turned to the side the path came from (surfaces are two-sided),
-    /// the shading one bumped and the material's colour textured where the material says so.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn scatter_at(
-        &self,
-        shape: &Shape,
-        s: &Surface,
-        wo: Vec3,
-        out: &mut PathSample,
-        path: &mut PathState,
-        last: bool,
-        depth: u32,
-        sampler: &mut Sampler,
-        rays: &mut u64,
-    ) -> Option<Ray> {
-        let scene = self.scene;
-        let ng = if s.ng.dot(wo) >= 0.0 { s.ng } else { -s.ng };
-        let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
-        let maps = if F & TEXTURES != 0 { scene.maps(shape.material) } else { Default::default() };
-        // Where a solid texture is read (in f64, exact on planes the scene file makes exact);
-        // an image texture reads only `s.uv`.
-        let point = |t: &Texture| match t.is_solid() {
-            true => scene.solid_point(&shape.geometry, s.prim, s.bary, s.p),
-            false => DVec3::ZERO,
-        };
-        if let Some((t, height)) = maps.bump {
-            let texture = &scene.textures[t as usize];
-            ns = texture.bump(height, point(texture), s.uv, ns, ng);
-        }
-        if let Some((t, scale)) = maps.height {
-            // Central differences of the height, half a texel (at most 1/1024) either side: the
-            // bilinear lookup is linear within a texel, so this is the local slope.
-            let texture = &scene.textures[t as usize];
-            let d = texture.texel().min(1.0 / 1024.0);
-            let p = point(texture);
-            let h = |du: f32, dv: f32| scale * texture.scalar(p, s.uv + Vec2::new(du, dv));
-            let (dhdu, dhdv) = ((h(d, 0.0) - h(-d, 0.0)) / (2.0 * d), (h(0.0, d) - h(0.0, -d)) / (2.0 * d));
-            let bent = apply_height(ns, s.dpdu, s.dpdv, dhdu, dhdv);
-            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
-        }
-        if let Some((t, scale)) = maps.normal {
-            let texture = &scene.textures[t as usize];
-            let c = texture.color(point(texture), s.uv) * 2.0 - Vec3::ONE;
-            let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
-            // A normal bent below the surface would reflect from under it: kept above.
-            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
-        }
-        let textured = |constant: Vec3| match maps.color {
-            Some(t) => {
-                let texture = &scene.textures[t as usize];
-                texture.color(point(texture), s.uv)
-            }
-            None => constant,
-        };
-        // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
-        let at = Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo, object: shape.object };
-        // Entering when the ray meets the outside, the side the geometric normal points to.
-        let entering = s.ng.dot(wo) > 0.0;
-        let material = &scene.materials[shape.material as usize];
-        let metal_rough = |metallic: f32, roughness: f32| match maps.metal_rough {
-            Some(t) => {
-                let texture = &scene.textures[t as usize];
-                let c = texture.color(point(texture), s.uv);
-                (metallic * c.z, roughness * c.y)
-            }
-            None => (metallic, roughness),
-        };
-        with_bsdf!(material, textured, metal_rough, ns, entering, b => {
-            self.scatter(b, out, path, &at, s, last, depth, sampler, rays)
-        })
     }
 
     /// Emission at a hit on `shape` (number `index`), on its front side only (a scene without
@@ -491,29 +428,21 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     /// Next-event estimation at a reflecting vertex: samples every light when there are few,
     /// else one picked by power, and gathers what each sample sends through the BSDF's lobes.
     /// `before` is the path's class before this vertex.
-    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn next_event<B: Bsdf>(
-        &self,
-        out: &mut PathSample,
-        path: &PathState,
-        before: PathClass,
-        bsdf: &B,
-        at: &Reflecting,
-        sampler: &mut Sampler,
-        rays: &mut u64,
-    ) {
+    fn next_event<B: Bsdf>(&self, walk: &mut Walk, before: PathClass, bsdf: &B, at: &Reflecting) {
         let (scene, lights) = (self.scene, self.lights);
         if lights.sample_all() {
             for i in 0..lights.emitters.len() {
-                if let Some(ls) = lights.sample_one(scene, i, at.p, sampler.get_2d(Dim::Light(i as u32))) {
-                    self.gather(out, path, before, bsdf, at, &ls, rays);
+                let u = walk.sampler.get_2d(Dim::Light(i as u32));
+                if let Some(ls) = lights.sample_one(scene, i, at.p, u) {
+                    self.gather(walk, before, bsdf, at, &ls);
                 }
             }
-        } else if let Some(ls) =
-            lights.sample(scene, at.p, sampler.get_1d(Dim::Select), sampler.get_2d(Dim::Light(0)))
-        {
-            self.gather(out, path, before, bsdf, at, &ls, rays);
+        } else {
+            let (select, u) = (walk.sampler.get_1d(Dim::Select), walk.sampler.get_2d(Dim::Light(0)));
+            if let Some(ls) = lights.sample(scene, at.p, select, u) {
+                self.gather(walk, before, bsdf, at, &ls);
+            }
         }
     }
 
@@ -521,17 +450,14 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     /// reflect (it arrives above both normals) and a shadow ray finds nothing in between. Light
     /// through each lobe goes to the component that lobe makes, with its own MIS weight, so the
     /// split stays exact in expectation.
-    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn gather<B: Bsdf>(
         &self,
-        out: &mut PathSample,
-        path: &PathState,
+        walk: &mut Walk,
         before: PathClass,
         bsdf: &B,
         at: &Reflecting,
         ls: &LightSample,
-        rays: &mut u64,
     ) {
         let cos = at.ns.dot(ls.wi);
         if !(cos > 0.0 && at.ng.dot(ls.wi) > 0.0 && ls.pdf > 0.0) {
@@ -542,17 +468,54 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             ShadowEnd::Point(q) => Ray { origin: at.origin, dir: q - at.origin, t_max: 1.0 },
             ShadowEnd::Infinite => Ray::new(at.origin, ls.wi),
         };
-        *rays += 1;
+        *walk.rays += 1;
         if self.accel.occluded(&shadow) {
             return;
         }
         let source = self.lights.diffuse_source[ls.light as usize];
+        let (out, beta) = (&mut walk.out, walk.path.beta);
         bsdf.eval_lobes(at.wo, ls.wi, |lobe, f, pdf| {
             if f != Vec3::ZERO {
                 let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
-                let c = path.beta * f * ls.radiance * (cos * w / ls.pdf);
+                let c = beta * f * ls.radiance * (cos * w / ls.pdf);
                 out.add::<F>(c, before.through(lobe).component(source));
             }
         });
+    }
+}
+
+/// One path being traced: what it has gathered, where it is, the numbers it draws and the count
+/// of rays it traced.
+struct Walk<'s> {
+    out: PathSample,
+    path: PathState,
+    sampler: &'s mut Sampler,
+    rays: &'s mut u64,
+}
+
+/// A hit the path scatters at: its shape and surface, the direction back toward the eye, the
+/// path's depth there, and whether the path ends after next-event estimation.
+struct Vertex<'v> {
+    shape: &'v Shape,
+    s: &'v Surface,
+    wo: Vec3,
+    depth: u32,
+    last: bool,
+}
+
+/// Scattering through whichever BSDF the vertex's material has ([`UseBsdf`]).
+struct Scatter<'i, 'w, 's, 'v, A: Accel, const F: u8> {
+    integrator: &'i Integrator<'i, A, F>,
+    walk: &'w mut Walk<'s>,
+    at: &'v Reflecting,
+    v: &'v Vertex<'v>,
+}
+
+impl<A: Accel, const F: u8> UseBsdf for Scatter<'_, '_, '_, '_, A, F> {
+    type Output = Option<Ray>;
+
+    #[inline(always)]
+    fn with<B: Bsdf>(self, bsdf: &B) -> Option<Ray> {
+        self.integrator.scatter(self.walk, bsdf, self.at, self.v)
     }
 }

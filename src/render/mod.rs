@@ -6,6 +6,7 @@ pub mod camera;
 pub mod features;
 pub mod integrator;
 pub mod lights;
+pub mod material;
 pub mod sampler;
 pub mod surface;
 

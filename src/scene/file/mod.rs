@@ -173,8 +173,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 
 /// Parses scene text as if read from `path` (relative mesh paths resolve against its directory).
 pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
-    let ctx =
-        Ctx { path, text, origin: DVec3::ZERO, diffuse_roughness: crate::render::bsdf::DIFFUSE_ROUGHNESS };
+    let ctx = Ctx { path, text, origin: DVec3::ZERO, diffuse_roughness: crate::scene::DIFFUSE_ROUGHNESS };
     let doc = ImDocument::parse(text).map_err(|e| ctx.toml(e.span(), e.message()))?;
     let file = FileScene::deserialize(toml_edit::de::Deserializer::from(doc.clone()))
         .map_err(|e| ctx.toml(e.span(), e.message()))?;

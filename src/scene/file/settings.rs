@@ -117,7 +117,7 @@ pub(super) fn diffuse_roughness(ctx: &Ctx, r: Option<&FileRender>) -> Result<f32
     match r.and_then(|r| r.diffuse_roughness.as_ref()) {
         Some(d) if d.get_ref().0 < 0.0 => ctx.err(d.span(), "`diffuse_roughness` must not be negative"),
         Some(d) => Ok(d.get_ref().0),
-        None => Ok(crate::render::bsdf::DIFFUSE_ROUGHNESS),
+        None => Ok(crate::scene::DIFFUSE_ROUGHNESS),
     }
 }
 

@@ -684,7 +684,7 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
         })
     };
     let stem = path.file_stem().map_or_else(|| "gltf".into(), |s| s.to_string_lossy().into_owned());
-    let placed = place(&g, &stem, &at, 0, 0, crate::render::bsdf::DIFFUSE_ROUGHNESS, &mut object);
+    let placed = place(&g, &stem, &at, 0, 0, crate::scene::DIFFUSE_ROUGHNESS, &mut object);
     let mut lights = placed.lights;
     if lights.is_empty() && !placed.shapes.iter().any(Shape::is_emissive) {
         notes.push("no lights: lit by the default environment, a uniform white sky of radiance 1".into());

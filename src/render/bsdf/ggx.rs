@@ -1,0 +1,227 @@
+//! The GGX microfacet pieces every glossy material shares: the lobes in the local shading frame
+//! (the height-correlated shadowing-masking term, sampled by its distribution of visible
+//! normals: Heitz 2018, "Sampling the GGX Distribution of Visible Normals") and the split-sum
+//! table of a lobe's directional albedo.
+
+use std::f32::consts::{PI, TAU};
+
+use glam::{Vec2, Vec3};
+
+use super::{Lobe, MIN_ALPHA};
+use crate::math::{cosine_hemisphere, luminance};
+
+/// The directional albedo of a GGX lobe with Schlick's Fresnel, split as f0 A + B (the
+/// "split-sum" table of real-time rendering): A and B by the cosine of the view and the GGX
+/// alpha, 32 x 32 cells, integrated once by sampling visible normals (256 stratified points a
+/// cell) and read bilinearly.
+pub struct SpecularAlbedo {
+    table: Vec<(f32, f32)>,
+}
+
+impl SpecularAlbedo {
+    const N: usize = 32;
+
+    /// The table, built on first use.
+    pub fn get() -> &'static SpecularAlbedo {
+        static TABLE: std::sync::OnceLock<SpecularAlbedo> = std::sync::OnceLock::new();
+        TABLE.get_or_init(SpecularAlbedo::build)
+    }
+
+    fn build() -> SpecularAlbedo {
+        let n = Self::N;
+        let mut table = Vec::with_capacity(n * n);
+        for j in 0..n {
+            let alpha = (j as f32 / (n - 1) as f32).max(MIN_ALPHA);
+            for i in 0..n {
+                let cos = (i as f32 / (n - 1) as f32).max(1e-3);
+                let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                let g = GlossyLobes { specular: Vec3::ONE, alpha, base: Vec3::ZERO };
+                let (mut a, mut b) = (0.0f64, 0.0f64);
+                let k = 16;
+                for s in 0..k * k {
+                    let u = Vec2::new(((s % k) as f32 + 0.5) / k as f32, ((s / k) as f32 + 0.5) / k as f32);
+                    let wi = g.sample_specular(wo, u);
+                    if wi.z <= 0.0 {
+                        continue;
+                    }
+                    let h = (wo + wi).normalize_or_zero();
+                    let w = (g.g2(wo, wi) / g.g1(wo)) as f64;
+                    let m = (1.0 - wo.dot(h)).clamp(0.0, 1.0) as f64;
+                    let fresnel = m.powi(5);
+                    a += w * (1.0 - fresnel);
+                    b += w * fresnel;
+                }
+                let total = (k * k) as f64;
+                table.push(((a / total) as f32, (b / total) as f32));
+            }
+        }
+        SpecularAlbedo { table }
+    }
+
+    /// (A, B) at view cosine `cos` and alpha `alpha`, bilinearly.
+    pub fn at(&self, cos: f32, alpha: f32) -> (f32, f32) {
+        let n = Self::N;
+        let x = (cos.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let y = (alpha.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let (i, j) = (x as usize, y as usize);
+        let (fx, fy) = (x - i as f32, y - j as f32);
+        let t = |i: usize, j: usize| self.table[j * n + i];
+        let lerp = |p: (f32, f32), q: (f32, f32), f: f32| (p.0 + (q.0 - p.0) * f, p.1 + (q.1 - p.1) * f);
+        lerp(lerp(t(i, j), t(i + 1, j), fx), lerp(t(i, j + 1), t(i + 1, j + 1), fx), fy)
+    }
+}
+
+/// The glossy model in the local shading frame (z along the normal): a GGX lobe with
+/// reflectance `specular` at normal incidence, over a diffuse `base`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlossyLobes {
+    pub specular: Vec3,
+    pub alpha: f32,
+    pub base: Vec3,
+}
+
+/// Schlick's approximation of the Fresnel reflectance.
+fn schlick(f0: Vec3, cos: f32) -> Vec3 {
+    let m = (1.0 - cos).clamp(0.0, 1.0);
+    let m2 = m * m;
+    f0 + (Vec3::ONE - f0) * (m2 * m2 * m)
+}
+
+impl GlossyLobes {
+    /// GGX normal distribution of microfacet normal `m`.
+    fn d(&self, m: Vec3) -> f32 {
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        let a2 = self.alpha * self.alpha;
+        let t = m.z * m.z * (a2 - 1.0) + 1.0;
+        a2 / (PI * t * t)
+    }
+
+    /// Smith's Lambda for direction `w`.
+    fn lambda(&self, w: Vec3) -> f32 {
+        let c2 = w.z * w.z;
+        if c2 == 0.0 {
+            return f32::INFINITY;
+        }
+        let tan2 = (1.0 - c2).max(0.0) / c2;
+        0.5 * ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0)
+    }
+
+    fn g1(&self, w: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    /// Height-correlated masking and shadowing.
+    fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+    }
+
+    /// The probability of sampling the GGX lobe rather than the base, seen from `wo`: in
+    /// proportion to the light each reflects, so a dark base takes few samples.
+    pub fn specular_probability(&self, wo: Vec3) -> f32 {
+        let spec = luminance(schlick(self.specular, wo.z));
+        let base = luminance(self.base * (Vec3::ONE - self.specular));
+        if base <= 0.0 {
+            1.0
+        } else if spec <= 0.0 {
+            0.0
+        } else {
+            spec / (spec + base)
+        }
+    }
+
+    /// The GGX lobe's BRDF (zero unless both directions are above the surface).
+    pub fn eval_specular(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let h = (wo + wi).normalize_or_zero();
+        let f = schlick(self.specular, wo.dot(h));
+        f * (self.d(h) * self.g2(wo, wi) / (4.0 * wo.z * wi.z))
+    }
+
+    /// The density of [`GlossyLobes::sample_specular`] in solid angle (defined below the horizon
+    /// too, where visible-normal sampling can send a direction).
+    pub fn pdf_specular(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
+        let h = (wo + wi).normalize_or_zero();
+        if wo.dot(h) <= 0.0 {
+            return 0.0;
+        }
+        self.g1(wo) * self.d(h) / (4.0 * wo.z)
+    }
+
+    /// A direction from the GGX lobe by sampling a visible microfacet normal and reflecting.
+    pub fn sample_specular(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        let a = self.alpha;
+        // The view direction in the hemisphere configuration (alpha = 1).
+        let vh = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
+        let t2 = vh.cross(t1);
+        // A point on the projected half disk.
+        let r = u.x.sqrt();
+        let phi = TAU * u.y;
+        let p1 = r * phi.cos();
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
+        // Back to the ellipsoid configuration.
+        let m = Vec3::new(a * nh.x, a * nh.y, nh.z.max(0.0)).normalize();
+        2.0 * wo.dot(m) * m - wo
+    }
+
+    /// The GGX lobe's f cos / pdf for a direction it sampled: F G2 / G1 (D cancels).
+    pub fn specular_weight(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let h = (wo + wi).normalize_or_zero();
+        schlick(self.specular, wo.dot(h)) * (self.g2(wo, wi) / self.g1(wo))
+    }
+
+    /// The diffuse base's BRDF (Ashikhmin-Shirley): what the coating lets through, twice.
+    pub fn eval_base(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let through = |c: f32| {
+            let m = 1.0 - 0.5 * c;
+            let m2 = m * m;
+            1.0 - m2 * m2 * m
+        };
+        self.base * (Vec3::ONE - self.specular) * (28.0 / (23.0 * PI) * through(wo.z) * through(wi.z))
+    }
+
+    /// The base is sampled by the cosine.
+    pub fn pdf_base(&self, wi: Vec3) -> f32 {
+        wi.z.max(0.0) / PI
+    }
+
+    pub fn sample_base(&self, u: Vec2) -> Vec3 {
+        cosine_hemisphere(u)
+    }
+
+    /// The whole BRDF.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval_specular(wo, wi) + self.eval_base(wo, wi)
+    }
+
+    /// The density of [`GlossyLobes::sample`], both lobes together.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let p = self.specular_probability(wo);
+        p * self.pdf_specular(wo, wi) + (1.0 - p) * self.pdf_base(wi)
+    }
+
+    /// Picks a lobe with `u_lobe`, then a direction from it.
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> (Vec3, Lobe) {
+        if u_lobe < self.specular_probability(wo) {
+            (self.sample_specular(wo, u), Lobe::Specular)
+        } else {
+            (self.sample_base(u), Lobe::Diffuse)
+        }
+    }
+}

@@ -1,0 +1,118 @@
+//! glTF's metallic-roughness material, as Blender's Principled BSDF and the glTF specification
+//! layer it: a GGX lobe over a Lambertian base that receives what the lobe does not reflect.
+
+use std::f32::consts::FRAC_1_PI;
+
+use glam::Vec3;
+
+use super::{Bsdf, BsdfSample, GlossyLobes, Lobe, SpecularAlbedo};
+use crate::math::{cosine_hemisphere, luminance, Frame};
+use crate::render::sampler::{Dim, Sampler};
+
+/// glTF's metallic-roughness material, layered as Blender's Principled BSDF and the glTF
+/// specification's dielectric layer are: the GGX lobe (reflectance `specular` at normal
+/// incidence, Schlick's Fresnel) over a Lambertian base that receives what the lobe does not
+/// reflect, `base / pi` times 1 - E(wo), E being the lobe's directional albedo (from
+/// [`SpecularAlbedo`]). The GGX lobe is an S vertex, or a D vertex when `rough` (its roughness at
+/// least the material's `diffuse_from`); the base is D.
+#[derive(Clone, Copy, Debug)]
+pub struct Pbr {
+    /// The GGX lobe (its `base` unused: the base is Lambertian here).
+    pub lobes: GlossyLobes,
+    pub base: Vec3,
+    pub frame: Frame,
+    pub rough: bool,
+}
+
+impl Pbr {
+    /// The lobe a GGX sample makes in the split.
+    fn tag(&self) -> Lobe {
+        if self.rough {
+            Lobe::Diffuse
+        } else {
+            Lobe::Specular
+        }
+    }
+
+    /// The GGX lobe's directional albedo seen from `wo` (local).
+    fn specular_albedo(&self, wo: Vec3) -> Vec3 {
+        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
+        self.lobes.specular * a + Vec3::splat(b)
+    }
+
+    /// The base's weight seen from `wo` (local): 1 - the GGX lobe's directional albedo.
+    fn through(&self, wo: Vec3) -> Vec3 {
+        (Vec3::ONE - self.specular_albedo(wo)).max(Vec3::ZERO)
+    }
+
+    /// The probability of sampling the GGX lobe from `wo` (local): in proportion to what each
+    /// reflects.
+    fn specular_probability(&self, wo: Vec3) -> f32 {
+        let e = self.specular_albedo(wo);
+        let spec = luminance(e);
+        let base = luminance(self.base * (Vec3::ONE - e).max(Vec3::ZERO));
+        if base <= 0.0 {
+            1.0
+        } else if spec <= 0.0 {
+            0.0
+        } else {
+            spec / (spec + base)
+        }
+    }
+
+    fn eval_base(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        self.base * self.through(wo) * FRAC_1_PI
+    }
+}
+
+impl Bsdf for Pbr {
+    fn lobe(&self) -> Option<Lobe> {
+        self.rough.then_some(Lobe::Diffuse)
+    }
+
+    fn scatters(&self, wo: Vec3) -> bool {
+        self.frame.to_local(wo).z > 0.0
+    }
+
+    fn albedo(&self, lobe: Lobe) -> Vec3 {
+        if self.rough {
+            self.base + self.lobes.specular
+        } else if lobe == Lobe::Diffuse {
+            self.base
+        } else {
+            self.lobes.specular
+        }
+    }
+
+    fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
+        let g = &self.lobes;
+        let wo_l = self.frame.to_local(wo);
+        let p_spec = self.specular_probability(wo_l);
+        let (wi_l, specular) = if u.get_1d(Dim::Lobe) < p_spec {
+            (g.sample_specular(wo_l, u.get_2d(Dim::Direction)), true)
+        } else {
+            (cosine_hemisphere(u.get_2d(Dim::Direction)), false)
+        };
+        if wi_l.z <= 0.0 {
+            return None;
+        }
+        let (weight, pdf, lobe) = if specular {
+            (g.specular_weight(wo_l, wi_l) / p_spec, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
+        } else {
+            let pdf = (1.0 - p_spec) * wi_l.z * FRAC_1_PI;
+            (self.eval_base(wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
+        };
+        Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe })
+    }
+
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
+        let g = &self.lobes;
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        let p_spec = self.specular_probability(wo_l);
+        each(self.tag(), g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l));
+        each(Lobe::Diffuse, self.eval_base(wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
+    }
+}

@@ -1,0 +1,139 @@
+//! A scene material at a surface point, made a BSDF: its textures looked up, its shading normal
+//! bent by its bump, height and normal maps, and the BSDF of its kind built from them. The
+//! integrator asks for the shading normal and says what to do with the BSDF ([`UseBsdf`]); it
+//! never names a material. Adding a material is its BSDF in `bsdf/` and one arm of
+//! [`Shading::with_bsdf`].
+
+use glam::{DVec3, Vec2, Vec3};
+
+use super::bsdf::{alpha, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr};
+use super::surface::{apply_height, apply_normal_map, Surface};
+use crate::math::Frame;
+use crate::scene::texture::Texture;
+use crate::scene::{Maps, Material, Scene, Shape};
+
+/// What to do with a BSDF, whatever its type: generic over it, so that code using a BSDF is
+/// compiled once for each material, the material being chosen once, in [`Shading::with_bsdf`].
+pub trait UseBsdf {
+    type Output;
+    fn with<B: Bsdf>(self, bsdf: &B) -> Self::Output;
+}
+
+/// The material of a hit on a shape, with the textures it reads.
+pub struct Shading<'a> {
+    scene: &'a Scene,
+    shape: &'a Shape,
+    s: &'a Surface,
+    maps: Maps,
+}
+
+impl<'a> Shading<'a> {
+    /// The material of `shape` at `s`; with `textured` false (a render that reads no textures)
+    /// its constants alone.
+    #[inline(always)]
+    pub fn new(scene: &'a Scene, shape: &'a Shape, s: &'a Surface, textured: bool) -> Self {
+        let maps = if textured { scene.maps(shape.material) } else { Maps::default() };
+        Shading { scene, shape, s, maps }
+    }
+
+    /// Where texture `t` is read: a solid one at the point in f64 (exact on planes the scene
+    /// file makes exact); an image only by `s.uv`.
+    #[inline(always)]
+    fn point(&self, t: &Texture) -> DVec3 {
+        match t.is_solid() {
+            true => self.scene.solid_point(&self.shape.geometry, self.s.prim, self.s.bary, self.s.p),
+            false => DVec3::ZERO,
+        }
+    }
+
+    fn texture(&self, t: u32) -> &'a Texture {
+        &self.scene.textures[t as usize]
+    }
+
+    /// The shading normal turned to the side of `ng` (the geometric normal, already on the side
+    /// the path came from: surfaces are two-sided), bent by the material's maps. A bent normal
+    /// that would fall below the surface is left unbent.
+    #[inline(always)]
+    pub fn normal(&self, ng: Vec3) -> Vec3 {
+        let s = self.s;
+        let mut ns = if s.ns.dot(ng) >= 0.0 { s.ns } else { -s.ns };
+        if let Some((t, height)) = self.maps.bump {
+            let texture = self.texture(t);
+            ns = texture.bump(height, self.point(texture), s.uv, ns, ng);
+        }
+        if let Some((t, scale)) = self.maps.height {
+            // Central differences of the height, half a texel (at most 1/1024) either side: the
+            // bilinear lookup is linear within a texel, so this is the local slope.
+            let texture = self.texture(t);
+            let d = texture.texel().min(1.0 / 1024.0);
+            let p = self.point(texture);
+            let h = |du: f32, dv: f32| scale * texture.scalar(p, s.uv + Vec2::new(du, dv));
+            let (dhdu, dhdv) = ((h(d, 0.0) - h(-d, 0.0)) / (2.0 * d), (h(0.0, d) - h(0.0, -d)) / (2.0 * d));
+            let bent = apply_height(ns, s.dpdu, s.dpdv, dhdu, dhdv);
+            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
+        }
+        if let Some((t, scale)) = self.maps.normal {
+            let texture = self.texture(t);
+            let c = texture.color(self.point(texture), s.uv) * 2.0 - Vec3::ONE;
+            let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
+            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
+        }
+        ns
+    }
+
+    /// The material's colour: its texture's where it has one, else `constant`.
+    #[inline(always)]
+    fn color(&self, constant: Vec3) -> Vec3 {
+        match self.maps.color {
+            Some(t) => {
+                let texture = self.texture(t);
+                texture.color(self.point(texture), self.s.uv)
+            }
+            None => constant,
+        }
+    }
+
+    /// A metallic-roughness material's factors, times its texture's blue and green.
+    #[inline(always)]
+    fn metal_rough(&self, metallic: f32, roughness: f32) -> (f32, f32) {
+        match self.maps.metal_rough {
+            Some(t) => {
+                let texture = self.texture(t);
+                let c = texture.color(self.point(texture), self.s.uv);
+                (metallic * c.z, roughness * c.y)
+            }
+            None => (metallic, roughness),
+        }
+    }
+
+    /// The material's BSDF at shading normal `n` (on the side the path arrived from), handed to
+    /// `u`; `entering` when the path arrived from the outside (the side the geometric normal
+    /// points to).
+    #[inline(always)]
+    pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, entering: bool, u: U) -> U::Output {
+        match self.scene.materials[self.shape.material as usize] {
+            Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
+            Material::Mirror { color } => u.with(&Mirror { color, n }),
+            Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
+            Material::Glossy { specular, roughness, base } => {
+                let lobes = GlossyLobes { specular, alpha: alpha(roughness), base: self.color(base) };
+                u.with(&Glossy { lobes, frame: Frame::new(n) })
+            }
+            Material::Pbr { base_color, metallic, roughness, diffuse_from } => {
+                let (metallic, roughness) = self.metal_rough(metallic, roughness);
+                let color = base_color * self.color(Vec3::ONE);
+                let lobes = GlossyLobes {
+                    specular: Vec3::splat(0.04).lerp(color, metallic),
+                    alpha: alpha(roughness),
+                    base: Vec3::ZERO,
+                };
+                u.with(&Pbr {
+                    lobes,
+                    base: color * (1.0 - metallic),
+                    frame: Frame::new(n),
+                    rough: roughness >= diffuse_from,
+                })
+            }
+        }
+    }
+}
