@@ -31,37 +31,7 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Which numbers a render draws.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum SamplerKind {
-    /// Independent uniform numbers: PCG32 streams.
-    Independent,
-    /// Owen-scrambled Sobol points, a sequence per purpose and bounce.
-    #[default]
-    Sobol,
-}
-
-impl SamplerKind {
-    pub const ALL: [SamplerKind; 2] = [SamplerKind::Independent, SamplerKind::Sobol];
-
-    /// The name on the command line, in scene files and in `converge`'s results.
-    pub fn name(self) -> &'static str {
-        match self {
-            SamplerKind::Independent => "independent",
-            SamplerKind::Sobol => "sobol",
-        }
-    }
-
-    pub fn parse(name: &str) -> Option<SamplerKind> {
-        SamplerKind::ALL.into_iter().find(|k| k.name() == name)
-    }
-}
-
-impl std::fmt::Display for SamplerKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+pub use crate::scene::SamplerKind;
 
 /// What a number is drawn for at the current bounce.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -85,6 +85,38 @@ pub struct FilmSettings {
 /// the à-trous one.
 pub const DIFFUSE_ROUGHNESS: f32 = 0.2;
 
+/// Which numbers a render draws.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SamplerKind {
+    /// Independent uniform numbers: PCG32 streams.
+    Independent,
+    /// Owen-scrambled Sobol points, a sequence per purpose and bounce.
+    #[default]
+    Sobol,
+}
+
+impl SamplerKind {
+    pub const ALL: [SamplerKind; 2] = [SamplerKind::Independent, SamplerKind::Sobol];
+
+    /// The name on the command line, in scene files and in `converge`'s results.
+    pub fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Independent => "independent",
+            SamplerKind::Sobol => "sobol",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<SamplerKind> {
+        SamplerKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl std::fmt::Display for SamplerKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Path length limit and the random seed.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -92,7 +124,7 @@ pub struct RenderSettings {
     pub max_depth: u32,
     pub seed: u64,
     /// Which numbers the paths draw.
-    pub sampler: crate::render::sampler::SamplerKind,
+    pub sampler: SamplerKind,
 }
 
 /// How a surface scatters light.

@@ -7,7 +7,7 @@ use toml::Spanned;
 use glam::{DVec3, Vec3};
 
 use super::{dv3, v3, Ctx, F, V3};
-use crate::render::sampler::SamplerKind;
+use crate::scene::SamplerKind;
 use crate::scene::{limits, Camera, FilmSettings, RenderSettings, SceneError};
 
 /// `[camera]` as written.
@@ -123,8 +123,8 @@ pub(super) fn diffuse_roughness(ctx: &Ctx, r: Option<&FileRender>) -> Result<f32
 
 #[cfg(test)]
 mod tests {
-    use crate::render::sampler::SamplerKind;
     use crate::scene::file::tests::{error_line, parse_str, MINIMAL};
+    use crate::scene::SamplerKind;
 
     #[test]
     fn minimal_scene_has_defaults() {
