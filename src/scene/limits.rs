@@ -3,6 +3,9 @@
 
 /// The largest image side, in pixels.
 pub const MAX_SIZE: u32 = 1 << 16;
+/// The most pixels of an image, rendered or read (an EXR, an environment map): 2^30, a
+/// 32768x32768 or 65536x16384 image, whose RGB floats alone take 12 GiB.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 30;
 /// The most samples per pixel.
 pub const MAX_SPP: u32 = 1 << 24;
 /// The most scattering events per path (as pbrt and Mitsuba cap theirs): a closed mirror box

@@ -1,0 +1,166 @@
+//! A hostile user's findings on parts, checkpoints, the EXR reader and the commands that read
+//! files (`merge`, `--resume`, `filter`, `compare`, `converge`): one test per finding, each
+//! named in its doc comment with what happened before. Each failed before its fix.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// A sphere under a point light.
+const SCENE: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n\
+[film]\nwidth = 8\nheight = 8\nspp = 1\n\
+[[light]]\ntype = \"point\"\nposition = [0, 3, -1]\nintensity = [5, 5, 5]\n\
+[[shape]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 1\n";
+
+/// What every render of these tests adds, unless it names its own spp.
+const SMALL: [&str; 6] = ["--width", "32", "--height", "32", "--threads", "1"];
+
+/// The address space (KiB) the memory bombs run in: a tiny render needs under 500 MB of it
+/// (Embree and rayon reserve some), and each bomb asked for 4 GB or more before its fix, which
+/// this limit turns into a quick abort instead of a machine swapping.
+const ADDRESS_SPACE_KIB: u64 = 1 << 20;
+
+/// Runs `lightsplit ARGS` in `dir` within [`ADDRESS_SPACE_KIB`] of address space.
+fn run_limited(dir: &Path, args: &[&str]) -> Output {
+    Command::new("sh")
+        .current_dir(dir)
+        .arg("-c")
+        .arg(format!("ulimit -v {ADDRESS_SPACE_KIB}; exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_lightsplit"))
+        .args(args)
+        .output()
+        .expect("sh runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// `args` with [`SMALL`] after them.
+fn small<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    args.iter().copied().chain(SMALL).collect()
+}
+
+/// Asserts that `o` is one clear refusal: status 2, no panic, a message holding each of `want`.
+#[track_caller]
+fn refused(o: &Output, want: &[&str], what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "{what}: {err}");
+    assert!(!err.contains("panicked"), "{what}: {err}");
+    for w in want {
+        assert!(err.contains(w), "{what}: no `{w}` in: {err}");
+    }
+}
+
+/// A directory holding [`SCENE`] as `s.toml`.
+fn scene_dir() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("s.toml"), SCENE).expect("write");
+    dir
+}
+
+/// An EXR attribute: its name, type, size and value.
+fn attribute(name: &str, kind: &str, value: &[u8]) -> Vec<u8> {
+    let mut out = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+    out.extend((value.len() as i32).to_le_bytes());
+    out.extend(value);
+    out
+}
+
+/// A tiled EXR that declares one `w` x `h` tile of half RGB and its offset table, but holds no
+/// pixels: a few hundred bytes (349 with no `text` attributes) that claim gigabytes.
+fn tiled_exr_without_pixels(w: u32, h: u32, text: &[(&str, &str)]) -> Vec<u8> {
+    let i32s = |v: &[i32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let mut channels = Vec::new();
+    for c in ["B", "G", "R"] {
+        channels.extend([c.as_bytes(), b"\0"].concat());
+        channels.extend(i32s(&[1])); // half
+        channels.extend([0, 0, 0, 0]); // linear, reserved
+        channels.extend(i32s(&[1, 1])); // sampling
+    }
+    channels.push(0);
+    let window = i32s(&[0, 0, w as i32 - 1, h as i32 - 1]);
+    let mut tiles = [w.to_le_bytes(), h.to_le_bytes()].concat();
+    tiles.push(0); // one level
+    let mut out = vec![0x76, 0x2f, 0x31, 0x01];
+    out.extend((2u32 | 0x200).to_le_bytes()); // version 2, tiled
+    for a in [
+        attribute("channels", "chlist", &channels),
+        attribute("compression", "compression", &[0]),
+        attribute("dataWindow", "box2i", &window),
+        attribute("displayWindow", "box2i", &window),
+        attribute("lineOrder", "lineOrder", &[0]),
+        attribute("pixelAspectRatio", "float", &1f32.to_le_bytes()),
+        attribute("screenWindowCenter", "v2f", &[0; 8]),
+        attribute("screenWindowWidth", "float", &1f32.to_le_bytes()),
+        attribute("tiles", "tiledesc", &tiles),
+    ] {
+        out.extend(a);
+    }
+    for (name, value) in text {
+        out.extend(attribute(name, "string", value.as_bytes()));
+    }
+    out.push(0);
+    // The offset of the one tile: just past this table, where the file ends.
+    let end = out.len() as u64 + 8;
+    out.extend(end.to_le_bytes());
+    out
+}
+
+/// H4: a 349-byte tiled EXR declaring one 65536x32768 tile (no pixels) as an environment map
+/// allocated 12 GB and ran 43 s (within this test's address space: status 134); at 2^29 x 2^28
+/// it aborted outright; `merge`, `--resume`, `filter`, `compare` and `converge --reference`
+/// did the same. The headers are checked before any pixel is decoded: every command refuses
+/// it, status 2, naming the file, within 1 GiB of address space.
+#[test]
+fn h4_an_exr_declaring_gigabytes_is_refused_before_decoding() {
+    let dir = scene_dir();
+    let d = dir.path();
+    let part = [
+        ("lightsplit.key", "0"),
+        ("lightsplit.part", "0/1"),
+        ("lightsplit.spp", "1"),
+        ("lightsplit.adaptive", "no"),
+        ("lightsplit.complete", "yes"),
+    ];
+    let bomb = tiled_exr_without_pixels(65536, 32768, &part);
+    std::fs::write(d.join("bomb.exr"), &bomb).expect("write");
+    assert_eq!(tiled_exr_without_pixels(65536, 32768, &[]).len(), 349);
+    std::fs::write(d.join("huge.exr"), tiled_exr_without_pixels(1 << 29, 1 << 28, &[])).expect("write");
+    // Within the bounds of size, but 3 GiB of pixels that are not there.
+    std::fs::write(d.join("short.exr"), tiled_exr_without_pixels(32768, 16384, &[])).expect("write");
+    for map in ["bomb.exr", "huge.exr", "short.exr"] {
+        let env = SCENE.replace(
+            "[[light]]\ntype = \"point\"",
+            &format!("[[light]]\ntype = \"environment\"\nfile = \"{map}\"\n[[light]]\ntype = \"point\""),
+        );
+        std::fs::write(d.join("env.toml"), env).expect("write");
+        let o = run_limited(d, &small(&["render", "env.toml", "--spp", "1", "-o", "e.exr"]));
+        refused(&o, &[map, "declares"], map);
+    }
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["merge", "bomb.exr", "-o", "m.exr"],
+        small(&["render", "s.toml", "--spp", "1", "--resume", "bomb.exr", "-o", "r.exr"]),
+        vec!["filter", "bomb.exr", "-o", "f.exr"],
+        vec!["filter", "huge.exr", "-o", "f.exr"],
+        vec!["compare", "bomb.exr", "short.exr"],
+        small(&[
+            "converge",
+            "s.toml",
+            "--spp",
+            "1",
+            "--filters",
+            "none",
+            "--reference",
+            "bomb.exr",
+            "--out",
+            "c",
+        ]),
+    ];
+    for args in commands {
+        let o = run_limited(d, &args);
+        refused(&o, &["declares", ".exr"], &format!("{args:?}"));
+    }
+    let written: Vec<_> =
+        ["e.exr", "m.exr", "r.exr", "f.exr", "c"].iter().filter(|f| d.join(f).exists()).collect();
+    assert!(written.is_empty(), "{written:?}");
+}
