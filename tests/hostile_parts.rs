@@ -2,8 +2,9 @@
 //! files (`merge`, `--resume`, `filter`, `compare`, `converge`): one test per finding, each
 //! named in its doc comment with what happened before. Each failed before its fix.
 
+use std::ffi::OsStr;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 /// A sphere under a point light.
 const SCENE: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n\
@@ -18,6 +19,30 @@ const SMALL: [&str; 6] = ["--width", "32", "--height", "32", "--threads", "1"];
 /// (Embree and rayon reserve some), and each bomb asked for 4 GB or more before its fix, which
 /// this limit turns into a quick abort instead of a machine swapping.
 const ADDRESS_SPACE_KIB: u64 = 1 << 20;
+
+/// The scheduler variables `--part auto` reads, removed from every run so the tests' own
+/// environment (a CI job on Slurm, say) cannot change them.
+const SCHEDULER: [&str; 5] = [
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_MIN",
+    "SLURM_ARRAY_TASK_COUNT",
+    "JOB_COMPLETION_INDEX",
+    "LIGHTSPLIT_PART_COUNT",
+];
+
+fn lightsplit(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_lightsplit"));
+    c.current_dir(dir).stdin(Stdio::null());
+    for v in SCHEDULER {
+        c.env_remove(v);
+    }
+    c
+}
+
+/// Runs `lightsplit ARGS` in `dir`.
+fn run<S: AsRef<OsStr>>(dir: &Path, args: &[S]) -> Output {
+    lightsplit(dir).args(args).output().expect("the binary runs")
+}
 
 /// Runs `lightsplit ARGS` in `dir` within [`ADDRESS_SPACE_KIB`] of address space.
 fn run_limited(dir: &Path, args: &[&str]) -> Output {
@@ -163,4 +188,63 @@ fn h4_an_exr_declaring_gigabytes_is_refused_before_decoding() {
     let written: Vec<_> =
         ["e.exr", "m.exr", "r.exr", "f.exr", "c"].iter().filter(|f| d.join(f).exists()).collect();
     assert!(written.is_empty(), "{written:?}");
+}
+
+/// Runs `lightsplit ARGS` in `dir`, killed if it has not ended after two minutes (a hang, which
+/// the assertion on its status then reports).
+fn run_or_kill(dir: &Path, args: &[&str]) -> Option<Output> {
+    let mut child =
+        lightsplit(dir).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawns");
+    for _ in 0..1200 {
+        if child.try_wait().expect("waits").is_some() {
+            return Some(child.wait_with_output().expect("output"));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    None
+}
+
+/// M7: `converge` hung for ever on a `results.csv` row of this run with `rmse=inf` (or
+/// `render_seconds=inf`): plotters' log axis looped. Such a row is left out with a `note:`,
+/// measured again, and the plots are drawn.
+#[test]
+fn m7_converge_leaves_out_rows_that_are_not_finite() {
+    let dir = scene_dir();
+    let d = dir.path();
+    let args = small(&[
+        "converge",
+        "s.toml",
+        "--spp",
+        "1,2",
+        "--filters",
+        "none",
+        "--reference-spp",
+        "2",
+        "--out",
+        "c",
+    ]);
+    let o = run(d, &args);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let csv = d.join("c/results.csv");
+    for column in ["rmse", "render_seconds"] {
+        // The last row, measured by the run before (the first is left out after the first edit).
+        let text = std::fs::read_to_string(&csv).expect("results.csv");
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let at = lines[0].split(',').position(|c| c == column).expect("the column");
+        let last = lines.len() - 1;
+        let mut row: Vec<&str> = lines[last].split(',').collect();
+        row[at] = "inf";
+        lines[last] = row.join(",");
+        std::fs::write(&csv, lines.join("\n") + "\n").expect("write");
+        let o = run_or_kill(d, &args).expect("converge ends");
+        assert_eq!(o.status.code(), Some(0), "{column}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("note:") && stderr(&o).contains("not finite"),
+            "{column}: {}",
+            stderr(&o)
+        );
+        assert!(d.join("c/error-vs-spp.png").exists() && d.join("c/error-vs-time.png").exists());
+    }
 }
