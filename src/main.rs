@@ -684,7 +684,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let setting = args.out.check(&Setting::default(), format)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
-        .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
+        .map_err(|e| Failure::input(format!("{}: {e}", args.input.display())))?;
     if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
         return Err(Failure::input(format!(
             "{}: atrous reads each pixel's variance, and this file has no `*_variance` layers \

@@ -6,6 +6,9 @@ use std::ffi::OsStr;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
+use exr::image::FlatSamples;
+use exr::meta::header::LayerAttributes;
+
 /// A sphere under a point light.
 const SCENE: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n\
 [film]\nwidth = 8\nheight = 8\nspp = 1\n\
@@ -81,6 +84,52 @@ fn scene_dir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().expect("tempdir");
     std::fs::write(dir.path().join("s.toml"), SCENE).expect("write");
     dir
+}
+
+/// Renders `s.toml` in `dir` with `args` (and [`SMALL`]), expecting success.
+#[track_caller]
+fn render(dir: &Path, args: &[&str]) {
+    let o = run(dir, &small(&[&["render", "s.toml"], args].concat()));
+    assert_eq!(o.status.code(), Some(0), "render {args:?}: {}", stderr(&o));
+}
+
+/// Rewrites the EXR at `path`: `channel` sees each channel's name and samples, `attributes`
+/// the header's own attributes.
+fn edit_exr(
+    path: &Path,
+    mut channel: impl FnMut(&str, &mut FlatSamples),
+    attributes: impl Fn(&mut LayerAttributes),
+) {
+    use exr::prelude::*;
+    let mut image = read_all_flat_layers_from_file(path).expect("an EXR");
+    for layer in image.layer_data.iter_mut() {
+        attributes(&mut layer.attributes);
+        for c in layer.channel_data.list.iter_mut() {
+            channel(&c.name.to_string(), &mut c.sample_data);
+        }
+    }
+    image.write().to_file(path).expect("rewritten");
+}
+
+/// Sets every value of the float channel `name` of the EXR at `path` (pixel `at` alone, when
+/// given) to `value`.
+fn set_channel(path: &Path, name: &str, at: Option<usize>, value: f32) {
+    let mut found = false;
+    edit_exr(
+        path,
+        |n, samples| {
+            if n == name {
+                let FlatSamples::F32(v) = samples else { panic!("{name} is not a float channel") };
+                match at {
+                    Some(i) => v[i] = value,
+                    None => v.iter_mut().for_each(|x| *x = value),
+                }
+                found = true;
+            }
+        },
+        |_| {},
+    );
+    assert!(found, "no channel {name}");
 }
 
 /// An EXR attribute: its name, type, size and value.
@@ -190,6 +239,11 @@ fn h4_an_exr_declaring_gigabytes_is_refused_before_decoding() {
     assert!(written.is_empty(), "{written:?}");
 }
 
+/// Copies `from` to `to` in `d`.
+fn copy(d: &Path, from: &str, to: &str) {
+    std::fs::copy(d.join(from), d.join(to)).expect("copy");
+}
+
 /// Runs `lightsplit ARGS` in `dir`, killed if it has not ended after two minutes (a hang, which
 /// the assertion on its status then reports).
 fn run_or_kill(dir: &Path, args: &[&str]) -> Option<Output> {
@@ -247,4 +301,45 @@ fn m7_converge_leaves_out_rows_that_are_not_finite() {
         );
         assert!(d.join("c/error-vs-spp.png").exists() && d.join("c/error-vs-time.png").exists());
     }
+}
+
+/// L4: `filter` of an EXR with one NaN pixel spread it to nine pixels; finite values of 3e38
+/// became infinities over the whole image (nine summed by box3); a kernel of weights of 1e38
+/// made NaN. A non-finite pixel is refused with its count; the weighted sums cannot overflow
+/// where the mean is finite; and where the image cannot be filtered and added up in 32 bits,
+/// that is an error, never an image of infinities.
+#[test]
+fn l4_filter_refuses_non_finite_pixels_and_never_overflows() {
+    let dir = scene_dir();
+    let d = dir.path();
+    render(d, &["--spp", "2", "-o", "a.exr"]);
+    copy(d, "a.exr", "nan.exr");
+    set_channel(&d.join("nan.exr"), "indirect.R", Some(5), f32::NAN);
+    let o = run(d, &["filter", "nan.exr", "--filter", "box3", "-o", "f.exr"]);
+    refused(&o, &["nan.exr", "1 of the 1024 pixels", "indirect"], "a NaN pixel");
+    assert!(!d.join("f.exr").exists());
+    // Every raw value 3e38: the whole image filtered stays 3e38.
+    copy(d, "a.exr", "big.exr");
+    for c in ["raw.R", "raw.G", "raw.B"] {
+        set_channel(&d.join("big.exr"), c, None, 3e38);
+    }
+    let huge_weights = ["1e38"; 9].join(",");
+    for kernel in ["box3", "weighted3", "box5", "median3", &huge_weights] {
+        let o = run(d, &["filter", "big.exr", "--filter", kernel, "--filter-target", "image", "-o", "f.exr"]);
+        assert_eq!(o.status.code(), Some(0), "{kernel}: {}", stderr(&o));
+        let image = lightsplit::film::read_image(&d.join("f.exr")).expect("reads");
+        for p in &image.pixels {
+            assert!(p.is_finite() && (p.x / 3e38 - 1.0).abs() < 1e-5, "{kernel}: {p}");
+        }
+    }
+    // Four components of 3e38 add up to more than any float: refused, nothing written.
+    for layer in ["emitted", "direct", "caustic", "indirect"] {
+        for c in ["R", "G", "B"] {
+            set_channel(&d.join("big.exr"), &format!("{layer}.{c}"), None, 3e38);
+        }
+    }
+    std::fs::remove_file(d.join("f.exr")).expect("remove");
+    let o = run(d, &["filter", "big.exr", "--filter", "box3", "-o", "f.exr"]);
+    refused(&o, &["overflow"], "components beyond a float");
+    assert!(!d.join("f.exr").exists());
 }

@@ -635,11 +635,14 @@ impl Film {
                 .iter()
                 .find(|(n, _)| n == name)
                 .map(|(_, d)| d)
-                .ok_or_else(|| format!("no `{name}` channel"))
+                .ok_or_else(|| format!("no `{name}` channel (not a lightsplit render?)"))
         };
         let rgb = |prefix: &str, names: [&str; 3]| -> Result<Image, String> {
             let [r, g, b] = names.map(|c| find(&format!("{prefix}.{c}")));
             let (r, g, b) = (r?, g?, b?);
+            if g.len() != r.len() || b.len() != r.len() {
+                return Err("channel sizes do not match the image".into());
+            }
             Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
         };
         let mut film = Film::new(width, height);
@@ -677,7 +680,42 @@ impl Film {
         if film.depth.len() != n || film.raw.pixels.len() != n {
             return Err("channel sizes do not match the image".into());
         }
+        film.check_finite()?;
         Ok(film)
+    }
+
+    /// Refuses a film with a NaN or an infinity in any layer, naming the layer and counting
+    /// its pixels: a filter spreads one to every pixel whose window holds it (box3: nine), and
+    /// no render writes one (its non-finite samples are dropped).
+    pub fn check_finite(&self) -> Result<(), String> {
+        let images = [("raw", &self.raw), ("albedo", &self.albedo), ("normal", &self.normal)]
+            .into_iter()
+            .chain(self.components.named().map(|(c, l)| (c.name(), l)))
+            .map(|(name, l)| {
+                (name.to_string(), bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len())
+            });
+        let scalars = [
+            ("depth", &self.depth),
+            ("objectid", &self.object),
+            ("objectid.coverage", &self.coverage),
+            ("A", &self.alpha),
+            ("raw_variance", &self.variance),
+        ]
+        .into_iter()
+        .map(|(name, v)| (name.to_string(), v))
+        .chain(self.component_variance.named().map(|(c, v)| (format!("{}_variance", c.name()), v)))
+        .map(|(name, v)| (name, v.as_slice(), v.len()));
+        let bad = images.chain(scalars).map(|(name, values, pixels)| {
+            // A pixel of three channels is one bad pixel however many of them are.
+            let per = values.len().checked_div(pixels).unwrap_or(1).max(1);
+            (name, values.chunks(per).filter(|p| p.iter().any(|x| !x.is_finite())).count(), pixels)
+        });
+        match bad.into_iter().find(|(_, count, _)| *count > 0) {
+            None => Ok(()),
+            Some((name, count, of)) => Err(format!(
+                "{count} of the {of} pixels of its `{name}` layer are NaN or infinite: it cannot be filtered"
+            )),
+        }
     }
 }
 
