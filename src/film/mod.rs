@@ -9,7 +9,7 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
-pub use crate::scene::image::{read_exr_channels, Channels, Image};
+pub use crate::scene::image::{read_exr_channels, read_exr_layer, Channels, Image, Words};
 
 use crate::component::{Component, Split};
 
@@ -401,15 +401,17 @@ pub fn write_film(
     }
 }
 
-/// Writes named channels as an EXR the way [`write_film`] does: whole or not at all.
+/// Writes named float and whole-number channels as an EXR the way [`write_film`] does: whole
+/// or not at all.
 pub fn write_exr_atomically(
     path: &Path,
     channels: Channels,
+    words: Words,
     width: u32,
     height: u32,
     meta: &Metadata,
 ) -> Result<(), WriteError> {
-    atomically(path, |tmp| write_exr_channels(channels, width, height, meta, tmp))
+    atomically(path, |tmp| write_exr_samples(channels, words, width, height, meta, tmp))
 }
 
 /// Writes a text file (a summary, a table) the same way as images: whole or not at all.
@@ -612,11 +614,23 @@ pub fn write_exr_channels(
     meta: &Metadata,
     path: &Path,
 ) -> Result<(), String> {
+    write_exr_samples(channels, Words::new(), width, height, meta, path)
+}
+
+/// [`write_exr_channels`], with whole-number (`u32`) channels beside the float ones.
+fn write_exr_samples(
+    channels: Channels,
+    words: Words,
+    width: u32,
+    height: u32,
+    meta: &Metadata,
+    path: &Path,
+) -> Result<(), String> {
     use exr::prelude::*;
-    let list: Vec<AnyChannel<FlatSamples>> = channels
-        .into_iter()
-        .map(|(name, data)| AnyChannel::new(name.as_str(), FlatSamples::F32(data)))
-        .collect();
+    let floats = channels.into_iter().map(|(name, data)| (name, FlatSamples::F32(data)));
+    let words = words.into_iter().map(|(name, data)| (name, FlatSamples::U32(data)));
+    let list: Vec<AnyChannel<FlatSamples>> =
+        floats.chain(words).map(|(name, data)| AnyChannel::new(name.as_str(), data)).collect();
     let layer = Layer::new(
         (width as usize, height as usize),
         meta.exr_attributes(),

@@ -12,9 +12,9 @@ pub const MAX_SPP: u32 = 1 << 24;
 /// would otherwise never end.
 pub const MAX_DEPTH: u32 = 1024;
 /// The largest emission of a surface (a shape's `emission`, an `.mtl`'s `Ke`): what a camera
-/// ray sees of it is a finite sample that the film sums and squares in 32-bit floats, and the
-/// film must stay finite (a value of 3e38 made an EXR of infinities). Real scenes are many
-/// orders of magnitude below. Lights are not bounded: a sample their power overflows is
+/// ray sees of it is a finite sample that the film sums in 32-bit floats (its squares in 64),
+/// and the film must stay finite (a value of 3e38 made an EXR of infinities). Real scenes are
+/// many orders of magnitude below. Lights are not bounded: a sample their power overflows is
 /// infinite, and dropped and counted as every non-finite sample is.
 pub const MAX_EMISSION: f32 = 1e12;
 /// The widest filter kernel side (63x63).
