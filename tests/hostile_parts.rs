@@ -578,6 +578,30 @@ fn l4_filter_refuses_non_finite_pixels_and_never_overflows() {
     assert!(!d.join("f.exr").exists());
 }
 
+/// L5: an output name of 254 bytes passed the checks before the render, whose write then
+/// failed ("File name too long", status 1), the temporary's name being 14 bytes longer. The
+/// temporary's name is probed first: status 2 before any work, for an image, a filter's output
+/// and a checkpoint's part file alike.
+#[test]
+fn l5_an_output_name_too_long_for_its_temporary_is_refused_up_front() {
+    let dir = scene_dir();
+    let d = dir.path();
+    render(d, &["--spp", "1", "-o", "a.exr"]);
+    let long = format!("{}.exr", "x".repeat(250));
+    let o = run(d, &small(&["render", "s.toml", "--spp", "1", "-o", &long]));
+    refused(&o, &["too long", "temporary"], "render");
+    let o = run(d, &["filter", "a.exr", "--filter", "box3", "-o", &long]);
+    refused(&o, &["too long"], "filter");
+    // The image's name fits, and its checkpoint's (`.part.exr`, 5 bytes longer) does not: 238
+    // bytes, whose temporary takes 248 and the process id (Linux gives none below 300 to a
+    // process, so 3 to 7 digits), the checkpoint's 253 and the id.
+    let image = format!("{}.exr", "y".repeat(234));
+    let o = run(d, &small(&["render", "s.toml", "--spp", "1", "--checkpoint", "60", "-o", &image]));
+    refused(&o, &["too long", ".part.exr"], "checkpoint");
+    let names: Vec<_> = std::fs::read_dir(d).expect("list").map(|e| e.expect("entry").file_name()).collect();
+    assert_eq!(names.len(), 2, "only the scene and a.exr: {names:?}");
+}
+
 /// L6: messages that named the wrong cause. Parts differing only in `lightsplit.spp` said
 /// "key K against K"; `--resume` of a PNG said "invalid: file identifier missing", and of a
 /// checkpoint to a `.png` output "the settings differ" (the same settings, another output);

@@ -159,11 +159,21 @@ pub fn check_output(path: &Path) -> Result<Format, WriteError> {
         return refuse("is a directory".into());
     }
     // The image is written to a temporary file beside it and renamed: that must be possible,
-    // before any work is done.
-    let probe = dir.join(format!(".lightsplit-probe.{}.tmp", std::process::id()));
+    // before any work is done. The probe is that temporary itself, so a name the directory
+    // cannot hold (a name of 250 bytes, 14 more for the temporary's) is found now too.
+    let probe = temporary(path, std::process::id());
     match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
         Ok(_) => {
             let _ = std::fs::remove_file(&probe);
+        }
+        // Another run of this process id left it: the name is one the directory holds.
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+        Err(e) if e.kind() == io::ErrorKind::InvalidFilename => {
+            let bytes = probe.file_name().map_or(0, |n| n.len());
+            return refuse(format!(
+                "the name is too long: the file is written as a temporary `.NAME.PID.tmp.EXT` of {bytes} \
+                 bytes first, and the directory refuses it ({e})"
+            ));
         }
         Err(e) => return refuse(format!("cannot write in {}: {e}", dir.display())),
     }
