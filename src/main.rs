@@ -320,47 +320,45 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     }
     if let Some(text) = &args.part {
         options.part = part_from(text)?;
+        options.part.check(options.spp).map_err(|e| Failure::input(format!("{}: {e}", part_flag(text))))?;
     }
 
     // The part file: the output of a part, else beside the output (checkpoints, a stop).
     let part_path = if part_mode { output.clone() } else { part_file_of(&output) };
     film::check_not_an_input(&part_path, &scene.inputs).map_err(Failure::input)?;
+    if !part_mode && (args.checkpoint.is_some() || args.time_limit.is_some()) {
+        // It will be written, or most likely: its name must be one that can be.
+        film::check_output(&part_path).map_err(Failure::input)?;
+    }
+    let resume = match &args.resume {
+        None => None,
+        Some(path) => {
+            let bad = |e: String| Failure::input(format!("--resume {}: {e}", path.display()));
+            // A part's output is its part file, which a resumed part rewrites whole (a part
+            // file too); any other output would replace the checkpoint with an image.
+            if !part_mode {
+                film::check_not_an_input(&output, std::slice::from_ref(path)).map_err(Failure::input)?;
+            }
+            Some(lightsplit::part::read_checkpoint(path, &scene, &mut options).map_err(bad)?)
+        }
+    };
     let needs_key = part_mode || args.checkpoint.is_some() || args.resume.is_some();
     let mut key = if needs_key {
         Some(lightsplit::part::run_key(&scene, &options).map_err(Failure::input)?)
     } else {
         None
     };
-    let resume = match &args.resume {
-        None => None,
-        Some(path) => {
-            let bad = |e: String| Failure::input(format!("--resume {}: {e}", path.display()));
-            let (header, sums) = lightsplit::part::read(path).map_err(bad)?;
-            if Some(&header.key) != key.as_ref() {
-                return Err(bad(
-                    "it is not a checkpoint of this render (the scene files or the settings differ)".into(),
-                ));
-            }
-            if header.part != options.part || header.spp != options.spp {
-                return Err(bad(format!(
-                    "it holds part {} of {} spp, this render part {} of {} spp",
-                    header.part, header.spp, options.part, options.spp
-                )));
-            }
-            Some(sums)
-        }
-    };
     let header = |key: String, seconds: f64, complete: bool| lightsplit::part::Header {
         key,
         part: options.part,
         spp: options.spp,
+        adaptive: options.adaptive,
         complete,
         meta: render::metadata(&scene, &options, seconds),
     };
     let checkpoint_key = key.clone().unwrap_or_default();
-    let write_checkpoint = |sums: &film::Film, samples: &[u32]| {
-        if let Err(e) =
-            lightsplit::part::write(&part_path, sums, samples, &header(checkpoint_key.clone(), 0.0, false))
+    let write_checkpoint = |sums: &render::Accumulated| {
+        if let Err(e) = lightsplit::part::write(&part_path, sums, &header(checkpoint_key.clone(), 0.0, false))
         {
             eprintln!("warning: checkpoint not written: {e}");
         }
@@ -383,10 +381,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     GRACEFUL.store(true, Ordering::SeqCst);
     let rendered = render::render_controlled(&scene, &options, control);
     GRACEFUL.store(false, Ordering::SeqCst);
-    let out = rendered.map_err(|e| match e {
-        render::RenderError::Resume(_) => Failure::input(e),
-        _ => Failure::failed(e),
-    })?;
+    let out = rendered.map_err(|e| if e.is_input() { Failure::input(e) } else { Failure::failed(e) })?;
     bar.finish_and_clear();
     let interrupted = out.stats.interrupted;
     if let Some(sums) = &out.sums {
@@ -394,13 +389,8 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             Some(k) => k,
             None => lightsplit::part::run_key(&scene, &options).map_err(Failure::failed)?,
         };
-        lightsplit::part::write(
-            &part_path,
-            &sums.film,
-            &sums.samples,
-            &header(key, out.stats.seconds, !interrupted),
-        )
-        .map_err(Failure::failed)?;
+        lightsplit::part::write(&part_path, sums, &header(key, out.stats.seconds, !interrupted))
+            .map_err(Failure::failed)?;
     }
     let meta = film::Metadata {
         filter: filter_label(&setting),
@@ -509,33 +499,21 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
 
 /// The part a render takes: `I/N`, or `auto` from the scheduler's environment.
 fn part_from(text: &str) -> Result<render::Part, Failure> {
-    if text != "auto" {
-        return lightsplit::part::parse_part(text).map_err(|e| Failure::input(format!("--part: {e}")));
-    }
-    let var = |name: &str| std::env::var(name).ok();
-    let number = |name: &str, v: String| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| Failure::input(format!("--part auto: {name}={v} is not a whole number")))
-    };
-    let (index, count) = if let (Some(id), Some(count)) =
-        (var("SLURM_ARRAY_TASK_ID"), var("SLURM_ARRAY_TASK_COUNT"))
-    {
-        let min = var("SLURM_ARRAY_TASK_MIN").unwrap_or_else(|| "0".into());
-        let (id, min) = (number("SLURM_ARRAY_TASK_ID", id)?, number("SLURM_ARRAY_TASK_MIN", min)?);
-        (id.checked_sub(min).unwrap_or(u32::MAX), number("SLURM_ARRAY_TASK_COUNT", count)?)
-    } else if let Some(index) = var("JOB_COMPLETION_INDEX") {
-        let count = var("LIGHTSPLIT_PART_COUNT").ok_or_else(|| {
-            Failure::input("--part auto: JOB_COMPLETION_INDEX is set but LIGHTSPLIT_PART_COUNT (the Job's completions) is not")
-        })?;
-        (number("JOB_COMPLETION_INDEX", index)?, number("LIGHTSPLIT_PART_COUNT", count)?)
+    let part = if text == "auto" {
+        lightsplit::part::part_from_scheduler(|name| std::env::var_os(name))
     } else {
-        return Err(Failure::input(
-            "--part auto: no scheduler found (SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and LIGHTSPLIT_PART_COUNT)",
-        ));
+        lightsplit::part::parse_part(text)
     };
-    lightsplit::part::parse_part(&format!("{index}/{count}"))
-        .map_err(|e| Failure::input(format!("--part auto: {e}")))
+    part.map_err(|e| Failure::input(format!("{}: {e}", part_flag(text))))
+}
+
+/// The flag a part came from, for a message: `--part`, or `--part auto`.
+fn part_flag(text: &str) -> &'static str {
+    if text == "auto" {
+        "--part auto"
+    } else {
+        "--part"
+    }
 }
 
 /// The part file beside `output`: its name with `.part.exr`.
@@ -556,8 +534,8 @@ fn merge_command(args: MergeArgs) -> Result<(), Failure> {
         named.push(part::Named { path: path.clone(), header });
     }
     let (count, missing) = part::check(&named, args.allow_missing).map_err(Failure::input)?;
-    for m in &missing {
-        eprintln!("warning: part {m}/{count} is missing: merging the others");
+    if missing.count > 0 {
+        eprintln!("warning: {missing} of {count} missing: merging the others");
     }
     let bar = progress_bar(named.len() as u64, args.json);
     let sums = part::merge(&named, &|| bar.inc(1)).map_err(Failure::input)?;
@@ -583,7 +561,8 @@ fn merge_command(args: MergeArgs) -> Result<(), Failure> {
             serde_json::json!({
                 "parts": named.len(),
                 "of": count,
-                "missing": missing,
+                "missing": missing.first,
+                "missing_count": missing.count,
                 "samples_per_pixel_min": lo,
                 "samples_per_pixel_max": hi,
                 "merge_seconds": merge_seconds,
@@ -684,7 +663,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let setting = args.out.check(&Setting::default(), format)?;
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
-        .map_err(|e| Failure::input(format!("{}: {e} (not a lightsplit render?)", args.input.display())))?;
+        .map_err(|e| Failure::input(format!("{}: {e}", args.input.display())))?;
     if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
         return Err(Failure::input(format!(
             "{}: atrous reads each pixel's variance, and this file has no `*_variance` layers \

@@ -34,6 +34,10 @@ pub enum OutputError {
     /// The filtered indirect layer was asked without a filter on indirect.
     #[error("--layer indirect-filtered needs a filter on indirect")]
     NoFilteredIndirect,
+    /// The filtered image overflows 32-bit floats: values so large that their weighted sums,
+    /// or the components added up, are beyond the largest float.
+    #[error("{0} pixels of the filtered image overflow 32-bit floats: the image holds values too large to filter and add up")]
+    Overflow(usize),
     /// The file could not be written.
     #[error(transparent)]
     Write(#[from] film::WriteError),
@@ -111,6 +115,12 @@ pub fn write(
     let start = Instant::now();
     let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();
+    // Finite values whose sums overflow: an error, never an image of infinities.
+    let overflowing = |image: &Image| image.pixels.iter().filter(|p| !p.is_finite()).count();
+    let bad = overflowing(&final_image) + filtered.as_ref().map_or(0, overflowing);
+    if bad > 0 {
+        return Err(OutputError::Overflow(bad));
+    }
     if layer == Layer::Final {
         // An EXR keeps the beauty twice (the final image and `raw`); a PNG or HDR only reads it.
         match film::Format::from_path(path)? {

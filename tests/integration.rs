@@ -16,6 +16,7 @@ mod determinism;
 mod features;
 mod formats;
 mod hardening;
+mod hostile_parts;
 mod hostile_scenes;
 mod instancing;
 mod nonfinite;

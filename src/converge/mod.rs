@@ -254,6 +254,13 @@ impl Row {
         })
     }
 
+    /// Whether every number of the row is finite.
+    pub fn is_finite(&self) -> bool {
+        [self.render_seconds, self.filter_seconds, self.sse, self.rmse, self.relmse, self.rmse_border]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+
     /// The setting this row measured.
     pub fn key(&self) -> (String, String, Edge) {
         (self.filter.clone(), self.target.clone(), self.edge_aware)
@@ -376,8 +383,21 @@ fn reference(
     key: &str,
     report: &(dyn Fn(Event) + Sync),
 ) -> Result<Image, ConvergeError> {
+    // A NaN or an infinity in the reference makes every error NaN: refused at once, as
+    // `compare` refuses it.
+    let finite = |img: Image, path: &Path| {
+        let bad = img.pixels.iter().filter(|p| !p.is_finite()).count();
+        if bad > 0 {
+            return Err(ConvergeError::Input(format!(
+                "the reference {}: {bad} of its {} pixels are NaN or infinite: no error can be measured",
+                path.display(),
+                img.pixels.len()
+            )));
+        }
+        Ok(img)
+    };
     if let Some(path) = &plan.reference {
-        let img = film::read_image(path).map_err(ConvergeError::Input)?;
+        let img = finite(film::read_image(path).map_err(ConvergeError::Input)?, path)?;
         if (img.width, img.height) != (plan.options.width, plan.options.height) {
             return Err(ConvergeError::Input(format!(
                 "the reference {} is {}x{}, the renders {}x{}",
@@ -393,7 +413,7 @@ fn reference(
     let cache = plan.reference_cache(key);
     if let Ok(img) = film::read_image(&cache) {
         report(Event::Message(&format!("reference: {} (cached)", cache.display())));
-        return Ok(img);
+        return finite(img, &cache);
     }
     report(Event::Message(&format!("reference: rendering {} spp", plan.reference_spp)));
     let mut options = plan.options.clone();
@@ -462,6 +482,18 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
         .into_iter()
         .filter(|r| r.scene == scene_name && r.accel == accel)
         .partition(|r| r.run == key);
+    // A row with a number that is not finite (an edited file; no run writes one) would hang the
+    // plots' log axes: it is left out, and measured again.
+    let before = rows.len();
+    rows.retain(Row::is_finite);
+    if rows.len() < before {
+        report(Event::Message(&format!(
+            "note: {}: {} row(s) of this run with a number that is not finite (inf or NaN) left out, \
+             and measured again",
+            csv_path.display(),
+            before - rows.len()
+        )));
+    }
     let unused = others.len();
     if unused > 0 {
         report(Event::Message(&format!(

@@ -66,11 +66,14 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
             p.spp as f64
         }
     };
+    // A log axis holds only finite positive values: an infinite one made plotters' range loop
+    // for ever.
+    let shown = |&(x, y): &(f64, f64)| x > 0.0 && y > 0.0 && x.is_finite() && y.is_finite();
     let all: Vec<(f64, f64)> = table
         .series
         .iter()
         .flat_map(|s| s.points.iter().map(|p| (x_of(p), p.rmse.mean)))
-        .filter(|(x, y)| *x > 0.0 && *y > 0.0)
+        .filter(shown)
         .collect();
     if all.is_empty() {
         return Err("nothing to plot: no rows with positive values".into());
@@ -109,7 +112,8 @@ pub fn error_plot(table: &Table, by_time: bool, path: &Path) -> Result<(), Strin
             .map_err(e)?;
         for (i, s) in table.series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let pts: Vec<(f64, f64)> = s.points.iter().map(|p| (x_of(p), p.rmse.mean)).collect();
+            let pts: Vec<(f64, f64)> =
+                s.points.iter().map(|p| (x_of(p), p.rmse.mean)).filter(shown).collect();
             chart.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2))).map_err(e)?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled()))).map_err(e)?;
             let y = 50 + 20 * i as i32 + 16 * labels[..i].iter().map(|l| l.len() as i32 - 1).sum::<i32>();

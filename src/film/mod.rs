@@ -9,7 +9,7 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
-pub use crate::scene::image::{read_exr_channels, Channels, Image};
+pub use crate::scene::image::{read_exr_channels, read_exr_layer, Channels, Image, Words};
 
 use crate::component::{Component, Split};
 
@@ -159,11 +159,21 @@ pub fn check_output(path: &Path) -> Result<Format, WriteError> {
         return refuse("is a directory".into());
     }
     // The image is written to a temporary file beside it and renamed: that must be possible,
-    // before any work is done.
-    let probe = dir.join(format!(".lightsplit-probe.{}.tmp", std::process::id()));
+    // before any work is done. The probe is that temporary itself, so a name the directory
+    // cannot hold (a name of 250 bytes, 14 more for the temporary's) is found now too.
+    let probe = temporary(path, std::process::id());
     match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
         Ok(_) => {
             let _ = std::fs::remove_file(&probe);
+        }
+        // Another run of this process id left it: the name is one the directory holds.
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+        Err(e) if e.kind() == io::ErrorKind::InvalidFilename => {
+            let bytes = probe.file_name().map_or(0, |n| n.len());
+            return refuse(format!(
+                "the name is too long: the file is written as a temporary `.NAME.PID.tmp.EXT` of {bytes} \
+                 bytes first, and the directory refuses it ({e})"
+            ));
         }
         Err(e) => return refuse(format!("cannot write in {}: {e}", dir.display())),
     }
@@ -401,15 +411,17 @@ pub fn write_film(
     }
 }
 
-/// Writes named channels as an EXR the way [`write_film`] does: whole or not at all.
+/// Writes named float and whole-number channels as an EXR the way [`write_film`] does: whole
+/// or not at all.
 pub fn write_exr_atomically(
     path: &Path,
     channels: Channels,
+    words: Words,
     width: u32,
     height: u32,
     meta: &Metadata,
 ) -> Result<(), WriteError> {
-    atomically(path, |tmp| write_exr_channels(channels, width, height, meta, tmp))
+    atomically(path, |tmp| write_exr_samples(channels, words, width, height, meta, tmp))
 }
 
 /// Writes a text file (a summary, a table) the same way as images: whole or not at all.
@@ -612,11 +624,23 @@ pub fn write_exr_channels(
     meta: &Metadata,
     path: &Path,
 ) -> Result<(), String> {
+    write_exr_samples(channels, Words::new(), width, height, meta, path)
+}
+
+/// [`write_exr_channels`], with whole-number (`u32`) channels beside the float ones.
+fn write_exr_samples(
+    channels: Channels,
+    words: Words,
+    width: u32,
+    height: u32,
+    meta: &Metadata,
+    path: &Path,
+) -> Result<(), String> {
     use exr::prelude::*;
-    let list: Vec<AnyChannel<FlatSamples>> = channels
-        .into_iter()
-        .map(|(name, data)| AnyChannel::new(name.as_str(), FlatSamples::F32(data)))
-        .collect();
+    let floats = channels.into_iter().map(|(name, data)| (name, FlatSamples::F32(data)));
+    let words = words.into_iter().map(|(name, data)| (name, FlatSamples::U32(data)));
+    let list: Vec<AnyChannel<FlatSamples>> =
+        floats.chain(words).map(|(name, data)| AnyChannel::new(name.as_str(), data)).collect();
     let layer = Layer::new(
         (width as usize, height as usize),
         meta.exr_attributes(),
@@ -635,11 +659,14 @@ impl Film {
                 .iter()
                 .find(|(n, _)| n == name)
                 .map(|(_, d)| d)
-                .ok_or_else(|| format!("no `{name}` channel"))
+                .ok_or_else(|| format!("no `{name}` channel (not a lightsplit render?)"))
         };
         let rgb = |prefix: &str, names: [&str; 3]| -> Result<Image, String> {
             let [r, g, b] = names.map(|c| find(&format!("{prefix}.{c}")));
             let (r, g, b) = (r?, g?, b?);
+            if g.len() != r.len() || b.len() != r.len() {
+                return Err("channel sizes do not match the image".into());
+            }
             Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
         };
         let mut film = Film::new(width, height);
@@ -677,7 +704,42 @@ impl Film {
         if film.depth.len() != n || film.raw.pixels.len() != n {
             return Err("channel sizes do not match the image".into());
         }
+        film.check_finite()?;
         Ok(film)
+    }
+
+    /// Refuses a film with a NaN or an infinity in any layer, naming the layer and counting
+    /// its pixels: a filter spreads one to every pixel whose window holds it (box3: nine), and
+    /// no render writes one (its non-finite samples are dropped).
+    pub fn check_finite(&self) -> Result<(), String> {
+        let images = [("raw", &self.raw), ("albedo", &self.albedo), ("normal", &self.normal)]
+            .into_iter()
+            .chain(self.components.named().map(|(c, l)| (c.name(), l)))
+            .map(|(name, l)| {
+                (name.to_string(), bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len())
+            });
+        let scalars = [
+            ("depth", &self.depth),
+            ("objectid", &self.object),
+            ("objectid.coverage", &self.coverage),
+            ("A", &self.alpha),
+            ("raw_variance", &self.variance),
+        ]
+        .into_iter()
+        .map(|(name, v)| (name.to_string(), v))
+        .chain(self.component_variance.named().map(|(c, v)| (format!("{}_variance", c.name()), v)))
+        .map(|(name, v)| (name, v.as_slice(), v.len()));
+        let bad = images.chain(scalars).map(|(name, values, pixels)| {
+            // A pixel of three channels is one bad pixel however many of them are.
+            let per = values.len().checked_div(pixels).unwrap_or(1).max(1);
+            (name, values.chunks(per).filter(|p| p.iter().any(|x| !x.is_finite())).count(), pixels)
+        });
+        match bad.into_iter().find(|(_, count, _)| *count > 0) {
+            None => Ok(()),
+            Some((name, count, of)) => Err(format!(
+                "{count} of the {of} pixels of its `{name}` layer are NaN or infinite: it cannot be filtered"
+            )),
+        }
     }
 }
 

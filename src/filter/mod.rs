@@ -243,6 +243,9 @@ struct Filter<'a> {
     image: &'a Image,
     flat: &'a [f32],
     kernel: &'a Kernel,
+    /// A convolution's weights scaled by the power of two that brings their sum into (1/2, 1]
+    /// ([`scaled_weights`]); empty for the median.
+    weights: Vec<f32>,
     film: &'a Film,
     stops: EdgeStops,
     cos_min: Option<f32>,
@@ -260,6 +263,10 @@ impl<'a> Filter<'a> {
             image,
             flat: bytemuck::cast_slice(&image.pixels),
             kernel,
+            weights: match kernel {
+                Kernel::Convolution { weights, .. } => scaled_weights(weights),
+                Kernel::Median3 | Kernel::Atrous(_) => Vec::new(),
+            },
             film,
             stops: *stops,
             cos_min: stops.normal_degrees.map(|d| d.to_radians().cos()),
@@ -341,9 +348,9 @@ impl<'a> Filter<'a> {
                 let n = (yy * w + (x as i64 + dx).clamp(0, w - 1)) as usize;
                 let take = !self.edge_aware || self.same_surface(centre, n);
                 match self.kernel {
-                    Kernel::Convolution { weights, .. } if take => {
-                        acc += self.image.pixels[n] * weights[k];
-                        weight_sum += weights[k];
+                    Kernel::Convolution { .. } if take => {
+                        acc += self.image.pixels[n] * self.weights[k];
+                        weight_sum += self.weights[k];
                     }
                     Kernel::Median3 if take => {
                         window[used] = self.image.pixels[n];
@@ -385,8 +392,9 @@ impl<'a> Filter<'a> {
         let n = interior.len();
         let dst = &mut out[3 * r..3 * (r + n)];
         match self.kernel {
-            Kernel::Convolution { weights, .. } => {
+            Kernel::Convolution { .. } => {
                 // With every weight used (the window never leaves the image) one sum divides.
+                let weights = &self.weights;
                 dst.fill(0.0);
                 for (k, row) in rows.iter().enumerate() {
                     for dx in 0..=2 * r {
@@ -439,6 +447,20 @@ impl<'a> Filter<'a> {
             }
         }
     }
+}
+
+/// A convolution's weights scaled by the power of two that brings their sum into (1/2, 1]. A
+/// weighted sum then never exceeds the largest value it sums, so it cannot overflow where the
+/// mean it makes is finite (nine values of 3e38 summed by box3 were infinite), and a kernel of
+/// weights near the largest float works; and scaling by a power of two is exact, so the mean,
+/// divided by the scaled weights' sum, is bit for bit what the weights as given make.
+fn scaled_weights(weights: &[f32]) -> Vec<f32> {
+    let sum: f64 = weights.iter().map(|&w| w as f64).sum();
+    if !(sum > 0.0 && sum.is_finite()) {
+        return weights.to_vec();
+    }
+    let scale = 2f64.powi(-(sum.log2().ceil() as i32));
+    weights.iter().map(|&w| (w as f64 * scale) as f32).collect()
 }
 
 /// The median of nine values by Paeth's 19-exchange network ("Median Finding on a 3x3 Grid",
@@ -777,6 +799,34 @@ mod tests {
             let want = noisy.components[Emitted].pixels[i] + direct[0].pixels[i] + indirect.pixels[i];
             assert!((out.pixels[i] - want).abs().max_element() < 1e-5, "{i}");
         }
+    }
+
+    /// The weights are scaled by a power of two before they sum (L4): weights of 1e38, whose
+    /// sums overflowed, give the image their ratios give, bit for bit, and so do values near
+    /// the largest float, whose weighted sums overflowed (a constant 3e38 came out infinite).
+    #[test]
+    fn weights_and_values_near_the_largest_float_filter_exactly() {
+        let mut img = Image::new(7, 5);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            *p = Vec3::new(i as f32, 1.0 + (i % 3) as f32, 0.25 * i as f32);
+        }
+        let film = film_of(&img);
+        let ratios = Kernel::parse("1,2,1,2,4,2,1,2,1").expect("kernel");
+        let huge =
+            Kernel::custom([1., 2., 1., 2., 4., 2., 1., 2., 1.].map(|w: f32| w * 2f32.powi(100)).to_vec())
+                .expect("kernel");
+        for stops in [EdgeStops::default(), EdgeStops { object: true, ..Default::default() }] {
+            let want = filter(&img, &ratios, &film, &stops);
+            assert_eq!(filter(&img, &huge, &film, &stops), want);
+            assert!(want.pixels.iter().all(|p| p.is_finite()));
+        }
+        let mut big = Image::new(7, 5);
+        big.pixels.iter_mut().for_each(|p| *p = Vec3::splat(3e38));
+        for k in kernels() {
+            let out = filter(&big, &k, &film_of(&big), &EdgeStops::default());
+            assert!(out.pixels.iter().all(|p| p.is_finite() && (p.x / 3e38 - 1.0).abs() < 1e-6), "{k:?}");
+        }
+        assert_eq!(scaled_weights(&[1.0; 9]), vec![0.0625; 9]);
     }
 
     #[test]

@@ -90,6 +90,23 @@ impl Part {
     pub fn is_whole(self) -> bool {
         self.count <= 1
     }
+
+    /// Checks that this is a part of a render of `spp`: one of its `count` (`index` below it),
+    /// and `count` at most `spp`, so that every part takes at least one sample of each pixel.
+    /// More parts than samples would make parts of no samples, whose files merge to nothing,
+    /// and a count of billions that a merge would have to account for.
+    pub fn check(self, spp: u32) -> Result<(), String> {
+        if self.count == 0 || self.index >= self.count {
+            return Err(format!("part {self} does not exist (0 <= I < N)"));
+        }
+        if self.count > spp {
+            return Err(format!(
+                "part {self} of a render of {spp} spp: a render splits into at most as many parts as \
+                 it has samples a pixel ({spp}), so that each part takes at least one"
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl std::fmt::Display for Part {
@@ -104,11 +121,53 @@ impl std::fmt::Display for Part {
 pub struct Accumulated {
     /// The film in sums: the beauty, the components, the albedo, the normal (not normalised)
     /// and the depth summed over the samples; `object` the object of each pixel's sample 0
-    /// (-1 for none), `coverage` how many samples saw it, `alpha` how many hit a surface; the
-    /// variances the sums of the squared sample luminances.
+    /// (-1 for none), `coverage` how many samples saw it, `alpha` how many hit a surface. Its
+    /// variance layers are empty: the sums of squares they come from are [`Accumulated::squares`].
     pub film: Film,
+    /// The sums of the squared sample luminances, with the split (empty without).
+    pub squares: Squares,
     /// The samples each pixel has taken.
     pub samples: Vec<u32>,
+}
+
+/// Each pixel's sum of its squared sample luminances, of the beauty and of each component, from
+/// which [`Accumulated::into_means`] estimates the variance of the mean. Kept in f64 from the
+/// first sample to the part file: a finite 32-bit sample's square overflows 32 bits from about
+/// 1.8e19 (a point light of 1e30 made whole variance layers infinite), and f64 holds the square
+/// of any finite 32-bit value, summed over any spp.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Squares {
+    /// Of the beauty.
+    pub beauty: Vec<f64>,
+    /// Of each component.
+    pub components: Split<Vec<f64>>,
+}
+
+impl Squares {
+    /// `n` zeros in each, or nothing at all.
+    fn zeros(n: usize, on: bool) -> Squares {
+        let n = if on { n } else { 0 };
+        Squares { beauty: vec![0.0; n], components: Split::from_fn(|_| vec![0.0; n]) }
+    }
+
+    /// Whether there are any (a render with the split).
+    pub fn is_empty(&self) -> bool {
+        self.beauty.is_empty()
+    }
+
+    /// The sums of the beauty, then of each component.
+    pub fn layers(&self) -> impl Iterator<Item = &Vec<f64>> {
+        std::iter::once(&self.beauty).chain(self.components.iter())
+    }
+
+    fn layers_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+        std::iter::once(&mut self.beauty).chain(self.components.iter_mut())
+    }
+
+    /// Bytes of their buffers.
+    fn bytes(&self) -> u64 {
+        self.layers().map(|l| (l.capacity() * size_of::<f64>()) as u64).sum()
+    }
 }
 
 impl Accumulated {
@@ -117,24 +176,38 @@ impl Accumulated {
         let mut film = Film::with_buffers(width, height, split, guides);
         film.coverage.fill(0.0);
         film.alpha.fill(0.0);
-        Accumulated { film, samples: vec![0; width as usize * height as usize] }
+        film.variance = Vec::new();
+        film.component_variance = Split::from_fn(|_| Vec::new());
+        let n = width as usize * height as usize;
+        Accumulated { film, squares: Squares::zeros(n, split), samples: vec![0; n] }
     }
 
-    /// The film of means.
+    /// Bytes of its buffers.
+    pub fn bytes(&self) -> u64 {
+        self.film.bytes() + self.squares.bytes() + (self.samples.capacity() * size_of::<u32>()) as u64
+    }
+
+    /// The film of means, with each pixel's variance of the mean from the sums of squares (at
+    /// most the largest 32-bit float: a spread too wide for 32 bits is written as that, finite).
     pub fn into_means(self) -> Film {
-        let Accumulated { mut film, samples } = self;
+        let Accumulated { mut film, squares, samples } = self;
+        let has_squares = !squares.is_empty();
+        if has_squares {
+            film.variance = vec![0.0; samples.len()];
+            film.component_variance = Split::from_fn(|_| vec![0.0; samples.len()]);
+        }
+        let variance = |n: u32, sum: Vec3, sum_sq: f64| {
+            let v = film::variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
+            v.min(f32::MAX as f64) as f32
+        };
         for (at, &n) in samples.iter().enumerate() {
             let inv = if n > 0 { 1.0 / n as f32 } else { 0.0 };
-            if !film.variance.is_empty() {
-                // Sums of squares to the variance of the mean, from the sums before they become
-                // means.
-                let lum = |v: Vec3| crate::math::luminance(v) as f64;
-                film.variance[at] =
-                    film::variance_of_mean(n, lum(film.raw.pixels[at]), film.variance[at] as f64) as f32;
+            if has_squares {
+                // From the sums, before they become means.
+                film.variance[at] = variance(n, film.raw.pixels[at], squares.beauty[at]);
                 for c in Component::ALL {
-                    let sum = lum(film.components[c].pixels[at]);
-                    let v = &mut film.component_variance[c][at];
-                    *v = film::variance_of_mean(n, sum, *v as f64) as f32;
+                    film.component_variance[c][at] =
+                        variance(n, film.components[c].pixels[at], squares.components[c][at]);
                 }
             }
             film.raw.pixels[at] *= inv;
@@ -161,7 +234,9 @@ impl Accumulated {
         if (a.width, a.height) != (b.width, b.height) {
             return Err(format!("{}x{} against {}x{}", b.width, b.height, a.width, a.height));
         }
-        if (a.has_split(), a.has_guides()) != (b.has_split(), b.has_guides()) {
+        if (a.has_split(), a.has_guides()) != (b.has_split(), b.has_guides())
+            || self.squares.is_empty() != other.squares.is_empty()
+        {
             return Err("one has the component split or the guide buffers and the other not".into());
         }
         let add3 = |x: &mut film::Image, y: &film::Image| {
@@ -192,9 +267,8 @@ impl Accumulated {
         for (x, y) in a.components.iter_mut().zip(&b.components) {
             add3(x, y);
         }
-        add1(&mut a.variance, &b.variance);
-        for (x, y) in a.component_variance.iter_mut().zip(&b.component_variance) {
-            add1(x, y);
+        for (x, y) in self.squares.layers_mut().zip(other.squares.layers()) {
+            x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
         }
         for (n, m) in self.samples.iter_mut().zip(&other.samples) {
             *n += m;
@@ -203,8 +277,8 @@ impl Accumulated {
     }
 }
 
-/// What writes a checkpoint: given the sums so far and each pixel's sample count.
-pub type Checkpoint<'a> = dyn Fn(&Film, &[u32]) + Sync + 'a;
+/// What writes a checkpoint: given the sums so far, with each pixel's sample count.
+pub type Checkpoint<'a> = dyn Fn(&Accumulated) + Sync + 'a;
 
 /// How a render runs beyond its options: progress, stopping, checkpoints, resuming.
 pub struct Control<'a> {
@@ -319,6 +393,17 @@ pub enum RenderError {
     /// The sums to resume from do not fit the render.
     #[error("cannot resume: {0}")]
     Resume(String),
+    /// The part asked for is not one of the render ([`Part::check`]).
+    #[error("{0}")]
+    Part(String),
+}
+
+impl RenderError {
+    /// Whether the request itself was bad (a part or a checkpoint that does not fit), rather
+    /// than the rendering.
+    pub fn is_input(&self) -> bool {
+        matches!(self, RenderError::Resume(_) | RenderError::Part(_))
+    }
 }
 
 /// Renders `scene` with `options`; `progress` is called with the number of samples each tile
@@ -337,12 +422,11 @@ pub fn render_controlled(
     options: &RenderOptions,
     control: Control,
 ) -> Result<RenderOutput, RenderError> {
-    if options.width == 0 || options.height == 0 || options.width as u64 * options.height as u64 > 1 << 30 {
+    let pixels = options.width as u64 * options.height as u64;
+    if pixels == 0 || pixels > crate::scene::limits::MAX_IMAGE_PIXELS {
         return Err(RenderError::Size(options.width, options.height));
     }
-    if options.part.count == 0 || options.part.index >= options.part.count {
-        return Err(RenderError::Resume(format!("part {} does not exist", options.part)));
-    }
+    options.part.check(options.spp.max(1)).map_err(RenderError::Part)?;
     if let Some(r) = &control.resume {
         let f = &r.film;
         let (split, guides) = (options.features.split, options.features.guides);
@@ -352,7 +436,7 @@ pub fn render_controlled(
                 f.width, f.height, options.width, options.height
             )));
         }
-        if (f.has_split(), f.has_guides()) != (split, guides) {
+        if (f.has_split(), f.has_guides(), !r.squares.is_empty()) != (split, guides, split) {
             return Err(RenderError::Resume("the checkpoint was rendered with other buffers".into()));
         }
         if options.adaptive.is_some() {
@@ -464,13 +548,14 @@ struct Sums {
     components: Vec<Split<Vec3>>,
     guides: Vec<Guides>,
     /// The sums of the squared sample luminances, of the beauty then of each component (with
-    /// the split only), in f64 while a tile pass adds to them.
+    /// the split only), in f64 as [`Squares`] keeps them.
     squares: Vec<(f64, Split<f64>)>,
 }
 
 impl Sums {
-    /// The sums of `tile`'s pixels so far, from `film` (which holds sums until the render ends).
-    fn load(tile: &Tile, film: &Film) -> Sums {
+    /// The sums of `tile`'s pixels so far, from the render's.
+    fn load(tile: &Tile, sums: &Accumulated) -> Sums {
+        let (film, squares) = (&sums.film, &sums.squares);
         let n = (tile.w * tile.h) as usize;
         let at = |i: usize| tile.pixel(i, film.width).0;
         Sums {
@@ -480,13 +565,13 @@ impl Sums {
             } else {
                 Vec::new()
             },
-            squares: if film.variance.is_empty() {
+            squares: if squares.is_empty() {
                 Vec::new()
             } else {
                 (0..n)
                     .map(|i| {
                         let at = at(i);
-                        (film.variance[at] as f64, Split::from_fn(|c| film.component_variance[c][at] as f64))
+                        (squares.beauty[at], Split::from_fn(|c| squares.components[c][at]))
                     })
                     .collect()
             },
@@ -511,8 +596,9 @@ impl Sums {
         }
     }
 
-    /// Writes the sums back into `film`.
-    fn store(&self, tile: &Tile, film: &mut Film) {
+    /// Writes the sums back into the render's.
+    fn store(&self, tile: &Tile, sums: &mut Accumulated) {
+        let (film, squares) = (&mut sums.film, &mut sums.squares);
         for (i, &beauty) in self.beauty.iter().enumerate() {
             let (at, ..) = tile.pixel(i, film.width);
             film.raw.pixels[at] = beauty;
@@ -522,9 +608,9 @@ impl Sums {
                 }
             }
             if let Some((beauty, components)) = self.squares.get(i) {
-                film.variance[at] = *beauty as f32;
-                for (layer, &c) in film.component_variance.iter_mut().zip(components) {
-                    layer[at] = c as f32;
+                squares.beauty[at] = *beauty;
+                for (layer, &c) in squares.components.iter_mut().zip(components) {
+                    layer[at] = c;
                 }
             }
             if let Some(g) = self.guides.get(i) {
@@ -697,7 +783,7 @@ fn render_features<A: Accel, const F: u8>(
     // A part that does not start at sample 0 traces each pixel's sample 0 for the object it
     // shows, so every part counts the coverage of the same object.
     let trace_first = guides && range.start > 0 && control.resume.is_none();
-    let shared = Mutex::new(start_state.film);
+    let shared = Mutex::new(start_state);
     let lock = || shared.lock().unwrap_or_else(|e| e.into_inner());
 
     // `--debug-nonfinite`: the sampler is a pure function of (seed, pixel, sample), so the
@@ -791,16 +877,18 @@ fn render_features<A: Accel, const F: u8>(
         from = to;
         if let Some((every, write)) = control.checkpoint {
             if last_checkpoint.elapsed().as_secs_f64() >= every && to < range.end {
-                write(&lock(), &samples_of(&tiles, width, height, range.start));
+                let mut state = lock();
+                state.samples = samples_of(&tiles, width, height, range.start);
+                write(&state);
                 last_checkpoint = Instant::now();
             }
         }
     }
 
-    let film = shared.into_inner().unwrap_or_else(|e| e.into_inner());
+    let mut state = shared.into_inner().unwrap_or_else(|e| e.into_inner());
     let samples = samples_of(&tiles, width, height, range.start);
     let mut stats = RenderStats {
-        buffer_bytes: film.bytes() + tiles.iter().map(Tile::bytes).sum::<u64>(),
+        buffer_bytes: state.bytes() + tiles.iter().map(Tile::bytes).sum::<u64>(),
         min_spp: samples.iter().copied().min().unwrap_or(0),
         max_spp: samples.iter().copied().max().unwrap_or(0),
         interrupted,
@@ -814,7 +902,7 @@ fn render_features<A: Accel, const F: u8>(
         stats.samples += n as u64;
         stats.stopped_early += (n < range.end - range.start && !interrupted) as u64;
     }
-    let state = Accumulated { film, samples };
+    state.samples = samples;
     let sums = (control.keep_sums || interrupted).then(|| state.clone());
     stats.seconds = start.elapsed().as_secs_f64();
     RenderOutput { film: state.into_means(), stats, sums }

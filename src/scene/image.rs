@@ -6,6 +6,8 @@ use std::path::Path;
 
 use glam::Vec3;
 
+use crate::scene::limits;
+
 /// A linear RGB image, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -58,19 +60,107 @@ impl Image {
 /// Named single-float channels, in writing order.
 pub type Channels = Vec<(String, Vec<f32>)>;
 
-/// Reads every float channel of an EXR's first layer, by name, with the image size.
+/// Named 32-bit whole-number channels, in writing order (a part file keeps its f64 sums in
+/// two such channels each, bit for bit).
+pub type Words = Vec<(String, Vec<u32>)>;
+
+/// Reads every channel of an EXR's first layer, by name, with the image size: the whole-number
+/// (`u32`) channels converted to floats as the others are.
 pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Channels), String> {
+    let (width, height, mut channels, words) = read_exr_layer(path)?;
+    channels.extend(words.into_iter().map(|(name, w)| (name, w.into_iter().map(|v| v as f32).collect())));
+    Ok((width, height, channels))
+}
+
+/// Reads an EXR's first layer: its size, its float (half and full) channels as `f32` and its
+/// whole-number channels as they are. The headers are checked first ([`check_exr_headers`]),
+/// so a file that declares more pixels than it holds or than memory holds allocates nothing.
+pub fn read_exr_layer(path: &Path) -> Result<(u32, u32, Channels, Words), String> {
+    exr_layer(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// [`read_exr_layer`], its errors not naming the file (for a caller that names it).
+pub(crate) fn exr_layer(path: &Path) -> Result<(u32, u32, Channels, Words), String> {
     use exr::prelude::*;
-    let image = read_all_flat_layers_from_file(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let layer = image.layer_data.first().ok_or_else(|| format!("{}: no layers", path.display()))?;
+    check_exr_headers(path)?;
+    let image = read_all_flat_layers_from_file(path).map_err(|e| e.to_string())?;
+    let layer = image.layer_data.first().ok_or("no layers")?;
     let size = layer.size;
-    let channels = layer
-        .channel_data
-        .list
-        .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect::<Vec<f32>>()))
-        .collect();
-    Ok((size.width() as u32, size.height() as u32, channels))
+    let (mut channels, mut words) = (Channels::new(), Words::new());
+    for c in &layer.channel_data.list {
+        let name = c.name.to_string();
+        match &c.sample_data {
+            FlatSamples::U32(v) => words.push((name, v.clone())),
+            other => channels.push((name, other.values_as_f32().collect())),
+        }
+    }
+    Ok((size.width() as u32, size.height() as u32, channels, words))
+}
+
+/// The most bytes of pixels an EXR's compression packs into one byte of file, with room to
+/// spare: deflate (ZIP, PXR24) packs at most 1032 to 1, RLE 64, PIZ's run-length Huffman codes
+/// a few hundred, B44 about 2.
+const MAX_PACKING: u64 = 4096;
+
+/// Checks what an EXR's headers declare before any pixel is decoded, since the decoder
+/// allocates every layer's samples from the declared size before it reads a block: a file of a
+/// few hundred bytes can declare a 65536x32768 layer (12 GiB of samples). Each layer must be
+/// at most [`MAX_SIZE`](limits::MAX_SIZE) a side and [`MAX_IMAGE_PIXELS`](limits::MAX_IMAGE_PIXELS)
+/// in all, with tiles of at most that size; the file must be long enough to hold the pixels it
+/// declares (uncompressed, byte for byte; compressed, at [`MAX_PACKING`]); and the samples,
+/// with their 32-bit copies and the block offsets, must fit in the memory available.
+pub fn check_exr_headers(path: &Path) -> Result<(), String> {
+    use exr::meta::{BlockDescription, MetaData};
+    let meta = MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    let file_bytes = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
+    let max_side = limits::MAX_SIZE as u64;
+    let mut need = 0u64;
+    for header in &meta.headers {
+        let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+        if w > max_side || h > max_side || w * h > limits::MAX_IMAGE_PIXELS {
+            return Err(format!(
+                "it declares a layer of {w}x{h} pixels, and an image read has at most {max_side} a side and \
+                 {} in all",
+                limits::MAX_IMAGE_PIXELS
+            ));
+        }
+        if let BlockDescription::Tiles(tiles) = header.blocks {
+            let (tw, th) = (tiles.tile_size.width() as u64, tiles.tile_size.height() as u64);
+            if tw > max_side || th > max_side {
+                return Err(format!(
+                    "it declares tiles of {tw}x{th} pixels, and a tile has at most {max_side} a side"
+                ));
+            }
+        }
+        let channels = header.channels.list.len() as u64;
+        let sample_bytes: u64 =
+            header.channels.list.iter().map(|c| c.sample_type.bytes_per_sample() as u64).sum();
+        let pixel_bytes = w * h * sample_bytes;
+        // Every declared sample is in the file, packed at most so far.
+        let uncompressed = header.compression == exr::compression::Compression::Uncompressed;
+        let packing = if uncompressed { 1 } else { MAX_PACKING };
+        if pixel_bytes > file_bytes.saturating_mul(packing) {
+            let how = if uncompressed {
+                "uncompressed".to_string()
+            } else {
+                format!("more than the {packing} to 1 any EXR compression packs")
+            };
+            return Err(format!(
+                "it declares {w}x{h} pixels of {channels} channels, {pixel_bytes} bytes, in a file of \
+                 {file_bytes} bytes ({how}): the pixels are not there"
+            ));
+        }
+        // The decoder's samples, the 32-bit copy made of them and the offset table.
+        need += pixel_bytes + w * h * channels * 4 + header.chunk_count as u64 * 8;
+    }
+    match limits::available_bytes() {
+        Some(have) if need > have => Err(format!(
+            "its pixels need {:.1} GiB to read and {:.1} GiB is available",
+            need as f64 / (1u64 << 30) as f64,
+            have as f64 / (1u64 << 30) as f64
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// A portable float map (`PF`, RGB; `Pf`, grey): a negative scale means little-endian floats;

@@ -3,15 +3,18 @@
 
 /// The largest image side, in pixels.
 pub const MAX_SIZE: u32 = 1 << 16;
+/// The most pixels of an image, rendered or read (an EXR, an environment map): 2^30, a
+/// 32768x32768 or 65536x16384 image, whose RGB floats alone take 12 GiB.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 30;
 /// The most samples per pixel.
 pub const MAX_SPP: u32 = 1 << 24;
 /// The most scattering events per path (as pbrt and Mitsuba cap theirs): a closed mirror box
 /// would otherwise never end.
 pub const MAX_DEPTH: u32 = 1024;
 /// The largest emission of a surface (a shape's `emission`, an `.mtl`'s `Ke`): what a camera
-/// ray sees of it is a finite sample that the film sums and squares in 32-bit floats, and the
-/// film must stay finite (a value of 3e38 made an EXR of infinities). Real scenes are many
-/// orders of magnitude below. Lights are not bounded: a sample their power overflows is
+/// ray sees of it is a finite sample that the film sums in 32-bit floats (its squares in 64),
+/// and the film must stay finite (a value of 3e38 made an EXR of infinities). Real scenes are
+/// many orders of magnitude below. Lights are not bounded: a sample their power overflows is
 /// infinite, and dropped and counted as every non-finite sample is.
 pub const MAX_EMISSION: f32 = 1e12;
 /// The widest filter kernel side (63x63).
