@@ -5,7 +5,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
 use lightsplit::component::Component::{Caustic, Direct, Indirect};
 use lightsplit::film::Film;
-use lightsplit::filter::{composite, filter, EdgeStops, Kernel, Target};
+use lightsplit::filter::{composite, filter, EdgeStops, Method, Target};
 
 fn noisy_film(width: u32, height: u32) -> Film {
     let mut film = Film::new(width, height);
@@ -38,7 +38,7 @@ fn bench(c: &mut Criterion) {
         let mut group = c.benchmark_group(format!("filter/{w}x{h}"));
         group.sample_size(10);
         for name in ["box3", "weighted3", "median3", "box5"] {
-            let kernel = Kernel::parse(name).expect("kernel");
+            let kernel = Method::parse(name).expect("kernel");
             group.bench_function(BenchmarkId::new(name, "plain"), |b| {
                 b.iter(|| filter(film.indirect(), &kernel, &film, &EdgeStops::default()))
             });
@@ -52,14 +52,14 @@ fn bench(c: &mut Criterion) {
         // What `--denoise` runs, the time budget: 10 ms at 256x256, 1.5 s at 4K.
         let denoise = lightsplit::filter::Setting::denoise();
         group.bench_function(BenchmarkId::new("denoise", denoise.target.name()), |b| {
-            b.iter(|| composite(&film, denoise.kernel.as_ref(), denoise.target, &denoise.stops))
+            b.iter(|| composite(&film, denoise.method.as_ref(), denoise.target, &denoise.stops))
         });
         for (spec, target) in [
             ("atrous:taps=3:passes=4:sigma_l=6:sigma_n=32:sigma_z=2", Target::Indirect),
             ("atrous", Target::Indirect),
             ("atrous", Target::Components),
         ] {
-            let kernel = Kernel::parse(spec).expect("kernel");
+            let kernel = Method::parse(spec).expect("kernel");
             let stops = EdgeStops::default();
             group.bench_function(BenchmarkId::new(spec, target.name()), |b| {
                 b.iter(|| composite(&film, Some(&kernel), target, &stops))

@@ -13,7 +13,7 @@ use lightsplit::accel::Backend;
 use lightsplit::component::Component;
 use lightsplit::converge::Edge;
 use lightsplit::film::{Film, Format};
-use lightsplit::filter::{EdgeStops, Kernel, Setting, Target};
+use lightsplit::filter::{EdgeStops, Method, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
 use lightsplit::scene::limits;
@@ -231,9 +231,9 @@ impl FilterArgs {
         if self.denoise {
             return Ok(Setting::denoise());
         }
-        let kernel = match self.filter.as_deref() {
-            Some(name) => Some(Kernel::parse(name).map_err(Failure::input)?),
-            None => base.kernel.clone(),
+        let method = match self.filter.as_deref() {
+            Some(name) => Some(Method::parse(name).map_err(Failure::input)?),
+            None => base.method.clone(),
         };
         let target = match (self.filter_target, &self.filter) {
             (Some(t), _) => t,
@@ -241,7 +241,7 @@ impl FilterArgs {
             (None, Some(_)) => Target::Indirect,
             (None, None) => base.target,
         };
-        if target != Target::None && kernel.is_none() {
+        if target != Target::None && method.is_none() {
             return Err(Failure::input("--filter-target needs --filter"));
         }
         let stops = EdgeStops {
@@ -251,7 +251,7 @@ impl FilterArgs {
             pure: self.edge_pure || base.stops.pure,
         };
         stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
-        Ok(Setting { kernel, target, stops })
+        Ok(Setting { method, target, stops })
     }
 }
 

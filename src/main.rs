@@ -17,7 +17,7 @@ use cli::{
     MergeArgs, RenderArgs, StressArgs,
 };
 use lightsplit::film;
-use lightsplit::filter::{Kernel, Setting, Target};
+use lightsplit::filter::{Method, Setting, Target};
 use lightsplit::output::OutputError;
 use lightsplit::render::sampler::SamplerKind;
 use lightsplit::render::{self, Features, Outputs, RenderOptions};
@@ -103,7 +103,7 @@ fn main() -> ExitCode {
 /// The filter a file's metadata names: `box3 on indirect`, or none.
 fn filter_label(setting: &Setting) -> Option<String> {
     setting
-        .kernel
+        .method
         .as_ref()
         .filter(|_| setting.target != Target::None)
         .map(|k| format!("{} on {}", k.name(), setting.target.name()))
@@ -195,7 +195,7 @@ fn info_command(args: InfoArgs) -> Result<(), Failure> {
     say!(
         "and the outputs ({}, filter {}) need:",
         output.display(),
-        setting.kernel.as_ref().map_or("none".to_string(), |k| k.name())
+        setting.method.as_ref().map_or("none".to_string(), |k| k.name())
     );
     use scene::analysis::need_line;
     say!("{}", need_line("the component split", split, "an EXR, a filter on indirect, or a component layer"));
@@ -296,7 +296,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
                 "--part writes a part file for `lightsplit merge`: the output must be .exr",
             ));
         }
-        if setting.kernel.is_some() && setting.target != Target::None {
+        if setting.method.is_some() && setting.target != Target::None {
             return Err(Failure::input(
                 "a part is never filtered: give the filter to `lightsplit merge`, which filters the merged image once",
             ));
@@ -428,7 +428,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "features": options.features,
             "embree": options.embree,
             "buffer_bytes": s.buffer_bytes,
-            "filter": setting.kernel.as_ref().map(Kernel::name),
+            "filter": setting.method.as_ref().map(Method::name),
             "filter_target": setting.target.name(),
             "edge_aware": setting.stops.object,
             "edge_normal_degrees": setting.stops.normal_degrees,
@@ -551,7 +551,7 @@ fn merge_command(args: MergeArgs) -> Result<(), Failure> {
         ..first.meta.clone()
     };
     let film = sums.into_means();
-    if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
+    if lightsplit::output::filter_reads(&setting).variance && film.variance.is_empty() {
         return Err(Failure::input("atrous reads each pixel's variance, which these parts do not hold"));
     }
     let filter_seconds = args.out.write(film, &setting, &args.output, &meta)?;
@@ -566,7 +566,7 @@ fn merge_command(args: MergeArgs) -> Result<(), Failure> {
                 "samples_per_pixel_min": lo,
                 "samples_per_pixel_max": hi,
                 "merge_seconds": merge_seconds,
-                "filter": setting.kernel.as_ref().map(Kernel::name),
+                "filter": setting.method.as_ref().map(Method::name),
                 "filter_target": setting.target.name(),
                 "filter_seconds": filter_seconds,
                 "seconds": start.elapsed().as_secs_f64(),
@@ -664,7 +664,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
     let (width, height, channels) = film::read_exr_channels(&args.input).map_err(Failure::input)?;
     let film = film::Film::from_channels(width, height, &channels)
         .map_err(|e| Failure::input(format!("{}: {e}", args.input.display())))?;
-    if lightsplit::output::atrous(&setting) && film.variance.is_empty() {
+    if lightsplit::output::filter_reads(&setting).variance && film.variance.is_empty() {
         return Err(Failure::input(format!(
             "{}: atrous reads each pixel's variance, and this file has no `*_variance` layers \
              (written before they existed): render it again",
@@ -683,7 +683,7 @@ fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
             serde_json::json!({
                 "input": args.input.to_string_lossy(),
                 "output": args.output.to_string_lossy(),
-                "filter": setting.kernel.as_ref().map(Kernel::name),
+                "filter": setting.method.as_ref().map(Method::name),
                 "filter_target": setting.target.name(),
                 "filter_seconds": seconds,
             })

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use crate::component::Component;
 use crate::film::{self, Film, Format, Image};
-use crate::filter::{composite, EdgeStops, Setting, Target};
+use crate::filter::{composite, EdgeStops, Reads, Setting, Target};
 use crate::render::Outputs;
 
 /// A layer of a render, as a single-image output (PNG, HDR) shows it; an EXR holds them all.
@@ -52,13 +52,15 @@ impl OutputError {
 
 /// Whether `setting` filters `indirect`, and so makes the filtered indirect layer.
 fn filters_indirect(setting: &Setting) -> bool {
-    setting.kernel.is_some() && matches!(setting.target, Target::Indirect | Target::Components)
+    setting.method.is_some() && matches!(setting.target, Target::Indirect | Target::Components)
 }
 
-/// Whether `setting` is the à-trous filter, which reads the variance (kept with the split) and
-/// the guides.
-pub fn atrous(setting: &Setting) -> bool {
-    matches!(setting.kernel, Some(crate::filter::Kernel::Atrous(_))) && setting.target != Target::None
+/// What `setting`'s filter reads besides the image (nothing when it filters nothing).
+pub fn filter_reads(setting: &Setting) -> Reads {
+    match &setting.method {
+        Some(method) if setting.target != Target::None => method.reads(&setting.stops),
+        _ => Reads::default(),
+    }
 }
 
 impl Layer {
@@ -80,8 +82,11 @@ impl Layer {
         let exr = format == Format::Exr;
         let component = matches!(self, Layer::Component(_) | Layer::IndirectFiltered);
         Outputs {
-            split: exr || filters_indirect(setting) || component || atrous(setting),
-            guides: exr || setting.stops != EdgeStops::default() || self == Layer::Albedo || atrous(setting),
+            split: exr || filters_indirect(setting) || component || filter_reads(setting).variance,
+            guides: exr
+                || setting.stops != EdgeStops::default()
+                || self == Layer::Albedo
+                || filter_reads(setting).guides,
         }
     }
 
@@ -113,7 +118,7 @@ pub fn write(
     meta: &film::Metadata,
 ) -> Result<f64, OutputError> {
     let start = Instant::now();
-    let (final_image, filtered) = composite(&film, setting.kernel.as_ref(), setting.target, &setting.stops);
+    let (final_image, filtered) = composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();
     // Finite values whose sums overflow: an error, never an image of infinities.
     let overflowing = |image: &Image| image.pixels.iter().filter(|p| !p.is_finite()).count();
@@ -139,10 +144,10 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::Kernel;
+    use crate::filter::Method;
 
     fn indirect_filter() -> Setting {
-        Setting { kernel: Kernel::parse("box3").ok(), target: Target::Indirect, stops: EdgeStops::default() }
+        Setting { method: Method::parse("box3").ok(), target: Target::Indirect, stops: EdgeStops::default() }
     }
 
     #[test]

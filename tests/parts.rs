@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::Vec3;
 use lightsplit::film::Film;
-use lightsplit::filter::{composite, EdgeStops, Kernel, Target};
+use lightsplit::filter::{composite, EdgeStops, Method, Target};
 use lightsplit::render::{render_controlled, Accumulated, Control, Part, RenderOptions};
 use lightsplit::scene::{self, Scene};
 
@@ -186,7 +186,7 @@ fn filtering_after_the_merge_equals_filtering_the_whole() {
     let merged = merged.into_means();
     let stops = EdgeStops { object: true, normal_degrees: Some(30.0), depth_relative: Some(0.1), pure: true };
     for kernel in ["box3", "median3"] {
-        let k = Kernel::parse(kernel).expect("kernel");
+        let k = Method::parse(kernel).expect("kernel");
         let (a, _) = composite(&merged, Some(&k), Target::Indirect, &stops);
         let (b, _) = composite(&whole, Some(&k), Target::Indirect, &stops);
         let worst = a

@@ -7,7 +7,7 @@ use std::path::Path;
 use glam::Vec3;
 use lightsplit::accel::Backend;
 use lightsplit::film::{Film, Image};
-use lightsplit::filter::{filter, EdgeStops, Kernel};
+use lightsplit::filter::{filter, EdgeStops, Method};
 use lightsplit::render::{render, RenderOptions};
 use lightsplit::scene::file::parse;
 use proptest::prelude::*;
@@ -197,9 +197,9 @@ fn mirror_film(film: &Film, f: impl Fn(&Image) -> Image) -> Film {
     out
 }
 
-fn kernels() -> impl Strategy<Value = Kernel> {
+fn kernels() -> impl Strategy<Value = Method> {
     prop_oneof![Just("box3"), Just("weighted3"), Just("median3"), Just("box5"), Just("1,3,1,3,9,3,1,3,1"),]
-        .prop_map(|name| Kernel::parse(name).expect("a kernel"))
+        .prop_map(|name| Method::parse(name).expect("a kernel"))
 }
 
 fn close(a: &Image, b: &Image) -> Result<(), TestCaseError> {
@@ -230,7 +230,7 @@ proptest! {
     #[test]
     fn linear_filters_keep_energy(w in 5u32..20, h in 5u32..20, values in prop::collection::vec(0.0f32..100.0, 1..64),
                                   kernel in kernels(), level in 0.0f32..1e4) {
-        let Kernel::Convolution { size, .. } = kernel else { return Ok(()) };
+        let Method::Convolution { size, .. } = kernel else { return Ok(()) };
         let r = size as u32 / 2;
         let margin = 2 * r;
         prop_assume!(w > 2 * margin && h > 2 * margin);

@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use crate::accel::Backend;
 use crate::film::{self, Image};
-use crate::filter::{composite, EdgeStops, Kernel, Target};
+use crate::filter::{composite, EdgeStops, Method, Target};
 use crate::metrics;
 use crate::render::sampler::SamplerKind;
 use crate::render::{self, RenderOptions};
@@ -65,7 +65,7 @@ impl Edge {
 pub struct Choice {
     /// `none` or the kernel's name.
     pub filter: String,
-    pub kernel: Option<Kernel>,
+    pub kernel: Option<Method>,
     pub target: Target,
     pub edge_aware: Edge,
     /// An unfiltered render with adaptive sampling at this threshold (its spp is the most a
@@ -123,7 +123,7 @@ pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<
             out.push(Choice::none());
             continue;
         }
-        let kernel = Kernel::parse(f)?;
+        let kernel = Method::parse(f)?;
         for &target in targets {
             if target == Target::None {
                 return Err(

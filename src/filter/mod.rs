@@ -20,9 +20,11 @@ pub use atrous::{Atrous, Layer, Strength};
 use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
 use crate::film::{Film, Image};
 
-/// A filter kernel.
+/// A filter method: a convolution or the median over a window (the paper's filters), or the
+/// à-trous wavelet filter, which reads each pixel's variance. [`Method::reads`] says what each
+/// needs besides the image.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Kernel {
+pub enum Method {
     /// Weighted average over a `size` x `size` window (row-major weights).
     Convolution { size: usize, weights: Vec<f32> },
     /// Per-channel median over a 3x3 window (the paper's filter C).
@@ -31,21 +33,39 @@ pub enum Kernel {
     Atrous(Atrous),
 }
 
-impl Kernel {
-    /// A kernel by name: `box3`, `weighted3`, `median3`, `box5`, `atrous` (with settings:
+/// What a filter reads besides the image it filters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reads {
+    /// The guide buffers (object, coverage, normal, depth, albedo).
+    pub guides: bool,
+    /// Each pixel's variance (kept with the component split).
+    pub variance: bool,
+}
+
+impl Method {
+    /// What this method, with `stops`, reads: the guides when an edge stop is on (à-trous
+    /// always stops at objects and reads the albedo), the variance for à-trous.
+    pub fn reads(&self, stops: &EdgeStops) -> Reads {
+        match self {
+            Method::Atrous(_) => Reads { guides: true, variance: true },
+            Method::Convolution { .. } | Method::Median3 => Reads { guides: stops.any(), variance: false },
+        }
+    }
+
+    /// A method by name: `box3`, `weighted3`, `median3`, `box5`, `atrous` (with settings:
     /// `atrous:passes=4:sigma_l=8`), or a custom odd square kernel written as comma-separated
     /// weights (`1,2,1,2,4,2,1,2,1`).
-    pub fn parse(name: &str) -> Result<Kernel, String> {
+    pub fn parse(name: &str) -> Result<Method, String> {
         match name {
             atrous if atrous == "atrous" || atrous.starts_with("atrous:") => {
-                Ok(Kernel::Atrous(Atrous::parse(atrous)?))
+                Ok(Method::Atrous(Atrous::parse(atrous)?))
             }
-            "box3" => Ok(Kernel::Convolution { size: 3, weights: vec![1.0; 9] }),
+            "box3" => Ok(Method::Convolution { size: 3, weights: vec![1.0; 9] }),
             "weighted3" => {
-                Ok(Kernel::Convolution { size: 3, weights: vec![1., 2., 1., 2., 4., 2., 1., 2., 1.] })
+                Ok(Method::Convolution { size: 3, weights: vec![1., 2., 1., 2., 4., 2., 1., 2., 1.] })
             }
-            "box5" => Ok(Kernel::Convolution { size: 5, weights: vec![1.0; 25] }),
-            "median3" => Ok(Kernel::Median3),
+            "box5" => Ok(Method::Convolution { size: 5, weights: vec![1.0; 25] }),
+            "median3" => Ok(Method::Median3),
             custom => {
                 let weights: Result<Vec<f32>, _> =
                     custom.split(',').map(|w| w.trim().parse::<f32>()).collect();
@@ -54,29 +74,29 @@ impl Kernel {
                         "unknown filter `{custom}` (box3, weighted3, median3, box5, atrous, or comma-separated weights)"
                     )
                 })?;
-                Kernel::custom(weights)
+                Method::custom(weights)
             }
         }
     }
 
-    /// The name [`Kernel::parse`] reads back: a named kernel's name, else the weights.
+    /// The name [`Method::parse`] reads back: a named kernel's name, else the weights.
     pub fn name(&self) -> String {
         for name in ["box3", "weighted3", "median3", "box5"] {
-            if Kernel::parse(name).as_ref() == Ok(self) {
+            if Method::parse(name).as_ref() == Ok(self) {
                 return name.to_string();
             }
         }
         match self {
-            Kernel::Convolution { weights, .. } => {
+            Method::Convolution { weights, .. } => {
                 weights.iter().map(|w| w.to_string()).collect::<Vec<_>>().join(",")
             }
-            Kernel::Median3 => "median3".to_string(),
-            Kernel::Atrous(a) => a.name(),
+            Method::Median3 => "median3".to_string(),
+            Method::Atrous(a) => a.name(),
         }
     }
 
     /// An odd square kernel from its weights, row by row.
-    pub fn custom(weights: Vec<f32>) -> Result<Kernel, String> {
+    pub fn custom(weights: Vec<f32>) -> Result<Method, String> {
         let side = crate::scene::limits::MAX_KERNEL;
         if weights.len() > side * side {
             return Err(format!("a custom kernel has at most {side}x{side} weights, not {}", weights.len()));
@@ -91,21 +111,21 @@ impl Kernel {
         if weights.iter().any(|w| !w.is_finite() || *w < 0.0) || weights.iter().sum::<f32>() <= 0.0 {
             return Err("kernel weights must be finite, not negative, and not all zero".into());
         }
-        Ok(Kernel::Convolution { size, weights })
+        Ok(Method::Convolution { size, weights })
     }
 }
 
 /// A whole filter setting, as a scene file's `[filter]` or the command line gives it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {
-    pub kernel: Option<Kernel>,
+    pub method: Option<Method>,
     pub target: Target,
     pub stops: EdgeStops,
 }
 
 impl Default for Setting {
     fn default() -> Self {
-        Setting { kernel: None, target: Target::None, stops: EdgeStops::default() }
+        Setting { method: None, target: Target::None, stops: EdgeStops::default() }
     }
 }
 
@@ -115,7 +135,7 @@ impl Setting {
     /// budget.
     pub fn denoise() -> Setting {
         Setting {
-            kernel: Some(Kernel::Atrous(Atrous {
+            method: Some(Method::Atrous(Atrous {
                 taps: 3,
                 passes: 4,
                 sigma_l: 6.0,
@@ -200,22 +220,72 @@ impl EdgeStops {
     }
 }
 
-/// Filters `image`; with `stops`, neighbours are tested against the guide buffers of `film`.
+/// Filters `image` by `method`; with `stops`, neighbours are tested against the guide buffers
+/// of `film`. À-trous reads no variance here (an image alone has none): it is the layers'
+/// filter, [`filter_layers`].
+pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) -> Image {
+    match Plan::of(method) {
+        Plan::Local(window) => local(image, &window, film, stops),
+        Plan::Wavelet(a) => {
+            let mut out = atrous::filter(&[Layer::new(image, None)], film, a, stops.pure);
+            out.pop().unwrap_or_else(|| image.clone())
+        }
+    }
+}
+
+/// Filters each layer: the paper's filters one by one, à-trous with each layer's variance and
+/// the guides' geometry shared (its object stop is always on; `stops.pure` also applies).
+pub fn filter_layers(layers: &[Layer], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Image> {
+    match Plan::of(method) {
+        Plan::Local(window) => layers.iter().map(|l| local(l.image, &window, film, stops)).collect(),
+        Plan::Wavelet(a) => atrous::filter(layers, film, a, stops.pure),
+    }
+}
+
+/// How a method runs: over a local window, pixel by pixel (the paper's filters), or as the
+/// à-trous wavelet filter's passes.
+enum Plan<'a> {
+    Local(Window),
+    Wavelet(&'a Atrous),
+}
+
+impl<'a> Plan<'a> {
+    fn of(method: &'a Method) -> Plan<'a> {
+        match method {
+            Method::Convolution { size, weights } => {
+                Plan::Local(Window::Convolution { radius: *size / 2, weights: scaled_weights(weights) })
+            }
+            Method::Median3 => Plan::Local(Window::Median3),
+            Method::Atrous(a) => Plan::Wavelet(a),
+        }
+    }
+}
+
+/// The window of a local filter: a convolution's weights, scaled by the power of two that
+/// brings their sum into (1/2, 1] ([`scaled_weights`]), or the 3x3 median.
+enum Window {
+    Convolution { radius: usize, weights: Vec<f32> },
+    Median3,
+}
+
+impl Window {
+    fn radius(&self) -> usize {
+        match self {
+            Window::Convolution { radius, .. } => *radius,
+            Window::Median3 => 1,
+        }
+    }
+}
+
+/// Filters `image` by a local `window`.
 ///
 /// Rows run in parallel. Away from the left and right borders a row is computed on its floats
 /// (RGB interleaved, so a neighbour `dx` pixels away is `3 dx` floats away): one multiply-add
 /// pass over the row per kernel tap, or one median network over nine shifted rows, loops the
 /// compiler vectorises. The border columns, and the edge-aware median, go pixel by pixel through
 /// [`Filter::pixel`], the plain definition that tests compare the fast paths with.
-///
-/// `atrous` needs each pixel's variance: use [`filter_layers`]; here it sees none, and leaves
-/// the image as it is.
-pub fn filter(image: &Image, kernel: &Kernel, film: &Film, stops: &EdgeStops) -> Image {
-    if let Kernel::Atrous(_) = kernel {
-        let mut out = filter_layers(&[Layer::new(image, None)], kernel, film, stops);
-        return out.pop().unwrap_or_else(|| image.clone());
-    }
-    let f = Filter::new(image, kernel, film, stops);
+fn local(image: &Image, window: &Window, film: &Film, stops: &EdgeStops) -> Image {
+    let f = Filter::new(image, window, film, stops);
     let w = image.width as usize;
     let mut out = Image::new(image.width, image.height);
     if w == 0 {
@@ -229,23 +299,11 @@ pub fn filter(image: &Image, kernel: &Kernel, film: &Film, stops: &EdgeStops) ->
     out
 }
 
-/// Filters each layer: the paper's kernels one by one, `atrous` with each layer's variance and
-/// the guides' geometry shared (its object stop is always on; `stops.pure` also applies).
-pub fn filter_layers(layers: &[Layer], kernel: &Kernel, film: &Film, stops: &EdgeStops) -> Vec<Image> {
-    match kernel {
-        Kernel::Atrous(a) => atrous::filter(layers, film, a, stops.pure),
-        _ => layers.iter().map(|l| filter(l.image, kernel, film, stops)).collect(),
-    }
-}
-
-/// One filter pass, ready to run row by row.
+/// One pass of a local filter, ready to run row by row.
 struct Filter<'a> {
     image: &'a Image,
     flat: &'a [f32],
-    kernel: &'a Kernel,
-    /// A convolution's weights scaled by the power of two that brings their sum into (1/2, 1]
-    /// ([`scaled_weights`]); empty for the median.
-    weights: Vec<f32>,
+    window: &'a Window,
     film: &'a Film,
     stops: EdgeStops,
     cos_min: Option<f32>,
@@ -254,24 +312,16 @@ struct Filter<'a> {
 }
 
 impl<'a> Filter<'a> {
-    fn new(image: &'a Image, kernel: &'a Kernel, film: &'a Film, stops: &EdgeStops) -> Self {
-        let radius = match kernel {
-            Kernel::Convolution { size, .. } => *size / 2,
-            Kernel::Median3 | Kernel::Atrous(_) => 1,
-        };
+    fn new(image: &'a Image, window: &'a Window, film: &'a Film, stops: &EdgeStops) -> Self {
         Filter {
             image,
             flat: bytemuck::cast_slice(&image.pixels),
-            kernel,
-            weights: match kernel {
-                Kernel::Convolution { weights, .. } => scaled_weights(weights),
-                Kernel::Median3 | Kernel::Atrous(_) => Vec::new(),
-            },
+            window,
             film,
             stops: *stops,
             cos_min: stops.normal_degrees.map(|d| d.to_radians().cos()),
             edge_aware: stops.any(),
-            radius,
+            radius: window.radius(),
         }
     }
 
@@ -347,12 +397,12 @@ impl<'a> Filter<'a> {
             for dx in -r..=r {
                 let n = (yy * w + (x as i64 + dx).clamp(0, w - 1)) as usize;
                 let take = !self.edge_aware || self.same_surface(centre, n);
-                match self.kernel {
-                    Kernel::Convolution { .. } if take => {
-                        acc += self.image.pixels[n] * self.weights[k];
-                        weight_sum += self.weights[k];
+                match self.window {
+                    Window::Convolution { weights, .. } if take => {
+                        acc += self.image.pixels[n] * weights[k];
+                        weight_sum += weights[k];
                     }
-                    Kernel::Median3 if take => {
+                    Window::Median3 if take => {
                         window[used] = self.image.pixels[n];
                         used += 1;
                     }
@@ -361,11 +411,11 @@ impl<'a> Filter<'a> {
                 k += 1;
             }
         }
-        match self.kernel {
+        match self.window {
             // Divided by the weights actually used, so energy is kept at edges.
-            Kernel::Convolution { .. } if weight_sum > 0.0 => acc / weight_sum,
-            Kernel::Convolution { .. } => self.image.pixels[centre],
-            Kernel::Median3 | Kernel::Atrous(_) => median(&mut window[..used]),
+            Window::Convolution { .. } if weight_sum > 0.0 => acc / weight_sum,
+            Window::Convolution { .. } => self.image.pixels[centre],
+            Window::Median3 => median(&mut window[..used]),
         }
     }
 
@@ -391,10 +441,9 @@ impl<'a> Filter<'a> {
             .collect();
         let n = interior.len();
         let dst = &mut out[3 * r..3 * (r + n)];
-        match self.kernel {
-            Kernel::Convolution { .. } => {
+        match self.window {
+            Window::Convolution { weights, .. } => {
                 // With every weight used (the window never leaves the image) one sum divides.
-                let weights = &self.weights;
                 dst.fill(0.0);
                 for (k, row) in rows.iter().enumerate() {
                     for dx in 0..=2 * r {
@@ -407,8 +456,7 @@ impl<'a> Filter<'a> {
                 let sum: f32 = weights.iter().sum();
                 dst.iter_mut().for_each(|o| *o /= sum);
             }
-            // (`filter` hands atrous elsewhere: this arm is the median's.)
-            Kernel::Median3 | Kernel::Atrous(_) => {
+            Window::Median3 => {
                 let len = dst.len();
                 let s: [&[f32]; 9] = std::array::from_fn(|i| &rows[i / 3][3 * (i % 3)..3 * (i % 3) + len]);
                 let [s0, s1, s2, s3, s4, s5, s6, s7, s8] = s.map(|s| &s[..len]);
@@ -535,7 +583,7 @@ fn median(values: &mut [Vec3]) -> Vec3 {
 /// with its own variance, when the film has it.
 pub fn composite<'a>(
     film: &'a Film,
-    kernel: Option<&Kernel>,
+    kernel: Option<&Method>,
     target: Target,
     stops: &EdgeStops,
 ) -> (Cow<'a, Image>, Option<Image>) {
@@ -579,10 +627,10 @@ mod tests {
         f
     }
 
-    fn kernels() -> Vec<Kernel> {
+    fn kernels() -> Vec<Method> {
         ["box3", "weighted3", "median3", "box5", "1,1,1,1,9,1,1,1,1"]
             .iter()
-            .map(|k| Kernel::parse(k).expect("kernel"))
+            .map(|k| Method::parse(k).expect("kernel"))
             .collect()
     }
 
@@ -607,7 +655,7 @@ mod tests {
         let mut img = Image::new(9, 9);
         img.set(4, 4, Vec3::splat(16.0));
         let out =
-            filter(&img, &Kernel::parse("weighted3").expect("k"), &film_of(&img), &EdgeStops::default());
+            filter(&img, &Method::parse("weighted3").expect("k"), &film_of(&img), &EdgeStops::default());
         let expect = [[1., 2., 1.], [2., 4., 2.], [1., 2., 1.]];
         for dy in 0..3 {
             for dx in 0..3 {
@@ -625,7 +673,7 @@ mod tests {
         let mut img = Image::new(5, 5);
         img.pixels.iter_mut().for_each(|p| *p = Vec3::ONE);
         img.set(2, 2, Vec3::splat(1000.0));
-        let out = filter(&img, &Kernel::Median3, &film_of(&img), &EdgeStops::default());
+        let out = filter(&img, &Method::Median3, &film_of(&img), &EdgeStops::default());
         assert!(out.pixels.iter().all(|p| *p == Vec3::ONE));
     }
 
@@ -638,7 +686,7 @@ mod tests {
                 img.set(x, y, Vec3::splat(x as f32));
             }
         }
-        let out = filter(&img, &Kernel::parse("box3").expect("k"), &film_of(&img), &EdgeStops::default());
+        let out = filter(&img, &Method::parse("box3").expect("k"), &film_of(&img), &EdgeStops::default());
         assert!((out.get(0, 0).x - 1.0 / 3.0).abs() < 1e-6);
         assert!((out.get(3, 2).x - 8.0 / 3.0).abs() < 1e-6);
         assert!((out.get(1, 1).x - 1.0).abs() < 1e-6);
@@ -659,7 +707,7 @@ mod tests {
             let out = filter(&img, &k, &film, &stops);
             assert_eq!(out, img, "{k:?} blurred the step");
             // Without stops the linear kernels blur it (a median keeps a straight step anyway).
-            if k != Kernel::Median3 {
+            if k != Method::Median3 {
                 let blurred = filter(&img, &k, &film, &EdgeStops::default());
                 assert_ne!(blurred, img, "{k:?}: without stops the step must blur");
             }
@@ -703,7 +751,8 @@ mod tests {
             for k in kernels() {
                 for stops in &stop_sets {
                     let fast = filter(&img, &k, &film, stops);
-                    let f = Filter::new(&img, &k, &film, stops);
+                    let Plan::Local(window) = Plan::of(&k) else { panic!("{k:?} is not local") };
+                    let f = Filter::new(&img, &window, &film, stops);
                     for y in 0..h as usize {
                         for x in 0..w as usize {
                             let want = f.pixel(x, y);
@@ -737,7 +786,7 @@ mod tests {
                 film.coverage[i] = if x == 3 { 0.5 } else { 1.0 };
             }
         }
-        let k = Kernel::parse("box3").expect("k");
+        let k = Method::parse("box3").expect("k");
         let paper = filter(&img, &k, &film, &EdgeStops { object: true, ..Default::default() });
         // The mixed pixel (3.0, labelled object 0) is averaged with object 0's pixels (1.0).
         assert!((paper.get(3, 1).x - 2.0).abs() < 1e-6, "{}", paper.get(3, 1));
@@ -773,7 +822,7 @@ mod tests {
         }
         film.raw = film.components[Emitted].clone();
         for name in ["box3", "median3", "atrous", "atrous:taps=3"] {
-            let k = Kernel::parse(name).expect("kernel");
+            let k = Method::parse(name).expect("kernel");
             let (out, indirect) = composite(&film, Some(&k), Target::Components, &EdgeStops::default());
             assert_eq!(*out, film.components[Emitted], "{name}");
             assert!(indirect.is_some(), "{name}: the filtered indirect layer");
@@ -784,7 +833,7 @@ mod tests {
             noisy.components[Direct].pixels[i] = Vec3::splat(next());
             noisy.components[Indirect].pixels[i] = Vec3::splat(next());
         }
-        let k = Kernel::parse("atrous").expect("kernel");
+        let k = Method::parse("atrous").expect("kernel");
         let (out, indirect) = composite(&noisy, Some(&k), Target::Components, &EdgeStops::default());
         let indirect = indirect.expect("filtered indirect");
         let direct = filter_layers(
@@ -811,9 +860,9 @@ mod tests {
             *p = Vec3::new(i as f32, 1.0 + (i % 3) as f32, 0.25 * i as f32);
         }
         let film = film_of(&img);
-        let ratios = Kernel::parse("1,2,1,2,4,2,1,2,1").expect("kernel");
+        let ratios = Method::parse("1,2,1,2,4,2,1,2,1").expect("kernel");
         let huge =
-            Kernel::custom([1., 2., 1., 2., 4., 2., 1., 2., 1.].map(|w: f32| w * 2f32.powi(100)).to_vec())
+            Method::custom([1., 2., 1., 2., 4., 2., 1., 2., 1.].map(|w: f32| w * 2f32.powi(100)).to_vec())
                 .expect("kernel");
         for stops in [EdgeStops::default(), EdgeStops { object: true, ..Default::default() }] {
             let want = filter(&img, &ratios, &film, &stops);
@@ -831,11 +880,11 @@ mod tests {
 
     #[test]
     fn bad_kernels_are_errors() {
-        assert!(Kernel::parse("gauss").is_err());
-        assert!(Kernel::parse("1,2,3,4").is_err());
-        assert!(Kernel::parse("0,0,0,0,0,0,0,0,0").is_err());
-        assert!(Kernel::parse("1,1,1,1,-1,1,1,1,1").is_err());
-        assert_eq!(Kernel::parse("1").expect("1x1"), Kernel::Convolution { size: 1, weights: vec![1.0] });
+        assert!(Method::parse("gauss").is_err());
+        assert!(Method::parse("1,2,3,4").is_err());
+        assert!(Method::parse("0,0,0,0,0,0,0,0,0").is_err());
+        assert!(Method::parse("1,1,1,1,-1,1,1,1,1").is_err());
+        assert_eq!(Method::parse("1").expect("1x1"), Method::Convolution { size: 1, weights: vec![1.0] });
     }
 }
 

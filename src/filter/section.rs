@@ -2,15 +2,15 @@
 //! (it knows nothing of filters); the kernel names and weights, targets and edge stops are checked
 //! here, with the same rules as the command line's flags.
 
-use super::{EdgeStops, Kernel, Setting, Target};
+use super::{EdgeStops, Method, Setting, Target};
 use crate::scene::{FilterSection, KernelSpec, Scene, SceneError};
 
 impl Setting {
     /// The setting a `[filter]` section asks for, or what is wrong with it.
     pub fn from_section(section: &FilterSection) -> Result<Setting, String> {
         let kernel = match &section.kernel {
-            KernelSpec::Name(name) => Kernel::parse(name),
-            KernelSpec::Weights(weights) => Kernel::custom(weights.clone()),
+            KernelSpec::Name(name) => Method::parse(name),
+            KernelSpec::Weights(weights) => Method::custom(weights.clone()),
         }?;
         let target = match section.target.as_deref() {
             None => Target::Indirect,
@@ -25,7 +25,7 @@ impl Setting {
             pure: section.edge_pure.unwrap_or(false),
         };
         stops.check()?;
-        Ok(Setting { kernel: Some(kernel), target, stops })
+        Ok(Setting { method: Some(kernel), target, stops })
     }
 
     /// The setting of a scene's `[filter]` section (no filter without one); a bad section is an
@@ -53,7 +53,7 @@ mod tests {
     fn filter_section_by_name_or_weights_and_its_errors() {
         let s = setting(&format!("{MINIMAL}[filter]\nkernel = \"median3\"\ntarget = \"image\"\n"))
             .expect("parses");
-        assert_eq!(s.kernel, Some(Kernel::Median3));
+        assert_eq!(s.method, Some(Method::Median3));
         assert_eq!(s.target, Target::Image);
         let s =
             setting(&format!("{MINIMAL}[filter]\nkernel = [0, 1, 0, 1, 4, 1, 0, 1, 0]\nedge_normal = 30\n"))
@@ -64,8 +64,8 @@ mod tests {
             setting(&format!("{MINIMAL}[filter]\nkernel = \"atrous:sigma_l=8\"\ntarget = \"components\"\n"))
                 .expect("parses");
         assert_eq!(
-            s.kernel,
-            Some(Kernel::Atrous(crate::filter::Atrous { sigma_l: 8.0, ..Default::default() }))
+            s.method,
+            Some(Method::Atrous(crate::filter::Atrous { sigma_l: 8.0, ..Default::default() }))
         );
         assert_eq!(s.target, Target::Components);
         for (extra, needle) in [

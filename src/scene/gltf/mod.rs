@@ -1,4 +1,5 @@
-//! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), read with the `gltf` crate:
+//! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), its JSON parsed by the `gltf`
+//! crate and its bytes read by [`data`]:
 //! the default scene's node hierarchy with its transforms, triangle meshes with indices, normals
 //! and texture coordinates, the metallic-roughness materials with their textures, emission, the
 //! first camera, and `KHR_lights_punctual` lights. Meshes come out in their own coordinates,
