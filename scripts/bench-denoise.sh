@@ -18,7 +18,7 @@
 #   --no-write                      print the section only; leave docs/ alone
 # Environment: SCENES (default "paper-sky paper-gallery cornell"), OUT (default
 # target/bench-denoise; references there are reused), LIGHTSPLIT=BIN (this binary instead of
-# `cargo build --release`), LIGHTSPLIT_PEERS_VENV (the virtual environment for Mitsuba, which
+# `cargo build --profile dist`), LIGHTSPLIT_PEERS_VENV (the virtual environment for Mitsuba, which
 # reads the EXR layers, and pyoidn; default ~/.cache/lightsplit/peers-venv, made when missing).
 # OIDN is a comparison peer only: lightsplit never depends on it.
 set -euo pipefail
@@ -57,8 +57,8 @@ done
 if [ -n "${LIGHTSPLIT:-}" ]; then
     BIN=$LIGHTSPLIT
 else
-    cargo build --release --quiet
-    BIN=$root/target/release/lightsplit
+    cargo build --profile dist --quiet
+    BIN=$root/target/dist/lightsplit
 fi
 venv=${LIGHTSPLIT_PEERS_VENV:-${XDG_CACHE_HOME:-$HOME/.cache}/lightsplit/peers-venv}
 if [ ! -x "$venv/bin/python" ]; then

@@ -16,7 +16,7 @@
 #   --threads N   (THREADS)  threads for every program, default: the number of CPUs (nproc)
 #   --no-write               print the table only; leave docs/RESULTS.md alone
 # Environment:
-#   LIGHTSPLIT=BIN           time this binary instead of building with `cargo build --release`
+#   LIGHTSPLIT=BIN           time this binary instead of building with `cargo build --profile dist`
 #   LIGHTSPLIT_PEERS_VENV=DIR  Mitsuba's virtual environment, outside the checkout
 #                            (default ${XDG_CACHE_HOME:-$HOME/.cache}/lightsplit/peers-venv)
 #   MITSUBA_PIP=SPEC         what pip installs there when Mitsuba is missing (default "mitsuba>=3,<4")
@@ -190,10 +190,10 @@ if [ -n "${LIGHTSPLIT:-}" ]; then
     lightsplit_shown=lightsplit
 else
     "$root/scripts/setup.sh"
-    note "building lightsplit: cargo build --release"
-    (cd "$root" && cargo build --release)
-    lightsplit=$root/target/release/lightsplit
-    lightsplit_shown=target/release/lightsplit
+    note "building lightsplit: cargo build --profile dist"
+    (cd "$root" && cargo build --profile dist)
+    lightsplit=$root/target/dist/lightsplit
+    lightsplit_shown=target/dist/lightsplit
 fi
 commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
 if [ "$commit" != unknown ] && ! git -C "$root" diff --quiet HEAD -- 2>/dev/null; then
@@ -367,7 +367,7 @@ os_name=$(sed -n 's/^PRETTY_NAME="\{0,1\}\([^"]*\)"\{0,1\}$/\1/p' /etc/os-releas
 if [ -n "${LIGHTSPLIT:-}" ]; then
     lightsplit_about="a prebuilt binary given by LIGHTSPLIT (the checkout was at $commit)"
 else
-    lightsplit_about="at $commit, built with cargo build --release"
+    lightsplit_about="at $commit, built with cargo build --profile dist"
 fi
 # A paragraph of Markdown wrapped at 100 columns (never inside a word).
 paragraph() {

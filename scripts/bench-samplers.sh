@@ -17,7 +17,7 @@
 #   --no-write                 print the section only; leave docs/ alone
 # Environment: SCENES (default: every scenes/*.toml), OUT (default target/bench-samplers; a
 # stopped run continues from its rows and cached references there), LIGHTSPLIT=BIN (this binary
-# instead of `cargo build --release`).
+# instead of `cargo build --profile dist`).
 set -euo pipefail
 export PYTHONDONTWRITEBYTECODE=1
 
@@ -62,8 +62,8 @@ done
 if [ -n "${LIGHTSPLIT:-}" ]; then
     BIN=$LIGHTSPLIT
 else
-    cargo build --release --quiet
-    BIN=target/release/lightsplit
+    cargo build --profile dist --quiet
+    BIN=target/dist/lightsplit
 fi
 mkdir -p "$OUT"
 start=$(date +%s)

@@ -12,7 +12,7 @@
 #   RAYS=N         primary rays per set (default 300000)
 #   ROUNDS=N       back-to-back rounds per row (default 3)
 #   OUT=DIR        where the PNG and the JSON go (default docs)
-#   LIGHTSPLIT=BIN measure this binary instead of building with `cargo build --release`
+#   LIGHTSPLIT=BIN measure this binary instead of building with `cargo build --profile dist`
 # Needs a quiet machine: nothing else should run while it measures.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,8 +22,8 @@ RAYS=${RAYS:-300000}
 ROUNDS=${ROUNDS:-3}
 OUT=${OUT:-docs}
 if [ -z "${LIGHTSPLIT:-}" ]; then
-  cargo build --release --quiet
-  LIGHTSPLIT=target/release/lightsplit
+  cargo build --profile dist --quiet
+  LIGHTSPLIT=target/dist/lightsplit
 fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -20,8 +20,8 @@ REFERENCE_SPP=${REFERENCE_SPP:-4096}
 SEEDS=${SEEDS:-2}
 SCENES=${SCENES:-"paper-sky paper-gallery cornell"}
 
-cargo build --release --quiet
-BIN=target/release/lightsplit
+cargo build --profile dist --quiet
+BIN=target/dist/lightsplit
 start=$(date +%s)
 
 for scene in $SCENES; do
