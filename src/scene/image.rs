@@ -153,14 +153,7 @@ pub fn check_exr_headers(path: &Path) -> Result<(), String> {
         // The decoder's samples, the 32-bit copy made of them and the offset table.
         need += pixel_bytes + w * h * channels * 4 + header.chunk_count as u64 * 8;
     }
-    match limits::available_bytes() {
-        Some(have) if need > have => Err(format!(
-            "its pixels need {:.1} GiB to read and {:.1} GiB is available",
-            need as f64 / (1u64 << 30) as f64,
-            have as f64 / (1u64 << 30) as f64
-        )),
-        _ => Ok(()),
-    }
+    limits::check_memory(need, "reading its pixels")
 }
 
 /// A portable float map (`PF`, RGB; `Pf`, grey): a negative scale means little-endian floats;

@@ -110,17 +110,23 @@ pub fn available_bytes() -> Option<u64> {
     }
 }
 
-/// Refuses a render that would not fit in the memory available.
-pub fn check_render_memory(width: u32, height: u32) -> Result<(), String> {
-    let need = render_bytes(width, height);
+/// Refuses `need` bytes for `what` (a render, an image's pixels, an accessor's elements) when
+/// the memory available ([`available_bytes`]) cannot hold them.
+pub fn check_memory(need: u64, what: &str) -> Result<(), String> {
     match available_bytes() {
         Some(have) if need > have => Err(format!(
-            "a {width}x{height} render needs about {:.1} GiB and {:.1} GiB is available: render smaller",
+            "{what} needs about {:.2} GiB and {:.2} GiB is available",
             need as f64 / (1u64 << 30) as f64,
             have as f64 / (1u64 << 30) as f64
         )),
         _ => Ok(()),
     }
+}
+
+/// Refuses a render that would not fit in the memory available.
+pub fn check_render_memory(width: u32, height: u32) -> Result<(), String> {
+    check_memory(render_bytes(width, height), &format!("a {width}x{height} render"))
+        .map_err(|e| format!("{e}: render smaller"))
 }
 
 #[cfg(test)]

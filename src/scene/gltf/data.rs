@@ -148,18 +148,6 @@ fn component(bytes: &[u8], ty: ComponentType, normalized: bool) -> f64 {
     }
 }
 
-/// Refuses an allocation of `bytes` for `what` that the memory available cannot hold.
-pub fn check_memory(bytes: u64, what: &str) -> Result<(), String> {
-    match limits::available_bytes() {
-        Some(have) if bytes > have => Err(format!(
-            "{what} would take {:.2} GiB, more than the {:.2} GiB available",
-            bytes as f64 / (1u64 << 30) as f64,
-            have as f64 / (1u64 << 30) as f64
-        )),
-        _ => Ok(()),
-    }
-}
-
 /// An accessor's elements as read: where they start, how far apart, how many.
 struct Layout<'b> {
     /// The bytes from the first element on (empty when the accessor has no buffer view: zeros).
@@ -313,7 +301,7 @@ impl<'a> Buffers<'a> {
         }
         let n = dims.multiplicity();
         let total = layout.count as u64 * n as u64;
-        check_memory(total * 4, &format!("accessor {a} ({what})"))?;
+        limits::check_memory(total * 4, &format!("accessor {a} ({what})"))?;
         let size = component_size(layout.ty);
         let mut out = vec![0.0f32; total as usize];
         if !layout.bytes.is_empty() {
@@ -345,7 +333,7 @@ impl<'a> Buffers<'a> {
                 type_name(layout.ty)
             )));
         }
-        check_memory(layout.count as u64 * 4, &format!("accessor {a} (indices)"))?;
+        limits::check_memory(layout.count as u64 * 4, &format!("accessor {a} (indices)"))?;
         let index = |at: &[u8]| component(at, layout.ty, false) as u32;
         let mut out = vec![0u32; layout.count];
         if !layout.bytes.is_empty() {
@@ -434,7 +422,7 @@ pub fn decode(bytes: &[u8], srgb: bool) -> Result<Image, String> {
     let mut decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
     // The decoder's buffer and the linear image (12 bytes a pixel).
     let bytes_per_pixel = decoder.color_type().bytes_per_pixel() as u64;
-    check_memory(pixels * (bytes_per_pixel + 12), &format!("a {width}x{height} image"))?;
+    limits::check_memory(pixels * (bytes_per_pixel + 12), &format!("a {width}x{height} image"))?;
     // The size is checked: the decoder's own limit (512 MiB) would refuse an 8K 16-bit map.
     let mut limits = image::Limits::no_limits();
     limits.max_image_width = Some(width);
