@@ -309,7 +309,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
     options.adaptive = args.adaptive;
     if args.all_features {
         options.features = Features::ALL;
-        options.embree = Default::default();
+        options.build = Default::default();
     } else if part_mode {
         // A merge may filter any way: a part keeps the split and the guides.
         options.features = Features { split: true, guides: true, ..options.features };
@@ -426,7 +426,7 @@ fn render_command(args: RenderArgs) -> Result<(), Failure> {
             "stopped_early_pixels": s.stopped_early,
             "mean_spp": s.samples as f64 / (options.width as f64 * options.height as f64),
             "features": options.features,
-            "embree": options.embree,
+            "embree": options.build,
             "buffer_bytes": s.buffer_bytes,
             "filter": setting.method.as_ref().map(Method::name),
             "filter_target": setting.target.name(),

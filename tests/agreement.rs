@@ -238,7 +238,6 @@ fn rays_at_shared_edges_hit_on_both_backends() {
 fn packets_of_camera_rays_hit_what_single_rays_hit() {
     use lightsplit::accel::{build_embree_with, Accel};
     use lightsplit::render::camera::PinholeCamera;
-    use lightsplit::render::features::Features;
     use lightsplit::render::sampler::Sampler;
     use lightsplit::scene::analysis::Analysis;
 
@@ -272,7 +271,7 @@ fn packets_of_camera_rays_hit_what_single_rays_hit() {
     for path in scenes() {
         let name = path.display().to_string();
         let scene = scene::load(&path).expect("loads");
-        let rendered = Features::embree_settings(&Analysis::of(&scene));
+        let rendered = lightsplit::accel::BuildHints::for_scene(&Analysis::of(&scene));
         check(&scene, &build_embree_with(&scene, None, rendered).expect("embree builds"), &name);
         check(
             &scene,

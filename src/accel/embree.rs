@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use embree_sys as sys;
 use glam::{Vec3A, Vec4};
 
-use super::{Accel, Hit, Ray};
+use super::{Accel, BuildHints, BuildQuality, Hit, Ray, PACKET};
 
 /// `RTC_INVALID_GEOMETRY_ID` is a cast macro in the header, which bindgen cannot evaluate.
 const INVALID_ID: u32 = u32::MAX;
@@ -136,11 +136,11 @@ impl Device {
 
     /// A new, empty scene to fill and commit: robust (watertight) and of high build quality.
     pub fn scene(&self) -> Result<SceneBuilder, EmbreeError> {
-        self.scene_with(SceneSettings::default())
+        self.scene_with(BuildHints::default())
     }
 
     /// A new, empty scene with these settings.
-    pub fn scene_with(&self, settings: SceneSettings) -> Result<SceneBuilder, EmbreeError> {
+    pub fn scene_with(&self, settings: BuildHints) -> Result<SceneBuilder, EmbreeError> {
         // SAFETY: `raw` is a live device.
         let raw = unsafe { sys::rtcNewScene(self.inner.raw) };
         self.inner.take_error()?;
@@ -153,56 +153,19 @@ impl Device {
         unsafe {
             let flags = if settings.robust { sys::RTC_SCENE_FLAG_ROBUST } else { sys::RTC_SCENE_FLAG_NONE };
             sys::rtcSetSceneFlags(raw, flags);
-            sys::rtcSetSceneBuildQuality(raw, settings.quality.raw());
+            sys::rtcSetSceneBuildQuality(raw, raw_quality(settings.quality));
         }
         self.inner.take_error()?;
         Ok(scene)
     }
 }
 
-/// Embree's BVH build quality: how hard the builder works for a faster tree.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum BuildQuality {
-    Low,
-    Medium,
-    /// Spatial splits: the slowest build, the fastest traversal.
-    #[default]
-    High,
-}
-
-impl BuildQuality {
-    pub const ALL: [BuildQuality; 3] = [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High];
-
-    fn raw(self) -> sys::RTCBuildQuality {
-        match self {
-            BuildQuality::Low => sys::RTC_BUILD_QUALITY_LOW,
-            BuildQuality::Medium => sys::RTC_BUILD_QUALITY_MEDIUM,
-            BuildQuality::High => sys::RTC_BUILD_QUALITY_HIGH,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            BuildQuality::Low => "low",
-            BuildQuality::Medium => "medium",
-            BuildQuality::High => "high",
-        }
-    }
-}
-
-/// How Embree builds a scene.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct SceneSettings {
-    /// `RTC_SCENE_FLAG_ROBUST`: the watertight triangle test (no ray slips through a shared
-    /// edge) and no traversal shortcuts that lose accuracy.
-    pub robust: bool,
-    pub quality: BuildQuality,
-}
-
-impl Default for SceneSettings {
-    fn default() -> Self {
-        SceneSettings { robust: true, quality: BuildQuality::High }
+/// Embree's build quality for a [`BuildQuality`].
+fn raw_quality(quality: BuildQuality) -> sys::RTCBuildQuality {
+    match quality {
+        BuildQuality::Low => sys::RTC_BUILD_QUALITY_LOW,
+        BuildQuality::Medium => sys::RTC_BUILD_QUALITY_MEDIUM,
+        BuildQuality::High => sys::RTC_BUILD_QUALITY_HIGH,
     }
 }
 
@@ -522,9 +485,6 @@ impl Accel for CommittedScene {
         CommittedScene::occluded(self, ray)
     }
 }
-
-/// Rays in one of the packets [`CommittedScene::intersect_coherent`] traces.
-pub const PACKET: usize = 8;
 
 /// An 8-ray packet's valid mask, aligned to 32 bytes as `rtcIntersect8` requires: Embree's
 /// AVX-512 kernels load it with an aligned move, which faults on a 16-byte aligned array (its

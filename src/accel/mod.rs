@@ -91,13 +91,72 @@ impl std::fmt::Display for Backend {
     }
 }
 
+/// Rays in one of the packets [`Accel::intersect_coherent`] traces together (camera rays, in
+/// passes of this many samples a pixel).
+pub const PACKET: usize = 8;
+
+/// How hard an accelerator's build works for a faster tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BuildQuality {
+    Low,
+    Medium,
+    /// Spatial splits: the slowest build, the fastest traversal.
+    #[default]
+    High,
+}
+
+impl BuildQuality {
+    pub const ALL: [BuildQuality; 3] = [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildQuality::Low => "low",
+            BuildQuality::Medium => "medium",
+            BuildQuality::High => "high",
+        }
+    }
+}
+
+/// What a scene asks of an accelerator's build, passed by the renderer without knowing which
+/// backend takes it: Embree reads both hints; the BVH's test is always watertight and it builds
+/// one way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct BuildHints {
+    /// A watertight triangle test (no ray slips through a shared edge) and no traversal
+    /// shortcuts that lose accuracy: Embree's `RTC_SCENE_FLAG_ROBUST`.
+    pub robust: bool,
+    pub quality: BuildQuality,
+}
+
+impl Default for BuildHints {
+    fn default() -> Self {
+        BuildHints { robust: true, quality: BuildQuality::High }
+    }
+}
+
+impl BuildHints {
+    /// The build a scene needs, from `bench-accel --embree-settings` over `scenes/`: the robust
+    /// (watertight) mode whenever there are triangles (without it rays slipped through shared
+    /// edges of `paper-sky.toml` and the terrain), and none for spheres alone; the two-level
+    /// build (`low`) for a scene of several shapes, which measured 1.0x to 1.9x the rays per
+    /// second of `high` there with the same answers; `high` for one shape, where it measured
+    /// the same or slightly better.
+    pub fn for_scene(analysis: &crate::scene::analysis::Analysis) -> BuildHints {
+        BuildHints {
+            robust: analysis.triangles > 0,
+            quality: if analysis.shapes > 1 { BuildQuality::Low } else { BuildQuality::High },
+        }
+    }
+}
+
 /// Builds Embree's BVH over every shape of `scene`; geometry IDs are shape indices. Meshes are
 /// shared with Embree, not copied. `threads` limits Embree's build threads.
 pub fn build_embree(
     scene: &crate::scene::Scene,
     threads: Option<usize>,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
-    build_embree_with(scene, threads, embree::SceneSettings::default())
+    build_embree_with(scene, threads, BuildHints::default())
 }
 
 /// The environment variable whose value is appended to Embree's device configuration, e.g.
@@ -121,7 +180,7 @@ fn device_config(threads: Option<usize>) -> String {
 pub fn build_embree_with(
     scene: &crate::scene::Scene,
     threads: Option<usize>,
-    settings: embree::SceneSettings,
+    settings: BuildHints,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
     use crate::scene::Geometry;
     let config = device_config(threads);

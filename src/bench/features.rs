@@ -8,7 +8,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::accel::{embree::SceneSettings, Backend};
+use crate::accel::{Backend, BuildHints};
 use crate::film::{Film, Format};
 use crate::filter::Setting;
 use crate::output::Layer;
@@ -34,7 +34,7 @@ pub struct FeaturesRow {
     pub scene: String,
     /// The specialised render's features and Embree build.
     pub features: Features,
-    pub embree: SceneSettings,
+    pub embree: BuildHints,
     /// Path samples per second (median over rounds) of the specialised render, of the general
     /// integrator on the specialised build, and of everything forced on.
     pub samples_per_second: [f64; 3],
@@ -88,7 +88,7 @@ pub fn bench_scene(
         ..base.clone()
     };
     let general_same_build = RenderOptions { features: Features::ALL, ..specialised.clone() };
-    let forced = RenderOptions { features: Features::ALL, embree: SceneSettings::default(), ..base };
+    let forced = RenderOptions { features: Features::ALL, build: BuildHints::default(), ..base };
     let modes = [&specialised, &general_same_build, &forced];
 
     let mut rates: [Vec<f64>; 3] = Default::default();
@@ -120,7 +120,7 @@ pub fn bench_scene(
     Ok(FeaturesRow {
         scene: path.display().to_string(),
         features: specialised.features,
-        embree: specialised.embree,
+        embree: specialised.build,
         samples_per_second: rates.map(median),
         speedup: median(speedup),
         build_speedup: median(build_speedup),

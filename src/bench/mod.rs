@@ -284,7 +284,7 @@ fn resident_bytes() -> Option<u64> {
 /// One Embree setting measured by [`bench_embree_settings`].
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SettingsRow {
-    pub settings: accel::embree::SceneSettings,
+    pub settings: accel::BuildHints,
     /// The best of three builds.
     pub build_seconds: f64,
     /// Millions of rays per second for primary, shadow and incoherent rays (median of rounds).
@@ -304,12 +304,12 @@ pub fn bench_embree_settings(
     options: &BenchAccelOptions,
     progress: &dyn Fn(usize, usize),
 ) -> Result<Vec<SettingsRow>, accel::AccelError> {
-    use accel::embree::{BuildQuality, SceneSettings};
-    let mut all = vec![SceneSettings::default()];
+    use accel::{BuildHints, BuildQuality};
+    let mut all = vec![BuildHints::default()];
     for robust in [true, false] {
         for quality in BuildQuality::ALL {
-            let s = SceneSettings { robust, quality };
-            if s != SceneSettings::default() {
+            let s = BuildHints { robust, quality };
+            if s != BuildHints::default() {
                 all.push(s);
             }
         }

@@ -159,9 +159,11 @@ pub fn check_output(path: &Path) -> Result<Format, WriteError> {
         return refuse("is a directory".into());
     }
     // The image is written to a temporary file beside it and renamed: that must be possible,
-    // before any work is done. The probe is that temporary itself, so a name the directory
-    // cannot hold (a name of 250 bytes, 14 more for the temporary's) is found now too.
-    let probe = temporary(path, std::process::id());
+    // before any work is done. The probe's name is as long as the temporary's (`.chk.` for
+    // `.tmp.`), so a name the directory cannot hold (a name of 250 bytes, 14 more for the
+    // temporary's) is found now too, and a watcher of the temporary (a test that stops a write
+    // under way) does not take the probe for it.
+    let probe = temporary_named(path, std::process::id(), "chk");
     match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
         Ok(_) => {
             let _ = std::fs::remove_file(&probe);
@@ -444,9 +446,14 @@ static WRITING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// The temporary file of `path` for the process `pid`: `.NAME.PID.tmp.EXT` beside it (its
 /// extension kept, so the encoder knows the format).
 fn temporary(path: &Path, pid: u32) -> PathBuf {
+    temporary_named(path, pid, "tmp")
+}
+
+/// `.NAME.PID.KIND.EXT` beside `path`.
+fn temporary_named(path: &Path, pid: u32, kind: &str) -> PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
-    parent_dir(path).join(format!(".{name}.{pid}.tmp.{ext}"))
+    parent_dir(path).join(format!(".{name}.{pid}.{kind}.{ext}"))
 }
 
 /// Removes the temporaries of `path` that processes no longer running left (a SIGKILL in the

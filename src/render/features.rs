@@ -4,7 +4,6 @@
 
 use serde::Serialize;
 
-use crate::accel::embree::{BuildQuality, SceneSettings};
 use crate::scene::analysis::Analysis;
 
 /// Emission at hits, lookups at infinity, MIS weights, and the ray after the last vertex: what
@@ -58,19 +57,6 @@ impl Features {
             split: outputs.split,
             guides: outputs.guides,
             textures: analysis.color_textures + analysis.bump_maps > 0,
-        }
-    }
-
-    /// The Embree build a scene needs, from `bench-accel --embree-settings` over `scenes/`:
-    /// the robust (watertight) mode whenever there are triangles (without it rays slipped
-    /// through shared edges of `paper-sky.toml` and the terrain), and none for spheres alone;
-    /// the two-level build (`low`) for a scene of several shapes, which measured 1.0x to 1.9x
-    /// the rays per second of `high` there with the same answers; `high` for one shape, where
-    /// it measured the same or slightly better.
-    pub fn embree_settings(analysis: &Analysis) -> SceneSettings {
-        SceneSettings {
-            robust: analysis.triangles > 0,
-            quality: if analysis.shapes > 1 { BuildQuality::Low } else { BuildQuality::High },
         }
     }
 

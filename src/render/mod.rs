@@ -18,9 +18,8 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::embree::SceneSettings;
-use crate::accel::embree::PACKET;
 use crate::accel::{self, Accel, Backend, Ray};
+use crate::accel::{BuildHints, PACKET};
 use crate::component::Component;
 use crate::component::Split;
 use crate::film::{self, Film};
@@ -55,8 +54,8 @@ pub struct RenderOptions {
     pub debug_nonfinite: bool,
     /// What the integrator computes: by default what the scene needs for every layer.
     pub features: Features,
-    /// How Embree builds the scene: by default what the scene needs.
-    pub embree: SceneSettings,
+    /// How the accelerator builds the scene: by default what the scene needs.
+    pub build: BuildHints,
     /// Adaptive sampling: stop a pixel once the relative standard error of its mean falls to
     /// this (checked after 16, 32, 64, ... samples; `spp` is the most a pixel takes).
     pub adaptive: Option<f32>,
@@ -343,7 +342,7 @@ impl RenderOptions {
             accel: Backend::Embree,
             debug_nonfinite: false,
             features: Features::needed(&analysis, Outputs::ALL),
-            embree: Features::embree_settings(&analysis),
+            build: BuildHints::for_scene(&analysis),
             adaptive: None,
             part: Part::default(),
         }
@@ -461,7 +460,7 @@ pub fn render_controlled(
         };
         Ok(match options.accel {
             Backend::Embree => {
-                let accel = accel::build_embree_with(scene, options.threads, options.embree)?;
+                let accel = accel::build_embree_with(scene, options.threads, options.build)?;
                 built(render_with_control(scene, &accel, options, control))
             }
             Backend::Bvh => {
