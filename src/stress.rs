@@ -199,13 +199,18 @@ impl Ctx {
 
     /// Self-hits on `scene` with this backend (see [`self_hits`]).
     fn probe(&self, scene: &Scene, toward: Vec3) -> Result<(u64, u64), StressError> {
-        use accel::AccelError;
-        Ok(match self.backend {
-            Backend::Embree => {
-                self_hits(scene, &accel::build_embree(scene, self.threads).map_err(AccelError::from)?, toward)
+        struct Probe<'s> {
+            scene: &'s Scene,
+            toward: Vec3,
+        }
+        impl accel::UseAccel for Probe<'_> {
+            type Output = (u64, u64);
+            fn with<A: Accel>(self, accel: &A) -> (u64, u64) {
+                self_hits(self.scene, accel, self.toward)
             }
-            Backend::Bvh => self_hits(scene, &accel::bvh::Bvh::new(scene).map_err(AccelError::from)?, toward),
-        })
+        }
+        let hints = accel::BuildHints::default();
+        Ok(self.backend.build(scene, self.threads, hints, Probe { scene, toward })?)
     }
 
     /// Translation and scale: the same image (mean over the objects within 1%), no self-hits,

@@ -82,12 +82,41 @@ pub enum Backend {
     Bvh,
 }
 
+impl Backend {
+    /// The name on the command line, in `--json` and in `converge`'s results.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Embree => "embree",
+            Backend::Bvh => "bvh",
+        }
+    }
+
+    /// Builds this backend over `scene` (`threads` limits Embree's build threads; `hints` are
+    /// what the scene asks of the build) and hands it to `u`: the one place a backend is chosen,
+    /// so code generic over [`Accel`] is compiled once for each.
+    pub fn build<U: UseAccel>(
+        self,
+        scene: &crate::scene::Scene,
+        threads: Option<usize>,
+        hints: BuildHints,
+        u: U,
+    ) -> Result<U::Output, AccelError> {
+        Ok(match self {
+            Backend::Embree => u.with(&build_embree_with(scene, threads, hints)?),
+            Backend::Bvh => u.with(&bvh::Bvh::new(scene)?),
+        })
+    }
+}
+
+/// What to do with an accelerator, whichever backend it is ([`Backend::build`]).
+pub trait UseAccel {
+    type Output;
+    fn with<A: Accel>(self, accel: &A) -> Self::Output;
+}
+
 impl std::fmt::Display for Backend {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Backend::Embree => f.write_str("embree"),
-            Backend::Bvh => f.write_str("bvh"),
-        }
+        f.write_str(self.name())
     }
 }
 

@@ -15,7 +15,6 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::accel::Backend;
 use crate::film::{self, Image};
 use crate::filter::{composite, EdgeStops, Method, Target};
 use crate::metrics;
@@ -286,13 +285,6 @@ pub enum ConvergeError {
     Failed(String),
 }
 
-fn accel_name(a: Backend) -> &'static str {
-    match a {
-        Backend::Embree => "embree",
-        Backend::Bvh => "bvh",
-    }
-}
-
 impl Plan {
     /// The samples the run takes, the reference's included when it must be rendered (what
     /// an earlier run left done is counted as it is skipped).
@@ -477,7 +469,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
     })?;
     let csv_path = plan.out.join("results.csv");
     upgrade_csv(&csv_path)?;
-    let (scene_name, accel) = (plan.scene_name(), accel_name(plan.options.accel).to_string());
+    let (scene_name, accel) = (plan.scene_name(), plan.options.accel.name().to_string());
     let (mut rows, others): (Vec<Row>, Vec<Row>) = read_rows(&csv_path)
         .into_iter()
         .filter(|r| r.scene == scene_name && r.accel == accel)
@@ -628,7 +620,7 @@ pub fn report(plan: &Plan, measured: &Measured) -> Result<String, ConvergeError>
         plan.options.width,
         plan.options.height,
         plan.seeds,
-        accel_name(plan.options.accel),
+        plan.options.accel.name(),
         samplers.join(" and "),
         match &plan.reference {
             Some(p) => p.display().to_string(),

@@ -19,7 +19,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::{self, Accel, Backend, Ray};
-use crate::accel::{BuildHints, PACKET};
+use crate::accel::{BuildHints, UseAccel, PACKET};
 use crate::component::Component;
 use crate::component::Split;
 use crate::film::{self, Film};
@@ -458,15 +458,20 @@ pub fn render_controlled(
             out.stats.build_seconds = start.elapsed().as_secs_f64() - out.stats.seconds;
             out
         };
-        Ok(match options.accel {
-            Backend::Embree => {
-                let accel = accel::build_embree_with(scene, options.threads, options.build)?;
-                built(render_with_control(scene, &accel, options, control))
+        /// A render on whichever accelerator was built.
+        struct Render<'r> {
+            scene: &'r Scene,
+            options: &'r RenderOptions,
+            control: &'r Control<'r>,
+        }
+        impl UseAccel for Render<'_> {
+            type Output = RenderOutput;
+            fn with<A: Accel>(self, accel: &A) -> RenderOutput {
+                render_with_control(self.scene, accel, self.options, self.control)
             }
-            Backend::Bvh => {
-                built(render_with_control(scene, &accel::bvh::Bvh::new(scene)?, options, control))
-            }
-        })
+        }
+        let render = Render { scene, options, control };
+        Ok(built(options.accel.build(scene, options.threads, options.build, render)?))
     };
     Ok(match options.threads {
         Some(n) => accel::thread_pool(n)?.install(run)?,
