@@ -595,14 +595,7 @@ fn add_mesh(scene: &mut Scene, name: &str, triangles: &[[Vec3; 3]], emission: Ve
     scene.objects.push(name.to_string());
     scene.shapes.push(Shape {
         name: name.to_string(),
-        geometry: Geometry::Triangles(Mesh {
-            positions: positions.into(),
-            indices: indices.into(),
-            normals: None,
-            uvs: None,
-            instance: None,
-            world: None,
-        }),
+        geometry: Geometry::Triangles(Mesh::new(positions.into(), indices.into(), None, None)),
         material,
         emission,
         object: scene.objects.len() as u32 - 1,

@@ -30,14 +30,7 @@ pub fn terrain(resolution: u32, size: f32, height: f32, seed: u32) -> Mesh {
             [[a, d, e], [a, e, b]]
         })
         .collect();
-    Mesh {
-        positions: positions.into(),
-        indices: indices.into(),
-        normals: None,
-        uvs: None,
-        instance: None,
-        world: None,
-    }
+    Mesh::new(positions.into(), indices.into(), None, None)
 }
 
 #[cfg(test)]
