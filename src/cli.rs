@@ -6,14 +6,12 @@ use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use clap::builder::{EnumValueParser, TypedValueParser};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 
 use lightsplit::accel::Backend;
-use lightsplit::component::Component;
 use lightsplit::converge::Edge;
 use lightsplit::film::{Film, Format};
-use lightsplit::filter::{EdgeStops, Method, Setting, Target};
+use lightsplit::filter::{Overrides, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
 use lightsplit::scene::limits;
@@ -62,7 +60,7 @@ pub enum Command {
 #[derive(clap::Args)]
 pub struct Engine {
     /// Ray tracing backend.
-    #[arg(long, default_value = "embree", value_parser = choice::<Accel, Backend>())]
+    #[arg(long, default_value = "embree", value_enum)]
     pub accel: Backend,
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = threads)]
@@ -155,19 +153,19 @@ pub struct ConvergeArgs {
         long,
         value_delimiter = ',',
         default_value = "indirect",
-        value_parser = choice::<FilterTarget, Target>()
+        value_enum
     )]
     pub targets: Vec<Target>,
     /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
     /// pixels alone, as --edge-pure does); a list measures each.
-    #[arg(long, value_delimiter = ',', default_value = "off", value_parser = choice::<EdgeAware, Edge>())]
+    #[arg(long, value_delimiter = ',', default_value = "off", value_enum)]
     pub edge_aware: Vec<Edge>,
     /// Renders per spp, each with its own seed: the summary gives their mean and spread.
     #[arg(long, default_value_t = 1, value_parser = count::<u32>)]
     pub seeds: u32,
     /// The samplers to measure: sobol, independent, or both (independent,sobol), which the
     /// summary compares: what sobol is worth in samples, and what each filter gains under each.
-    #[arg(long, value_delimiter = ',', default_value = "sobol", value_parser = choice::<SamplerName, SamplerKind>())]
+    #[arg(long, value_delimiter = ',', default_value = "sobol", value_enum)]
     pub sampler: Vec<SamplerKind>,
     /// Also render each spp with adaptive sampling at this relative-error threshold (the spp
     /// then is the most a pixel takes), compared with uniform sampling at equal time.
@@ -208,7 +206,7 @@ pub struct FilterArgs {
     )]
     pub denoise: bool,
     /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
-    #[arg(long, value_parser = choice::<FilterTarget, Target>())]
+    #[arg(long, value_enum)]
     pub filter_target: Option<Target>,
     /// Average only neighbours that show the same object as the centre pixel.
     #[arg(long)]
@@ -226,32 +224,17 @@ pub struct FilterArgs {
 }
 
 impl FilterArgs {
-    /// The setting to use: these flags over `base` (a scene file's `[filter]`, or none).
-    fn check(&self, base: &Setting) -> Result<Setting, Failure> {
-        if self.denoise {
-            return Ok(Setting::denoise());
+    /// The flags, for the library to lay over a base setting.
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            method: self.filter.clone(),
+            denoise: self.denoise,
+            target: self.filter_target,
+            object: self.edge_aware,
+            normal_degrees: self.edge_normal,
+            depth_relative: self.edge_depth,
+            pure: self.edge_pure,
         }
-        let method = match self.filter.as_deref() {
-            Some(name) => Some(Method::parse(name).map_err(Failure::input)?),
-            None => base.method.clone(),
-        };
-        let target = match (self.filter_target, &self.filter) {
-            (Some(t), _) => t,
-            // A filter named here applies to its default target, not to the scene's.
-            (None, Some(_)) => Target::Indirect,
-            (None, None) => base.target,
-        };
-        if target != Target::None && method.is_none() {
-            return Err(Failure::input("--filter-target needs --filter"));
-        }
-        let stops = EdgeStops {
-            object: self.edge_aware || base.stops.object,
-            normal_degrees: self.edge_normal.or(base.stops.normal_degrees),
-            depth_relative: self.edge_depth.or(base.stops.depth_relative),
-            pure: self.edge_pure || base.stops.pure,
-        };
-        stops.check().map_err(|e| Failure::input(format!("--edge-normal/--edge-depth: {e}")))?;
-        Ok(Setting { method, target, stops })
     }
 }
 
@@ -266,7 +249,7 @@ pub struct OutputArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite)]
     pub exposure: f32,
     /// Which layer a PNG or HDR output shows (an EXR holds them all).
-    #[arg(long, default_value = "final", value_parser = choice::<LayerName, Layer>())]
+    #[arg(long, default_value = "final", value_enum)]
     pub layer: Layer,
 }
 
@@ -274,23 +257,12 @@ impl OutputArgs {
     /// Checks before any work: the filter (these flags over `base`), and that the layer can be
     /// written as `format` with that filter.
     pub fn check(&self, base: &Setting, format: Format) -> Result<Setting, Failure> {
-        let setting = self.filter.check(base)?;
+        let setting = self.filter.overrides().over(base).map_err(Failure::input)?;
         self.layer.check(format, &setting)?;
-        if let Some(warning) = self.exposure_warning(format) {
+        if let Some(warning) = output::exposure_warning(self.exposure, format) {
             eprintln!("warning: {warning}");
         }
         Ok(setting)
-    }
-
-    /// `--exposure` applies to PNG only: EXR, HDR and PFM keep the linear values.
-    pub fn exposure_warning(&self, format: Format) -> Option<String> {
-        (self.exposure != 0.0 && format != Format::Png).then(|| {
-            format!(
-                "--exposure {} is ignored: it applies to PNG output only, and {} keeps linear values",
-                self.exposure,
-                format!("{format:?}").to_uppercase()
-            )
-        })
     }
 
     /// Filters `film` as `setting` says and writes it to `path`; returns the filter's seconds.
@@ -396,7 +368,7 @@ pub struct RenderArgs {
     pub max_depth: Option<u32>,
     /// The random numbers: sobol (Owen-scrambled Sobol points, the default) or independent
     /// (PCG streams). Default: the scene file's.
-    #[arg(long, value_parser = choice::<SamplerName, SamplerKind>())]
+    #[arg(long, value_enum)]
     pub sampler: Option<SamplerKind>,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
@@ -514,128 +486,10 @@ fn seconds(text: &str) -> Result<f64, String> {
     number(text, |t: f64| t.is_finite() && t > 0.0, "a positive number")
 }
 
-/// A parser of `E`'s names (with their help) that gives the library's `T`.
-fn choice<E, T>() -> impl TypedValueParser<Value = T>
-where
-    E: ValueEnum + Clone + Send + Sync + 'static,
-    T: From<E> + Clone + Send + Sync + 'static,
-{
-    EnumValueParser::<E>::new().map(T::from)
-}
-
-/// `--accel`'s spellings.
-#[derive(Clone, Copy, ValueEnum)]
-enum Accel {
-    /// Intel Embree through FFI.
-    Embree,
-    /// lightsplit's own BVH, in pure Rust.
-    Bvh,
-}
-
-impl From<Accel> for Backend {
-    fn from(a: Accel) -> Backend {
-        match a {
-            Accel::Embree => Backend::Embree,
-            Accel::Bvh => Backend::Bvh,
-        }
-    }
-}
-
-/// `--sampler`'s spellings.
-#[derive(Clone, Copy, ValueEnum)]
-enum SamplerName {
-    /// Independent uniform numbers (PCG32 streams).
-    Independent,
-    /// Owen-scrambled Sobol points, per pixel and seed (the default).
-    Sobol,
-}
-
-impl From<SamplerName> for SamplerKind {
-    fn from(s: SamplerName) -> SamplerKind {
-        match s {
-            SamplerName::Independent => SamplerKind::Independent,
-            SamplerName::Sobol => SamplerKind::Sobol,
-        }
-    }
-}
-
-/// `--filter-target`'s and `--targets`' spellings.
-#[derive(Clone, Copy, ValueEnum)]
-enum FilterTarget {
-    /// Only L_r,d,d, then added back (the paper's method).
-    Indirect,
-    /// The whole image (the paper's Figure 3(c) baseline).
-    Image,
-    /// Direct, caustic and indirect light, each filtered on its own; emitted light never.
-    Components,
-    /// Nothing.
-    None,
-}
-
-impl From<FilterTarget> for Target {
-    fn from(t: FilterTarget) -> Target {
-        match t {
-            FilterTarget::Indirect => Target::Indirect,
-            FilterTarget::Image => Target::Image,
-            FilterTarget::Components => Target::Components,
-            FilterTarget::None => Target::None,
-        }
-    }
-}
-
-/// `converge --edge-aware`'s spellings.
-#[derive(Clone, Copy, ValueEnum)]
-enum EdgeAware {
-    Off,
-    On,
-    Pure,
-}
-
-impl From<EdgeAware> for Edge {
-    fn from(e: EdgeAware) -> Edge {
-        match e {
-            EdgeAware::Off => Edge::Off,
-            EdgeAware::On => Edge::On,
-            EdgeAware::Pure => Edge::Pure,
-        }
-    }
-}
-
-/// `--layer`'s spellings.
-#[derive(Clone, Copy, ValueEnum)]
-enum LayerName {
-    /// The final image (filtered when a filter is on).
-    Final,
-    /// The unfiltered beauty.
-    Raw,
-    Emitted,
-    Direct,
-    Caustic,
-    Indirect,
-    /// The filtered indirect component (needs a filter on `indirect`).
-    IndirectFiltered,
-    Albedo,
-}
-
-impl From<LayerName> for Layer {
-    fn from(l: LayerName) -> Layer {
-        match l {
-            LayerName::Final => Layer::Final,
-            LayerName::Raw => Layer::Raw,
-            LayerName::Emitted => Layer::Component(Component::Emitted),
-            LayerName::Direct => Layer::Component(Component::Direct),
-            LayerName::Caustic => Layer::Component(Component::Caustic),
-            LayerName::Indirect => Layer::Component(Component::Indirect),
-            LayerName::IndirectFiltered => Layer::IndirectFiltered,
-            LayerName::Albedo => Layer::Albedo,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::CommandFactory;
+    use clap::{CommandFactory, ValueEnum};
 
     #[test]
     fn the_command_line_is_consistent() {
@@ -647,24 +501,26 @@ mod tests {
         value.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default()
     }
 
+    /// The library's values are the command line's: each spelling is the name the library
+    /// prints and reads back (in JSON, in files, in messages).
     #[test]
-    fn every_spelling_names_its_library_value() {
-        for name in LayerName::value_variants() {
-            if let Layer::Component(c) = Layer::from(*name) {
-                assert_eq!(spelled(name), c.name());
+    fn every_spelling_is_the_library_name() {
+        for layer in Layer::value_variants() {
+            if let Layer::Component(c) = layer {
+                assert_eq!(spelled(layer), c.name());
             }
         }
-        for target in FilterTarget::value_variants() {
-            assert_eq!(spelled(target), Target::from(*target).name());
+        for target in Target::value_variants() {
+            assert_eq!(spelled(target), target.name());
         }
-        for accel in Accel::value_variants() {
-            assert_eq!(spelled(accel), Backend::from(*accel).to_string());
+        for accel in Backend::value_variants() {
+            assert_eq!(spelled(accel), accel.to_string());
         }
-        for sampler in SamplerName::value_variants() {
-            assert_eq!(spelled(sampler), SamplerKind::from(*sampler).name());
+        for sampler in SamplerKind::value_variants() {
+            assert_eq!(spelled(sampler), sampler.name());
         }
-        for edge in EdgeAware::value_variants() {
-            assert_eq!(Edge::parse(&spelled(edge)), Some(Edge::from(*edge)));
+        for edge in Edge::value_variants() {
+            assert_eq!(Edge::parse(&spelled(edge)), Some(*edge));
         }
     }
 

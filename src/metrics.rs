@@ -3,6 +3,7 @@
 
 use glam::Vec3;
 
+use crate::error::InputError;
 use crate::film::Image;
 
 /// How far a test image is from a reference.
@@ -20,21 +21,21 @@ pub struct Errors {
 }
 
 /// Compares `test` with `reference`; they must have the same size.
-pub fn compare(test: &Image, reference: &Image) -> Result<Errors, String> {
+pub fn compare(test: &Image, reference: &Image) -> Result<Errors, InputError> {
     if (test.width, test.height) != (reference.width, reference.height) {
-        return Err(format!(
+        return Err(InputError(format!(
             "the images differ in size: {}x{} against a {}x{} reference",
             test.width, test.height, reference.width, reference.height
-        ));
+        )));
     }
     // A NaN or an infinity makes every figure NaN or infinite: say where, rather than print it.
     for (name, image) in [("the image", test), ("the reference", reference)] {
         let bad = image.pixels.iter().filter(|p| !p.is_finite()).count();
         if bad > 0 {
-            return Err(format!(
+            return Err(InputError(format!(
                 "{name} has {bad} of {} pixels that are not finite (NaN or infinite): no error can be measured",
                 image.pixels.len()
-            ));
+            )));
         }
     }
     // Per pixel: squared error and relative squared error, summed over channels.
@@ -168,9 +169,9 @@ mod tests {
         test.pixels[1] = Vec3::new(f32::NAN, 0.0, 0.0);
         test.pixels[2] = Vec3::splat(f32::INFINITY);
         let e = compare(&test, &reference).expect_err("NaN and inf");
-        assert!(e.contains("the image has 2 of 16 pixels"), "{e}");
+        assert!(e.0.contains("the image has 2 of 16 pixels"), "{e}");
         let e = compare(&reference, &test).expect_err("NaN and inf");
-        assert!(e.contains("the reference has 2 of 16"), "{e}");
+        assert!(e.0.contains("the reference has 2 of 16"), "{e}");
     }
 
     #[test]

@@ -11,9 +11,10 @@ use crate::filter::{composite, EdgeStops, Reads, Setting, Target};
 use crate::render::Outputs;
 
 /// A layer of a render, as a single-image output (PNG, HDR) shows it; an EXR holds them all.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Layer {
-    /// The final image (filtered when a filter is on).
+    /// The final image (filtered when a filter is on; the default).
+    #[default]
     Final,
     /// The unfiltered beauty.
     Raw,
@@ -38,15 +39,53 @@ pub enum OutputError {
     /// or the components added up, are beyond the largest float.
     #[error("{0} pixels of the filtered image overflow 32-bit floats: the image holds values too large to filter and add up")]
     Overflow(usize),
+    /// The filter reads each pixel's variance, and the film has none (a file written before
+    /// the variance layers existed).
+    #[error("{0} reads each pixel's variance, and this input has no `*_variance` layers (written before they existed): render it again")]
+    NoVariance(String),
     /// The file could not be written.
     #[error(transparent)]
     Write(#[from] film::WriteError),
 }
 
-impl OutputError {
+impl crate::error::Classify for OutputError {
     /// Whether the request itself was bad (rather than the writing).
-    pub fn is_input(&self) -> bool {
-        !matches!(self, OutputError::Write(_))
+    fn is_input(&self) -> bool {
+        match self {
+            OutputError::Write(e) => e.is_input(),
+            _ => true,
+        }
+    }
+}
+
+/// The command line's spellings of the layers, from their names: the component layers are
+/// spelled as the components are named.
+#[cfg(feature = "cli")]
+impl clap::ValueEnum for Layer {
+    fn value_variants<'a>() -> &'a [Self] {
+        use Component::*;
+        &[
+            Layer::Final,
+            Layer::Raw,
+            Layer::Component(Emitted),
+            Layer::Component(Direct),
+            Layer::Component(Caustic),
+            Layer::Component(Indirect),
+            Layer::IndirectFiltered,
+            Layer::Albedo,
+        ]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        use clap::builder::PossibleValue;
+        Some(match self {
+            Layer::Final => PossibleValue::new("final").help("The final image (filtered when a filter is on)"),
+            Layer::Raw => PossibleValue::new("raw").help("The unfiltered beauty"),
+            Layer::Component(c) => PossibleValue::new(c.name()),
+            Layer::IndirectFiltered => PossibleValue::new("indirect-filtered")
+                .help("The filtered indirect component (needs a filter on `indirect`)"),
+            Layer::Albedo => PossibleValue::new("albedo"),
+        })
     }
 }
 
@@ -61,6 +100,16 @@ pub fn filter_reads(setting: &Setting) -> Reads {
         Some(method) if setting.target != Target::None => method.reads(&setting.stops),
         _ => Reads::default(),
     }
+}
+
+/// `exposure` applies to PNG only: EXR, HDR and PFM keep the linear values.
+pub fn exposure_warning(exposure: f32, format: Format) -> Option<String> {
+    (exposure != 0.0 && format != Format::Png).then(|| {
+        format!(
+            "--exposure {exposure} is ignored: it applies to PNG output only, and {} keeps linear values",
+            format!("{format:?}").to_uppercase()
+        )
+    })
 }
 
 impl Layer {
@@ -117,6 +166,9 @@ pub fn write(
     exposure: f32,
     meta: &film::Metadata,
 ) -> Result<f64, OutputError> {
+    if let (Some(method), true) = (&setting.method, filter_reads(setting).variance && film.variance.is_empty()) {
+        return Err(OutputError::NoVariance(method.name()));
+    }
     let start = Instant::now();
     let (final_image, filtered) = composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();
@@ -144,6 +196,7 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::Classify;
     use crate::filter::Method;
 
     fn indirect_filter() -> Setting {

@@ -452,8 +452,8 @@ impl Ctx {
         let io = |e: film::WriteError| StressError::Io(e.to_string());
         film::write(&film.raw, &exr, 0.0).map_err(io)?;
         film::write(&film.raw, &hdr, 0.0).map_err(io)?;
-        let back_exr = film::read_image(&exr).map_err(StressError::Io)?;
-        let back_hdr = film::read_image(&hdr).map_err(StressError::Io)?;
+        let back_exr = film::read_image(&exr).map_err(|e| StressError::Io(e.0))?;
+        let back_hdr = film::read_image(&hdr).map_err(|e| StressError::Io(e.0))?;
         let _ = std::fs::remove_dir_all(&dir);
 
         let (mut seen, mut render_err, mut exr_err, mut hdr_err) = (0, 0.0f64, 0.0f64, 0.0f64);

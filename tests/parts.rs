@@ -10,7 +10,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::Vec3;
 use lightsplit::film::Film;
 use lightsplit::filter::{composite, EdgeStops, Method, Target};
-use lightsplit::render::{render_controlled, Accumulated, Control, Part, RenderOptions};
+use lightsplit::film::Sums;
+use lightsplit::render::{render_controlled, Control, Part, RenderOptions};
 use lightsplit::scene::{self, Scene};
 
 use crate::common::lightsplit as run;
@@ -26,7 +27,7 @@ fn options(scene: &Scene, spp: u32) -> RenderOptions {
 }
 
 /// The sums of a render of `part`.
-fn sums(scene: &Scene, options: &RenderOptions, part: Part) -> Accumulated {
+fn sums(scene: &Scene, options: &RenderOptions, part: Part) -> Sums {
     let options = RenderOptions { part, ..options.clone() };
     let control = Control { keep_sums: true, ..Control::progress(&|_| {}) };
     render_controlled(scene, &options, control).expect("renders").sums.expect("sums kept")
@@ -42,7 +43,7 @@ fn gamma(n: u32) -> f32 {
 /// Every sum of `a` and `b` agrees within `bound` times the magnitude it was summed from: the
 /// value itself for sums of values that are never negative (light, albedo, depth, squares), the
 /// sample count for sums of unit normals. Objects and counts are equal.
-fn same_sums(a: &Accumulated, b: &Accumulated, bound: f32, what: &str) {
+fn same_sums(a: &Sums, b: &Sums, bound: f32, what: &str) {
     assert_eq!(a.samples, b.samples, "{what}: sample counts");
     let (fa, fb) = (&a.film, &b.film);
     let close = |x: f32, y: f32, scale: f32, layer: &str, i: usize| {
@@ -105,7 +106,7 @@ fn merged_parts_equal_the_whole_render() {
         let whole = sums(&scene, &options, Part::default());
         assert!(whole.film.has_split() && whole.film.has_guides());
         for n in [1u32, 2, 3, 7] {
-            let mut merged: Option<Accumulated> = None;
+            let mut merged: Option<Sums> = None;
             let mut named = Vec::new();
             for i in 0..n {
                 let part = Part { index: i, count: n };
@@ -149,7 +150,7 @@ fn merged_parts_equal_the_whole_render() {
 fn adaptive_parts_merge_to_the_sample_weighted_mean() {
     let scene = cornell();
     let options = RenderOptions { adaptive: Some(0.2), ..options(&scene, 128) };
-    let parts: Vec<Accumulated> =
+    let parts: Vec<Sums> =
         (0..2).map(|i| sums(&scene, &options, Part { index: i, count: 2 })).collect();
     for p in &parts {
         let (lo, hi) = (p.samples.iter().min().copied(), p.samples.iter().max().copied());

@@ -73,10 +73,12 @@ pub fn thread_pool(n: usize) -> Result<rayon::ThreadPool, AccelError> {
 }
 
 /// The backends a render can choose at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Backend {
-    /// Intel Embree through FFI.
+    /// Intel Embree through FFI (the default).
+    #[default]
     Embree,
     /// lightsplit's own BVH, in pure Rust.
     Bvh,

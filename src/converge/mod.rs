@@ -18,6 +18,7 @@ use std::time::Instant;
 use crate::film::{self, Image};
 use crate::filter::{composite, EdgeStops, Method, Target};
 use crate::metrics;
+use crate::part::RunKey;
 use crate::render::sampler::SamplerKind;
 use crate::render::{self, RenderOptions};
 use crate::scene::Scene;
@@ -25,6 +26,7 @@ use crate::scene::Scene;
 /// Edge-aware filtering in a run: off, the paper's object stop, or that and the coverage stop
 /// (mixed border pixels left alone).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Edge {
     Off,
     On,
@@ -115,19 +117,23 @@ impl Choice {
 }
 
 /// Every combination of the filters, targets and edge modes asked for; `none` once, unfiltered.
-pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<Vec<Choice>, String> {
+pub fn choices(
+    filters: &[String],
+    targets: &[Target],
+    edge: &[Edge],
+) -> Result<Vec<Choice>, ConvergeError> {
     let mut out = Vec::new();
     for f in filters {
         if f == "none" {
             out.push(Choice::none());
             continue;
         }
-        let kernel = Method::parse(f)?;
+        let kernel = Method::parse(f).map_err(ConvergeError::Input)?;
         for &target in targets {
             if target == Target::None {
-                return Err(
-                    "--targets takes indirect, image and components (the unfiltered run is the filter `none`)".into()
-                );
+                return Err(ConvergeError::Input(
+                    "--targets takes indirect, image and components (the unfiltered run is the filter `none`)".into(),
+                ));
             }
             for &edge_aware in edge {
                 out.push(Choice {
@@ -319,34 +325,21 @@ impl Plan {
     /// sampler it is rendered with) and the program's version. The rows' own spp, seed,
     /// sampler and setting are columns of their own. A row of another key is not used.
     pub fn run_key(&self, scene: &Scene) -> Result<String, ConvergeError> {
-        let mut h = crate::math::Fnv::default();
-        let file = |h: &mut crate::math::Fnv, path: &Path| -> Result<(), ConvergeError> {
-            let bytes =
-                fs::read(path).map_err(|e| ConvergeError::Input(format!("{}: {e}", path.display())))?;
-            h.write(&(bytes.len() as u64).to_le_bytes());
-            h.write(&bytes);
-            Ok(())
-        };
-        for path in &scene.inputs {
-            file(&mut h, path)?;
-        }
+        let mut key = RunKey::of_scene(scene).map_err(ConvergeError::Input)?;
         let o = &self.options;
-        for v in [o.width as u64, o.height as u64, o.max_depth as u64, o.seed] {
-            h.write(&v.to_le_bytes());
-        }
+        key.numbers(&[o.width as u64, o.height as u64, o.max_depth as u64, o.seed]);
         match &self.reference {
             Some(path) => {
-                h.write(b"reference file");
-                file(&mut h, path)?;
+                key.bytes(b"reference file");
+                key.file(path).map_err(ConvergeError::Input)?;
             }
             None => {
-                h.write(b"reference rendered");
-                h.write(&(self.reference_spp as u64).to_le_bytes());
-                h.write(self.reference_sampler().name().as_bytes());
+                key.bytes(b"reference rendered");
+                key.numbers(&[self.reference_spp as u64]);
+                key.bytes(self.reference_sampler().name().as_bytes());
             }
         }
-        h.write(env!("CARGO_PKG_VERSION").as_bytes());
-        Ok(format!("{:016x}", h.0))
+        Ok(key.finish())
     }
 
     /// The cache file of the rendered reference, named by the run's key.
@@ -389,7 +382,7 @@ fn reference(
         Ok(img)
     };
     if let Some(path) = &plan.reference {
-        let img = finite(film::read_image(path).map_err(ConvergeError::Input)?, path)?;
+        let img = finite(film::read_image(path).map_err(|e| ConvergeError::Input(e.0))?, path)?;
         if (img.width, img.height) != (plan.options.width, plan.options.height) {
             return Err(ConvergeError::Input(format!(
                 "the reference {} is {}x{}, the renders {}x{}",
@@ -555,7 +548,7 @@ pub fn run(plan: &Plan, scene: &Scene, report: &(dyn Fn(Event) + Sync)) -> Resul
                 let (image, _) = composite(&out.film, choice.kernel.as_ref(), choice.target, &stops(choice));
                 let filter_seconds =
                     if choice.kernel.is_some() { start.elapsed().as_secs_f64() } else { 0.0 };
-                let e = metrics::compare(&image, &reference).map_err(ConvergeError::Failed)?;
+                let e = metrics::compare(&image, &reference).map_err(|e| ConvergeError::Failed(e.0))?;
                 if k == 0 && plan.diff_spp == Some(spp) {
                     let name = choice.label().replace(' ', "-");
                     let prefix = if plan.samplers.len() > 1 { format!("{sampler}-") } else { String::new() };

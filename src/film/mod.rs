@@ -9,7 +9,10 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
+mod sums;
+
 pub use crate::scene::image::{read_exr_channels, read_exr_layer, Channels, Image, Words};
+pub use sums::{Squares, Sums};
 
 use crate::component::{Component, Split};
 
@@ -128,8 +131,18 @@ pub enum Format {
 pub enum WriteError {
     #[error("{0}: unknown image extension (use .exr, .png, .hdr or .pfm)")]
     Extension(PathBuf),
+    /// Refused before any work: the output cannot be written there, or is an input.
+    #[error("{0}: {1}")]
+    Refused(PathBuf, String),
+    /// Writing failed.
     #[error("{0}: {1}")]
     Io(PathBuf, String),
+}
+
+impl crate::error::Classify for WriteError {
+    fn is_input(&self) -> bool {
+        !matches!(self, WriteError::Io(..))
+    }
 }
 
 impl Format {
@@ -151,7 +164,7 @@ impl Format {
 pub fn check_output(path: &Path) -> Result<Format, WriteError> {
     let format = Format::from_path(path)?;
     let dir = parent_dir(path);
-    let refuse = |why: String| Err(WriteError::Io(path.to_path_buf(), why));
+    let refuse = |why: String| Err(WriteError::Refused(path.to_path_buf(), why));
     if !dir.is_dir() {
         return refuse(format!("the directory {} does not exist", dir.display()));
     }
@@ -190,7 +203,7 @@ pub fn check_not_an_input(path: &Path, inputs: &[PathBuf]) -> Result<(), WriteEr
     for input in inputs {
         if let Ok(m) = std::fs::metadata(input) {
             if (m.dev(), m.ino()) == (out.dev(), out.ino()) {
-                return Err(WriteError::Io(
+                return Err(WriteError::Refused(
                     path.to_path_buf(),
                     format!("is an input ({}): choose another output", input.display()),
                 ));
@@ -752,12 +765,30 @@ impl Film {
 
 /// Reads the final image of a file: the `R`, `G`, `B` channels of an EXR (any RGB EXR), a
 /// Radiance HDR or a portable float map.
-pub fn read_image(path: &Path) -> Result<Image, String> {
-    match Format::from_path(path).map_err(|e| e.to_string())? {
-        Format::Exr | Format::Hdr | Format::Pfm => crate::scene::image::read(path),
-        Format::Png => {
-            Err(format!("{}: compare needs linear values: use .exr, .hdr or .pfm", path.display()))
-        }
+pub fn read_image(path: &Path) -> Result<Image, ReadError> {
+    match Format::from_path(path).map_err(|e| ReadError(e.to_string()))? {
+        Format::Exr | Format::Hdr | Format::Pfm => crate::scene::image::read(path).map_err(ReadError),
+        Format::Png => Err(ReadError(format!(
+            "{}: compare needs linear values: use .exr, .hdr or .pfm",
+            path.display()
+        ))),
+    }
+}
+
+/// The film of a multi-layer EXR that `lightsplit render` wrote ([`Film::from_channels`]).
+pub fn read_film(path: &Path) -> Result<Film, ReadError> {
+    let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
+    Film::from_channels(width, height, &channels).map_err(|e| ReadError(format!("{}: {e}", path.display())))
+}
+
+/// An image that cannot be read: always the input's fault. The message names the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct ReadError(pub String);
+
+impl crate::error::Classify for ReadError {
+    fn is_input(&self) -> bool {
+        true
     }
 }
 

@@ -16,6 +16,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use atrous::{Atrous, Layer, Strength};
+pub use section::Overrides;
 
 use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
 use crate::film::{Film, Image};
@@ -154,6 +155,7 @@ impl Setting {
 
 /// What the filter is applied to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Target {
     /// Only L_r,d,d, then added back (the paper's method).
     Indirect,

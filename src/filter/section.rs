@@ -82,3 +82,50 @@ mod tests {
         }
     }
 }
+
+/// The command line's filter flags, laid over a base setting (a scene's `[filter]`, or none):
+/// what `render`, `filter`, `merge` and `info` are asked for.
+#[derive(Clone, Debug, Default)]
+pub struct Overrides {
+    /// `--filter`: a method by name (or weights).
+    pub method: Option<String>,
+    /// `--denoise`: the best setting measured ([`Setting::denoise`]), whatever the base.
+    pub denoise: bool,
+    /// `--filter-target`.
+    pub target: Option<Target>,
+    /// `--edge-aware`, `--edge-normal`, `--edge-depth`, `--edge-pure`.
+    pub object: bool,
+    pub normal_degrees: Option<f32>,
+    pub depth_relative: Option<f32>,
+    pub pure: bool,
+}
+
+impl Overrides {
+    /// The setting to use: these over `base`. A method named here applies to its default
+    /// target (indirect), not to the base's; the edge stops add to the base's.
+    pub fn over(&self, base: &Setting) -> Result<Setting, String> {
+        if self.denoise {
+            return Ok(Setting::denoise());
+        }
+        let method = match self.method.as_deref() {
+            Some(name) => Some(Method::parse(name)?),
+            None => base.method.clone(),
+        };
+        let target = match (self.target, &self.method) {
+            (Some(t), _) => t,
+            (None, Some(_)) => Target::Indirect,
+            (None, None) => base.target,
+        };
+        if target != Target::None && method.is_none() {
+            return Err("--filter-target needs --filter".into());
+        }
+        let stops = EdgeStops {
+            object: self.object || base.stops.object,
+            normal_degrees: self.normal_degrees.or(base.stops.normal_degrees),
+            depth_relative: self.depth_relative.or(base.stops.depth_relative),
+            pure: self.pure || base.stops.pure,
+        };
+        stops.check().map_err(|e| format!("--edge-normal/--edge-depth: {e}"))?;
+        Ok(Setting { method, target, stops })
+    }
+}

@@ -20,9 +20,8 @@ use rayon::prelude::*;
 
 use crate::accel::{self, Accel, Backend, Ray};
 use crate::accel::{BuildHints, UseAccel, PACKET};
-use crate::component::Component;
 use crate::component::Split;
-use crate::film::{self, Film};
+use crate::film::{self, Film, Sums};
 use crate::scene::analysis::Analysis;
 use crate::scene::Scene;
 use camera::PinholeCamera;
@@ -114,170 +113,8 @@ impl std::fmt::Display for Part {
     }
 }
 
-/// A render's per-pixel sums, what a part or checkpoint file keeps: [`Accumulated::add`] merges
-/// parts exactly (in float, up to summation order), and a render resumes from it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Accumulated {
-    /// The film in sums: the beauty, the components, the albedo, the normal (not normalised)
-    /// and the depth summed over the samples; `object` the object of each pixel's sample 0
-    /// (-1 for none), `coverage` how many samples saw it, `alpha` how many hit a surface. Its
-    /// variance layers are empty: the sums of squares they come from are [`Accumulated::squares`].
-    pub film: Film,
-    /// The sums of the squared sample luminances, with the split (empty without).
-    pub squares: Squares,
-    /// The samples each pixel has taken.
-    pub samples: Vec<u32>,
-}
-
-/// Each pixel's sum of its squared sample luminances, of the beauty and of each component, from
-/// which [`Accumulated::into_means`] estimates the variance of the mean. Kept in f64 from the
-/// first sample to the part file: a finite 32-bit sample's square overflows 32 bits from about
-/// 1.8e19 (a point light of 1e30 made whole variance layers infinite), and f64 holds the square
-/// of any finite 32-bit value, summed over any spp.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Squares {
-    /// Of the beauty.
-    pub beauty: Vec<f64>,
-    /// Of each component.
-    pub components: Split<Vec<f64>>,
-}
-
-impl Squares {
-    /// `n` zeros in each, or nothing at all.
-    fn zeros(n: usize, on: bool) -> Squares {
-        let n = if on { n } else { 0 };
-        Squares { beauty: vec![0.0; n], components: Split::from_fn(|_| vec![0.0; n]) }
-    }
-
-    /// Whether there are any (a render with the split).
-    pub fn is_empty(&self) -> bool {
-        self.beauty.is_empty()
-    }
-
-    /// The sums of the beauty, then of each component.
-    pub fn layers(&self) -> impl Iterator<Item = &Vec<f64>> {
-        std::iter::once(&self.beauty).chain(self.components.iter())
-    }
-
-    fn layers_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
-        std::iter::once(&mut self.beauty).chain(self.components.iter_mut())
-    }
-
-    /// Bytes of their buffers.
-    fn bytes(&self) -> u64 {
-        self.layers().map(|l| (l.capacity() * size_of::<f64>()) as u64).sum()
-    }
-}
-
-impl Accumulated {
-    /// Nothing yet: `film`'s buffers zeroed (the object unknown).
-    pub fn empty(width: u32, height: u32, split: bool, guides: bool) -> Accumulated {
-        let mut film = Film::with_buffers(width, height, split, guides);
-        film.coverage.fill(0.0);
-        film.alpha.fill(0.0);
-        film.variance = Vec::new();
-        film.component_variance = Split::from_fn(|_| Vec::new());
-        let n = width as usize * height as usize;
-        Accumulated { film, squares: Squares::zeros(n, split), samples: vec![0; n] }
-    }
-
-    /// Bytes of its buffers.
-    pub fn bytes(&self) -> u64 {
-        self.film.bytes() + self.squares.bytes() + (self.samples.capacity() * size_of::<u32>()) as u64
-    }
-
-    /// The film of means, with each pixel's variance of the mean from the sums of squares (at
-    /// most the largest 32-bit float: a spread too wide for 32 bits is written as that, finite).
-    pub fn into_means(self) -> Film {
-        let Accumulated { mut film, squares, samples } = self;
-        let has_squares = !squares.is_empty();
-        if has_squares {
-            film.variance = vec![0.0; samples.len()];
-            film.component_variance = Split::from_fn(|_| vec![0.0; samples.len()]);
-        }
-        let variance = |n: u32, sum: Vec3, sum_sq: f64| {
-            let v = film::variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
-            v.min(f32::MAX as f64) as f32
-        };
-        for (at, &n) in samples.iter().enumerate() {
-            let inv = if n > 0 { 1.0 / n as f32 } else { 0.0 };
-            if has_squares {
-                // From the sums, before they become means.
-                film.variance[at] = variance(n, film.raw.pixels[at], squares.beauty[at]);
-                for c in Component::ALL {
-                    film.component_variance[c][at] =
-                        variance(n, film.components[c].pixels[at], squares.components[c][at]);
-                }
-            }
-            film.raw.pixels[at] *= inv;
-            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
-                layer.pixels[at] *= inv;
-            }
-            if film.has_guides() {
-                film.albedo.pixels[at] *= inv;
-                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
-                film.depth[at] *= inv;
-                film.coverage[at] *= inv;
-                film.alpha[at] *= inv;
-            }
-        }
-        film
-    }
-
-    /// Adds the samples of `other`, a render of other samples of the same pixels (another part):
-    /// every sum adds, sample counts too. The object of sample 0 is the same in both wherever
-    /// both have samples (a pixel's sample 0 is traced by every part); where they disagree the
-    /// parts are not of one render.
-    pub fn add(&mut self, other: &Accumulated) -> Result<(), String> {
-        let (a, b) = (&mut self.film, &other.film);
-        if (a.width, a.height) != (b.width, b.height) {
-            return Err(format!("{}x{} against {}x{}", b.width, b.height, a.width, a.height));
-        }
-        if (a.has_split(), a.has_guides()) != (b.has_split(), b.has_guides())
-            || self.squares.is_empty() != other.squares.is_empty()
-        {
-            return Err("one has the component split or the guide buffers and the other not".into());
-        }
-        let add3 = |x: &mut film::Image, y: &film::Image| {
-            x.pixels.iter_mut().zip(&y.pixels).for_each(|(p, q)| *p += *q)
-        };
-        let add1 = |x: &mut Vec<f32>, y: &Vec<f32>| x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
-        if a.has_guides() {
-            for (i, (&o, &n)) in b.object.iter().zip(&other.samples).enumerate() {
-                if n == 0 {
-                    continue;
-                }
-                if self.samples[i] > 0 && a.object[i] != o {
-                    let (x, y) = (i as u32 % a.width, i as u32 / a.width);
-                    return Err(format!(
-                        "pixel ({x}, {y}) shows object {o} in one and {} in the other",
-                        a.object[i]
-                    ));
-                }
-                a.object[i] = o;
-            }
-            add3(&mut a.albedo, &b.albedo);
-            add3(&mut a.normal, &b.normal);
-            add1(&mut a.depth, &b.depth);
-            add1(&mut a.coverage, &b.coverage);
-            add1(&mut a.alpha, &b.alpha);
-        }
-        add3(&mut a.raw, &b.raw);
-        for (x, y) in a.components.iter_mut().zip(&b.components) {
-            add3(x, y);
-        }
-        for (x, y) in self.squares.layers_mut().zip(other.squares.layers()) {
-            x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
-        }
-        for (n, m) in self.samples.iter_mut().zip(&other.samples) {
-            *n += m;
-        }
-        Ok(())
-    }
-}
-
 /// What writes a checkpoint: given the sums so far, with each pixel's sample count.
-pub type Checkpoint<'a> = dyn Fn(&Accumulated) + Sync + 'a;
+pub type Checkpoint<'a> = dyn Fn(&Sums) + Sync + 'a;
 
 /// How a render runs beyond its options: progress, stopping, checkpoints, resuming.
 pub struct Control<'a> {
@@ -294,7 +131,7 @@ pub struct Control<'a> {
     /// samples of each pixel (a checkpoint).
     pub checkpoint: Option<(f64, &'a Checkpoint<'a>)>,
     /// Continue from these sums (a checkpoint of a render with the same scene and options).
-    pub resume: Option<Accumulated>,
+    pub resume: Option<Sums>,
     /// Keep the sums in [`RenderOutput::sums`].
     pub keep_sums: bool,
 }
@@ -379,7 +216,7 @@ pub struct RenderOutput {
     pub film: Film,
     pub stats: RenderStats,
     /// The sums, when [`Control::keep_sums`] asked for them.
-    pub sums: Option<Accumulated>,
+    pub sums: Option<Sums>,
 }
 
 /// An error while rendering (the scene itself was valid).
@@ -397,10 +234,10 @@ pub enum RenderError {
     Part(String),
 }
 
-impl RenderError {
+impl crate::error::Classify for RenderError {
     /// Whether the request itself was bad (a part or a checkpoint that does not fit), rather
     /// than the rendering.
-    pub fn is_input(&self) -> bool {
+    fn is_input(&self) -> bool {
         matches!(self, RenderError::Resume(_) | RenderError::Part(_))
     }
 }
@@ -547,22 +384,22 @@ impl Tile {
 /// A tile's sums while a pass renders it: loaded from the film before, stored back after, so
 /// every pixel's sums add up in the order of its samples, pass after pass. The split and the
 /// guides are empty when not computed.
-struct Sums {
+struct TileSums {
     beauty: Vec<Vec3>,
     components: Vec<Split<Vec3>>,
     guides: Vec<Guides>,
     /// The sums of the squared sample luminances, of the beauty then of each component (with
-    /// the split only), in f64 as [`Squares`] keeps them.
+    /// the split only), in f64 as [`film::Squares`] keeps them.
     squares: Vec<(f64, Split<f64>)>,
 }
 
-impl Sums {
+impl TileSums {
     /// The sums of `tile`'s pixels so far, from the render's.
-    fn load(tile: &Tile, sums: &Accumulated) -> Sums {
+    fn load(tile: &Tile, sums: &Sums) -> TileSums {
         let (film, squares) = (&sums.film, &sums.squares);
         let n = (tile.w * tile.h) as usize;
         let at = |i: usize| tile.pixel(i, film.width).0;
-        Sums {
+        TileSums {
             beauty: (0..n).map(|i| film.raw.pixels[at(i)]).collect(),
             components: if film.has_split() {
                 (0..n).map(|i| Split::from_fn(|c| film.components[c].pixels[at(i)])).collect()
@@ -601,7 +438,7 @@ impl Sums {
     }
 
     /// Writes the sums back into the render's.
-    fn store(&self, tile: &Tile, sums: &mut Accumulated) {
+    fn store(&self, tile: &Tile, sums: &mut Sums) {
         let (film, squares) = (&mut sums.film, &mut sums.squares);
         for (i, &beauty) in self.beauty.iter().enumerate() {
             let (at, ..) = tile.pixel(i, film.width);
@@ -773,7 +610,7 @@ fn render_features<A: Accel, const F: u8>(
     // every pass is done, then their means.
     let start_state = match &control.resume {
         Some(r) => r.clone(),
-        None => Accumulated::empty(width, height, split, guides),
+        None => Sums::empty(width, height, split, guides),
     };
     // Samples are taken in order: a resumed render has taken the first of its range.
     let done = range.start + start_state.samples.first().copied().unwrap_or(0);
@@ -825,7 +662,7 @@ fn render_features<A: Accel, const F: u8>(
             break;
         }
         tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
-            let mut sums = Sums::load(tile, &lock());
+            let mut sums = TileSums::load(tile, &lock());
             let mut taken = 0u64;
             for i in 0..(tile.w * tile.h) as usize {
                 if tile.converged.get(i) == Some(&true) {

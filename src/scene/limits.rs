@@ -1,6 +1,8 @@
 //! The bounds on what a scene file or the command line may ask for: one rule for both, so
 //! that neither runs a job that cannot end or cannot fit.
 
+use crate::error::InputError;
+
 /// The largest image side, in pixels.
 pub const MAX_SIZE: u32 = 1 << 16;
 /// The most pixels of an image, rendered or read (an EXR, an environment map): 2^30, a
@@ -124,9 +126,9 @@ pub fn check_memory(need: u64, what: &str) -> Result<(), String> {
 }
 
 /// Refuses a render that would not fit in the memory available.
-pub fn check_render_memory(width: u32, height: u32) -> Result<(), String> {
+pub fn check_render_memory(width: u32, height: u32) -> Result<(), InputError> {
     check_memory(render_bytes(width, height), &format!("a {width}x{height} render"))
-        .map_err(|e| format!("{e}: render smaller"))
+        .map_err(|e| InputError(format!("{e}: render smaller")))
 }
 
 #[cfg(test)]
@@ -152,6 +154,6 @@ mod tests {
         assert!(check_render_memory(64, 64).is_ok());
         // The largest image allowed needs 1.7 TB.
         assert!(render_bytes(MAX_SIZE, MAX_SIZE) > have);
-        assert!(check_render_memory(MAX_SIZE, MAX_SIZE).is_err_and(|e| e.contains("GiB is available")));
+        assert!(check_render_memory(MAX_SIZE, MAX_SIZE).is_err_and(|e| e.0.contains("GiB is available")));
     }
 }

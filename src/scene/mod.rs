@@ -87,6 +87,7 @@ pub const DIFFUSE_ROUGHNESS: f32 = 0.2;
 
 /// Which numbers a render draws.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SamplerKind {
     /// Independent uniform numbers: PCG32 streams.
     Independent,

@@ -1,0 +1,170 @@
+//! A render's per-pixel sums while it accumulates ([`Sums`]): what a part or checkpoint file
+//! keeps, what a merge adds up, and what becomes a [`Film`] of means at the end.
+
+use glam::Vec3;
+
+use super::{variance_of_mean, Film, Image};
+use crate::component::{Component, Split};
+
+/// A render's per-pixel sums, what a part or checkpoint file keeps: [`Sums::add`] merges
+/// parts exactly (in float, up to summation order), and a render resumes from it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sums {
+    /// The film in sums: the beauty, the components, the albedo, the normal (not normalised)
+    /// and the depth summed over the samples; `object` the object of each pixel's sample 0
+    /// (-1 for none), `coverage` how many samples saw it, `alpha` how many hit a surface. Its
+    /// variance layers are empty: the sums of squares they come from are [`Sums::squares`].
+    pub film: Film,
+    /// The sums of the squared sample luminances, with the split (empty without).
+    pub squares: Squares,
+    /// The samples each pixel has taken.
+    pub samples: Vec<u32>,
+}
+
+/// Each pixel's sum of its squared sample luminances, of the beauty and of each component, from
+/// which [`Sums::into_means`] estimates the variance of the mean. Kept in f64 from the
+/// first sample to the part file: a finite 32-bit sample's square overflows 32 bits from about
+/// 1.8e19 (a point light of 1e30 made whole variance layers infinite), and f64 holds the square
+/// of any finite 32-bit value, summed over any spp.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Squares {
+    /// Of the beauty.
+    pub beauty: Vec<f64>,
+    /// Of each component.
+    pub components: Split<Vec<f64>>,
+}
+
+impl Squares {
+    /// `n` zeros in each, or nothing at all.
+    fn zeros(n: usize, on: bool) -> Squares {
+        let n = if on { n } else { 0 };
+        Squares { beauty: vec![0.0; n], components: Split::from_fn(|_| vec![0.0; n]) }
+    }
+
+    /// Whether there are any (a render with the split).
+    pub fn is_empty(&self) -> bool {
+        self.beauty.is_empty()
+    }
+
+    /// The sums of the beauty, then of each component.
+    pub fn layers(&self) -> impl Iterator<Item = &Vec<f64>> {
+        std::iter::once(&self.beauty).chain(self.components.iter())
+    }
+
+    fn layers_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+        std::iter::once(&mut self.beauty).chain(self.components.iter_mut())
+    }
+
+    /// Bytes of their buffers.
+    fn bytes(&self) -> u64 {
+        self.layers().map(|l| (l.capacity() * size_of::<f64>()) as u64).sum()
+    }
+}
+
+impl Sums {
+    /// Nothing yet: `film`'s buffers zeroed (the object unknown).
+    pub fn empty(width: u32, height: u32, split: bool, guides: bool) -> Sums {
+        let mut film = Film::with_buffers(width, height, split, guides);
+        film.coverage.fill(0.0);
+        film.alpha.fill(0.0);
+        film.variance = Vec::new();
+        film.component_variance = Split::from_fn(|_| Vec::new());
+        let n = width as usize * height as usize;
+        Sums { film, squares: Squares::zeros(n, split), samples: vec![0; n] }
+    }
+
+    /// Bytes of its buffers.
+    pub fn bytes(&self) -> u64 {
+        self.film.bytes() + self.squares.bytes() + (self.samples.capacity() * size_of::<u32>()) as u64
+    }
+
+    /// The film of means, with each pixel's variance of the mean from the sums of squares (at
+    /// most the largest 32-bit float: a spread too wide for 32 bits is written as that, finite).
+    pub fn into_means(self) -> Film {
+        let Sums { mut film, squares, samples } = self;
+        let has_squares = !squares.is_empty();
+        if has_squares {
+            film.variance = vec![0.0; samples.len()];
+            film.component_variance = Split::from_fn(|_| vec![0.0; samples.len()]);
+        }
+        let variance = |n: u32, sum: Vec3, sum_sq: f64| {
+            let v = variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
+            v.min(f32::MAX as f64) as f32
+        };
+        for (at, &n) in samples.iter().enumerate() {
+            let inv = if n > 0 { 1.0 / n as f32 } else { 0.0 };
+            if has_squares {
+                // From the sums, before they become means.
+                film.variance[at] = variance(n, film.raw.pixels[at], squares.beauty[at]);
+                for c in Component::ALL {
+                    film.component_variance[c][at] =
+                        variance(n, film.components[c].pixels[at], squares.components[c][at]);
+                }
+            }
+            film.raw.pixels[at] *= inv;
+            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
+                layer.pixels[at] *= inv;
+            }
+            if film.has_guides() {
+                film.albedo.pixels[at] *= inv;
+                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
+                film.depth[at] *= inv;
+                film.coverage[at] *= inv;
+                film.alpha[at] *= inv;
+            }
+        }
+        film
+    }
+
+    /// Adds the samples of `other`, a render of other samples of the same pixels (another part):
+    /// every sum adds, sample counts too. The object of sample 0 is the same in both wherever
+    /// both have samples (a pixel's sample 0 is traced by every part); where they disagree the
+    /// parts are not of one render.
+    pub fn add(&mut self, other: &Sums) -> Result<(), String> {
+        let (a, b) = (&mut self.film, &other.film);
+        if (a.width, a.height) != (b.width, b.height) {
+            return Err(format!("{}x{} against {}x{}", b.width, b.height, a.width, a.height));
+        }
+        if (a.has_split(), a.has_guides()) != (b.has_split(), b.has_guides())
+            || self.squares.is_empty() != other.squares.is_empty()
+        {
+            return Err("one has the component split or the guide buffers and the other not".into());
+        }
+        let add3 = |x: &mut Image, y: &Image| {
+            x.pixels.iter_mut().zip(&y.pixels).for_each(|(p, q)| *p += *q)
+        };
+        let add1 = |x: &mut Vec<f32>, y: &Vec<f32>| x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
+        if a.has_guides() {
+            for (i, (&o, &n)) in b.object.iter().zip(&other.samples).enumerate() {
+                if n == 0 {
+                    continue;
+                }
+                if self.samples[i] > 0 && a.object[i] != o {
+                    let (x, y) = (i as u32 % a.width, i as u32 / a.width);
+                    return Err(format!(
+                        "pixel ({x}, {y}) shows object {o} in one and {} in the other",
+                        a.object[i]
+                    ));
+                }
+                a.object[i] = o;
+            }
+            add3(&mut a.albedo, &b.albedo);
+            add3(&mut a.normal, &b.normal);
+            add1(&mut a.depth, &b.depth);
+            add1(&mut a.coverage, &b.coverage);
+            add1(&mut a.alpha, &b.alpha);
+        }
+        add3(&mut a.raw, &b.raw);
+        for (x, y) in a.components.iter_mut().zip(&b.components) {
+            add3(x, y);
+        }
+        for (x, y) in self.squares.layers_mut().zip(other.squares.layers()) {
+            x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
+        }
+        for (n, m) in self.samples.iter_mut().zip(&other.samples) {
+            *n += m;
+        }
+        Ok(())
+    }
+}
+
