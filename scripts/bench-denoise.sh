@@ -5,8 +5,9 @@
 # on the beauty with albedo and normal, all on the very same renders, against one reference.
 # Then `converge` on each scene at 4 to 256 spp: --denoise against box5 --edge-pure on L_rdd.
 # And on the gallery, the textured regions alone (carpet, pictures, marble): error, detail kept,
-# crops. Writes the section between `<!-- denoise:begin -->` and `<!-- denoise:end -->` of
-# docs/RESULTS.md (appended when missing).
+# crops. Prints its section of docs/RESULTS.md, `denoise`, and writes it there (through
+# scripts/results-section.py: replaced where it is, appended when missing, the rest of the file
+# left as it was).
 #
 #   scripts/bench-denoise.sh                  # about 15 minutes on a 2-core machine
 #   SCENES=cornell scripts/bench-denoise.sh --no-write
@@ -144,5 +145,9 @@ if [ "$write" = 1 ]; then
     done
     args+=(--figures "$SCENES")
 fi
-[ "$write" = 1 ] && args+=(--write docs/RESULTS.md)
-"$PY" scripts/denoise/report.py "${args[@]}"
+"$PY" scripts/denoise/report.py "${args[@]}" > "$OUT/section.md"
+cat "$OUT/section.md"
+if [ "$write" = 1 ]; then
+    "$PY" scripts/results-section.py write docs/RESULTS.md denoise scripts/bench-denoise.sh "$OUT/section.md"
+    echo "bench-denoise: wrote the denoise section of docs/RESULTS.md" >&2
+fi

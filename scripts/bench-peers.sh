@@ -3,8 +3,9 @@
 # Cornell box as Embree's pathtracer tutorial renders cornell_box.ecs): Mitsuba 3 (scalar_rgb,
 # `path` integrator) and Embree's `pathtracer` tutorial itself. Checks first that the three images
 # agree in mean, then times whole processes in alternating order, and prints a Markdown table;
-# writes it, with the machine and the exact commands, into docs/RESULTS.md between
-# `<!-- bench-peers:begin -->` and `<!-- bench-peers:end -->` (appended when missing).
+# writes it, with the machine and the exact commands, into its section of docs/RESULTS.md,
+# `bench-peers` (through scripts/results-section.py: replaced where it is, appended when missing,
+# the rest of the file left as it was).
 #
 #   scripts/bench-peers.sh                       # 256x256, 64 spp, 5 rounds
 #   scripts/bench-peers.sh --size 64 --spp 16 --rounds 1 --no-write    # a quick check
@@ -39,8 +40,6 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 scene_rel=scenes/embree-cornell.toml
 scene=$root/$scene_rel
 results=$root/docs/RESULTS.md
-begin_marker='<!-- bench-peers:begin -->'
-end_marker='<!-- bench-peers:end -->'
 
 usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d' | sed 's/^# \{0,1\}//'; }
 bad_usage() {
@@ -377,7 +376,6 @@ print(textwrap.fill(" ".join(sys.stdin.read().split()), 100, break_long_words=Fa
 rounds_text="$rounds rounds"
 [ "$rounds" != 1 ] || rounds_text="1 round"
 {
-    echo "$begin_marker"
     echo "## Speed against peers: Mitsuba 3 and Embree's pathtracer tutorial"
     echo
     paragraph <<TEXT
@@ -424,7 +422,6 @@ the same way before comparing (limit 1% plus half an 8-bit step). Mitsuba writes
 OpenEXR: its \`mitsuba\` command ($mitsuba_version) never returns from writing an OpenEXR file with
 \`-t 1\` or \`-t 2\`.
 TEXT
-    echo "$end_marker"
 } >"$tmp/section.md"
-"$venv/bin/python" "$helpers/report.py" section "$results" "$tmp/section.md" "$begin_marker" "$end_marker"
+"$venv/bin/python" "$root/scripts/results-section.py" write "$results" bench-peers scripts/bench-peers.sh "$tmp/section.md"
 note "wrote the bench-peers section of docs/RESULTS.md"

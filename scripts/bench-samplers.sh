@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Independent against Owen-scrambled Sobol sampling on every scene in scenes/: what sobol is
 # worth in samples ("the samples independent sampling needs for sobol's RMSE"), what it costs
-# in samples per second, and what the paper's filters on L_rdd gain under each. Writes the
-# section between `<!-- samplers:begin -->` and `<!-- samplers:end -->` of docs/RESULTS.md
-# (appended when missing) and its plots into docs/results/.
+# in samples per second, and what the paper's filters on L_rdd gain under each. Writes its
+# section of docs/RESULTS.md, `samplers` (through scripts/results-section.py: replaced where it
+# is, appended when missing, the rest of the file left as it was), and its plots into
+# docs/results/.
 #
 #   scripts/bench-samplers.sh                 # about 40 minutes on a 2-core machine
 #   SCENES="cornell paper-sky" scripts/bench-samplers.sh --no-write
@@ -118,9 +119,8 @@ if [ "$write" = 1 ]; then
             fi
         done
     done
-    python3 scripts/peers/report.py section docs/RESULTS.md "$section" '<!-- samplers:begin -->' \
-        '<!-- samplers:end -->'
-    echo "wrote docs/RESULTS.md in ${seconds} s" >&2
+    python3 scripts/results-section.py write docs/RESULTS.md samplers scripts/bench-samplers.sh "$section"
+    echo "wrote the samplers section of docs/RESULTS.md in ${seconds} s" >&2
 else
     cat "$section"
 fi

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Reproduces the paper's Figures 5 and 6: runs `lightsplit converge` on the paper's two test
-# scenes and the Cornell box, with independent sampling as the paper rendered, then writes
-# docs/RESULTS.md with the plots, the tables and each claim of the paper checked against the
-# numbers (small PNGs go to docs/results/); then adaptive against uniform sampling at equal
-# time, and `bench-features` over every scene. The samplers' comparison is
-# scripts/bench-samplers.sh's.
+# scenes and the Cornell box, with independent sampling as the paper rendered, then adaptive
+# against uniform sampling at equal time, and `bench-features` over every scene. Writes its three
+# sections of docs/RESULTS.md, and no other: `paper` (the plots, the tables and each claim of the
+# paper checked against the numbers; small PNGs go to docs/results/), `bench-features` and
+# `adaptive`, each through scripts/results-section.py, which leaves the rest of the file as it
+# was. The samplers' comparison is scripts/bench-samplers.sh's.
 #
 #   scripts/reproduce-paper.sh            # about 12 minutes on a 2-core machine
 #   OUT=somewhere scripts/reproduce-paper.sh
@@ -44,9 +45,11 @@ echo "== bench-features" >&2
 seconds=$(( $(date +%s) - start ))
 
 mkdir -p docs/results
-tmp=$(mktemp)
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+section() { python3 scripts/results-section.py write docs/RESULTS.md "$1" scripts/reproduce-paper.sh "$tmp/$1.md"; }
 {
-    echo "# Results: the paper's Figures 5 and 6, reproduced"
+    echo "## The paper's Figures 5 and 6, reproduced"
     echo
     echo "Written by \`scripts/reproduce-paper.sh\`: a full run from nothing took 10 min 21 s on this"
     echo "project's 2-core machine (this invocation: ${seconds} s; rows and references already in"
@@ -61,9 +64,9 @@ tmp=$(mktemp)
     echo "highest sample counts (a few percent of the unfiltered error at 256 spp)."
     cat <<'READING'
 
-## What the numbers say
+### What the numbers say
 
-Written from the run committed with this file (the seeds are fixed, so a rerun gives the
+Written from the run committed with this section (the seeds are fixed, so a rerun gives the
 same errors up to float rounding; only the seconds differ). Each scene's section below checks
 every claim with its numbers.
 
@@ -107,7 +110,7 @@ READING
             cp "$dir/diff-64spp-$d.png" "docs/results/$scene-diff-64spp-$d.png"
         done
         echo
-        echo "## \`scenes/$scene.toml\`"
+        echo "### \`scenes/$scene.toml\`"
         echo
         echo "![RMSE against spp](results/$scene-error-vs-spp.png)"
         echo "![RMSE against time](results/$scene-error-vs-time.png)"
@@ -120,10 +123,12 @@ READING
         done
         echo
         echo
-        # The summary without its title, its headings one level down.
-        tail -n +2 "$dir/summary.md" | sed 's/^## /### /'
+        # The summary without its title, its headings two levels down.
+        tail -n +2 "$dir/summary.md" | sed 's/^## /#### /'
     done
-    echo
+} > "$tmp/paper.md"
+section paper
+{
     echo "## Skipping what a scene does not need"
     echo
     echo "\`lightsplit bench-features scenes/*.toml --width 128 --height 128 --spp 64 --rounds 5\`:"
@@ -139,9 +144,12 @@ READING
     echo "triangles a ray meets exactly on their shared edge)."
     echo
     cat "$OUT/bench-features.md"
-    if [ -f "$OUT/adaptive-paper-sky/summary.md" ]; then
-        cp "$OUT/adaptive-paper-sky/error-vs-time.png" docs/results/adaptive-paper-sky-error-vs-time.png
-        echo
+} > "$tmp/bench-features.md"
+section bench-features
+# Without the adaptive run (no reference above), its section is left as it is.
+if [ -f "$OUT/adaptive-paper-sky/summary.md" ]; then
+    cp "$OUT/adaptive-paper-sky/error-vs-time.png" docs/results/adaptive-paper-sky-error-vs-time.png
+    {
         echo "## Adaptive sampling against uniform sampling at equal time"
         echo
         echo "\`lightsplit converge scenes/paper-sky.toml --spp 16,32,64,128,256 --filters none"
@@ -162,18 +170,7 @@ keep their error (the RMSE levels off near 3.4e-2 at 0.05); and the RMSE is domi
 pixels, which stopping on relative error treats like dark ones. Stopping on an absolute error
 scaled by the image's brightness, confirmed over two passes, is the next thing to measure.
 ADAPTIVE
-    fi
-} > "$tmp"
-# The sections written elsewhere, between their markers, are not redone here but kept as they
-# are: the speed levers measured by hand (issue notes) and the table of scripts/bench-peers.sh.
-if [ -f docs/RESULTS.md ]; then
-    for section in speed-levers bench-peers samplers; do
-        sed -n "/^<!-- $section:begin -->\$/,/^<!-- $section:end -->\$/p" docs/RESULTS.md > "$tmp.kept"
-        if [ -s "$tmp.kept" ]; then
-            { echo; cat "$tmp.kept"; } >> "$tmp"
-        fi
-    done
-    rm -f "$tmp.kept"
+    } > "$tmp/adaptive.md"
+    section adaptive
 fi
-mv "$tmp" docs/RESULTS.md
-echo "wrote docs/RESULTS.md in ${seconds} s" >&2
+echo "wrote its sections of docs/RESULTS.md in ${seconds} s" >&2

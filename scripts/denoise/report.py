@@ -1,21 +1,19 @@
 #!/usr/bin/env python3
 """The denoising section of docs/RESULTS.md from scripts/bench-denoise.sh's rows.
 
-    python3 report.py ROWS.csv --spp N --seeds N --reference-spp N [--write docs/RESULTS.md]
+    python3 report.py ROWS.csv --spp N --seeds N --reference-spp N
 
 Per scene and method: the mean over seeds of RMSE and relMSE against the reference, RMSE as a
 ratio of the unfiltered RMSE, and the filter's seconds; then, for each of lightsplit's filters,
-whether it is at or below OIDN in both metrics on every scene. Prints the section; with --write,
-puts it between `<!-- denoise:begin -->` and `<!-- denoise:end -->` (appended when missing).
+whether it is at or below OIDN in both metrics on every scene. Prints the section, without its
+markers: scripts/bench-denoise.sh writes it into docs/RESULTS.md through scripts/results-section.py.
 """
 
 import argparse
 import collections
 import csv
 import os
-import re
-
-BEGIN, END = "<!-- denoise:begin -->", "<!-- denoise:end -->"
+import sys
 
 # What the measurements say, as text: checked against the tables above when they change.
 FINDINGS = """**Where the remaining error is.** On the gallery, against OIDN (seed 1): our relMSE is
@@ -125,7 +123,6 @@ def main():
     ap.add_argument("--spp", type=int, required=True)
     ap.add_argument("--seeds", type=int, required=True)
     ap.add_argument("--reference-spp", type=int, required=True)
-    ap.add_argument("--write")
     ap.add_argument("--regions", help="regions.py's table of the gallery's textured regions")
     ap.add_argument("--curves", help="the output directory: <scene>/converge/results.csv")
     ap.add_argument("--figures", help="the scenes whose figures are in docs/results/denoise-<scene>-*.png")
@@ -143,7 +140,7 @@ def main():
             methods.append(r["method"])
     mean = {k: tuple(sum(x[i] for x in v) / len(v) for i in range(3)) for k, v in cells.items()}
 
-    out = [BEGIN, "## Denoising: the à-trous filter against a learned denoiser", ""]
+    out = ["## Denoising: the à-trous filter against a learned denoiser", ""]
     out.append(
         f"`scripts/bench-denoise.sh`: {args.spp} spp (sobol, the default), the mean of seeds 1 to {args.seeds}, "
         f"against a {args.reference_spp}-spp reference (independent sampling, seed 1000), 256x256. Every method "
@@ -214,16 +211,8 @@ def main():
                 f"| `{s}` | {img('diff-unfiltered')} | {img('diff-box5')} | {img('diff-denoise')} | {img('error-vs-time')} |"
             )
         out += [""]
-    out += FINDINGS + ["", END]
-    section = "\n".join(out) + "\n"
-    print(section)
-    if args.write:
-        text = open(args.write).read()
-        if BEGIN in text and END in text:
-            text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END) + "\n?", lambda _: section, text, flags=re.S)
-        else:
-            text = text.rstrip("\n") + "\n\n" + section
-        open(args.write, "w").write(text)
+    out += FINDINGS
+    sys.stdout.write("\n".join(out) + "\n")
 
 
 if __name__ == "__main__":

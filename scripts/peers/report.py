@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Tables and the RESULTS.md section for scripts/bench-peers.sh.
+"""The table of scripts/bench-peers.sh's section of docs/RESULTS.md (scripts/results-section.py
+writes the section).
 
     python3 report.py table RUNS.tsv SAMPLES ROW...
         RUNS.tsv: lines "ROUND PEER WALL_S CPU_S" (tab-separated), one per timed run.
@@ -7,13 +8,8 @@
         ROW: "PEER<TAB>LABEL<TAB>COMMAND<TAB>MEAN<TAB>DIFFERENCE", PEER as in RUNS.tsv, the first
         row lightsplit's. Every ratio is lightsplit's speed over the peer's: the median of the
         per-round ratios (peer seconds over lightsplit seconds in the same round).
-    python3 report.py section FILE SECTION_FILE BEGIN END
-        Replaces the lines from BEGIN to END (markers included) in FILE with SECTION_FILE's text
-        (which carries the markers), or appends it, after a blank line, when FILE has neither
-        marker. One marker without the other is an error.
 """
 
-import os
 import statistics
 import sys
 
@@ -61,35 +57,9 @@ def table(runs_path, samples, rows):
     print("\n".join(out))
 
 
-def section(path, section_path, begin, end):
-    try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-    except FileNotFoundError:
-        text = ""
-    with open(section_path, encoding="utf-8") as f:
-        new = f.read().rstrip("\n") + "\n"
-    lines = text.splitlines(keepends=True)
-    starts = [i for i, l in enumerate(lines) if l.strip() == begin]
-    ends = [i for i, l in enumerate(lines) if l.strip() == end]
-    if not starts and not ends:
-        body = text.rstrip("\n")
-        text = (body + "\n\n" if body else "") + new
-    elif len(starts) == 1 and len(ends) == 1 and starts[0] < ends[0]:
-        text = "".join(lines[: starts[0]]) + new + "".join(lines[ends[0] + 1:])
-    else:
-        fail(f"{path}: expected one {begin} before one {end}; fix the file by hand")
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-    os.replace(tmp, path)
-
-
 def main():
     if len(sys.argv) >= 5 and sys.argv[1] == "table":
         table(sys.argv[2], float(sys.argv[3]), sys.argv[4:])
-    elif len(sys.argv) == 6 and sys.argv[1] == "section":
-        section(*sys.argv[2:])
     else:
         fail(__doc__.strip(), 2)
 

@@ -7,7 +7,7 @@
         OUT/SCENE/summary.md: each scene's `converge --sampler independent,sobol` summary, whose
         "samplers compared" tables this reads (lightsplit computes the figures; this only
         arranges them). SPEED.tsv: lines "ROUND<TAB>SCENE<TAB>SAMPLER<TAB>RENDER_JSON".
-Prints the section, markers included.
+Prints the section, without its markers (scripts/results-section.py adds them).
 """
 
 import json
@@ -120,7 +120,6 @@ def main(argv):
             speeds.setdefault(scene, {}).setdefault(round_, {})[sampler] = json.loads(text)["samples_per_second"]
 
     p = print
-    p("<!-- samplers:begin -->")
     p("## Low-discrepancy sampling: independent against Owen-scrambled Sobol")
     p()
     p("Written by `scripts/bench-samplers.sh`: a run from nothing takes about 15 minutes on this")
@@ -233,7 +232,6 @@ def main(argv):
                 f"![{scene} independent](results/samplers-{scene}-diff-64spp-independent-unfiltered.png) "
                 f"![{scene} sobol](results/samplers-{scene}-diff-64spp-sobol-unfiltered.png)"
             )
-    p("<!-- samplers:end -->")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,12 @@
-//! lightsplit's own BVH, in pure Rust: a binned-SAH build (parallel with rayon) over triangles
-//! and analytic spheres, flattened into 32-byte nodes whose two children sit side by side;
-//! ordered closest-hit traversal and an any-hit traversal for shadow rays, both on a fixed-size
-//! stack; the watertight ray/triangle test of Woop, Benthin & Wald (JCGT 2013) and a conservative
-//! ray/box test (Ize 2013), so no ray slips through a shared edge.
+//! lightsplit's own BVH, in pure Rust. A binned-SAH build (parallel with rayon, `build.rs`) over
+//! triangles and analytic spheres makes a binary tree of 32-byte nodes, two children side by
+//! side, and collapses it into the 8-wide tree that rays traverse (`wide.rs`, its SIMD kernels in
+//! `simd.rs`); the binary tree is then dropped unless the tests keep it (`keep_binary`) for the
+//! reference traversal and [`Bvh::validate`]. The binary traversals here (`closest`, `any`) also
+//! lead rays through the instance level (`instances.rs`): a binary tree over the boxes of placed
+//! meshes, each mesh with its own wide tree. Every level tests triangles watertight (Woop,
+//! Benthin & Wald, JCGT 2013) and boxes conservatively (Ize 2013), so no ray slips through a
+//! shared edge.
 
 mod build;
 mod instances;

@@ -1,8 +1,12 @@
-//! The one module of the BVH with `unsafe`: the eight-box slab test written with AVX2
-//! intrinsics, and the entry points that run a whole traversal compiled for AVX2. An [`Avx2`]
-//! value exists only after `is_x86_feature_detected!` found the features on this CPU, so every
-//! `unsafe` block here relies on that one check. [`Portable`] is the same test through the
-//! `wide` crate (SSE2 on x86-64, NEON on ARM); the tests check the two against each other.
+//! The one module of the BVH with `unsafe`: the eight-box slab test written with x86 intrinsics
+//! in two kernels, [`Avx2`] and [`Avx512`] (the same AVX2 arithmetic, its comparison straight
+//! into an AVX-512 mask register), each with the entry points that run a whole traversal
+//! compiled for its features (AVX-512's 32 vector registers keep the ray's values beside the
+//! triangle test's). A kernel's value exists only after `is_x86_feature_detected!` found its
+//! features on this CPU, so every `unsafe` block here relies on that one check; [`Isa::best`]
+//! picks AVX-512, else AVX2, else [`Portable`], once per tree. [`Portable`] is the same test
+//! through the `wide` crate (SSE2 on x86-64, NEON on ARM); the tests check each kernel against
+//! it bit for bit.
 #![allow(unsafe_code)]
 
 use wide::f32x8;

@@ -1,8 +1,8 @@
 //! The 8-wide BVH that rays actually traverse: the binary SAH tree collapsed so that each node
 //! holds up to eight children, their boxes stored axis by axis so one slab test checks all eight
-//! at once: AVX2 where the CPU has it, chosen at run time, or the portable test of the `wide`
-//! crate ([`super::simd`], the only module with `unsafe`). A leaf is one or two blocks of (up
-//! to) four triangles, each block tested at once by the watertight test, four lanes wide.
+//! at once: AVX-512 or AVX2 where the CPU has them, chosen at run time, or the portable test of
+//! the `wide` crate ([`super::simd`], the only module with `unsafe`). A leaf is one or two blocks
+//! of (up to) four triangles, each block tested at once by the watertight test, four lanes wide.
 
 use arrayvec::ArrayVec;
 use wide::f32x4;
