@@ -115,7 +115,7 @@ done
 if [[ " $SCENES " == *" paper-gallery "* ]]; then
     dir=$OUT/paper-gallery
     "$BIN" filter "$dir/film-1.exr" -o "$dir/denoised-1.exr" --denoise
-    "$PY" scripts/denoise/regions.py "$dir/film-1.exr" "$dir/reference-${REFERENCE_SPP}spp.exr" \
+    "$PY" scripts/denoise/regions.py --bin "$BIN" "$dir/film-1.exr" "$dir/reference-${REFERENCE_SPP}spp.exr" \
         "unfiltered=$dir/film-1.exr" "denoise=$dir/denoised-1.exr" "OIDN 2.5=$dir/oidn-1.pfm" \
         --crops "$OUT/gallery-crops.png" > "$OUT/regions.md"
 fi

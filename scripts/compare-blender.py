@@ -1,15 +1,23 @@
 """Compares lightsplit's render of a glTF with Blender's (scripts/blender-gltf.py), both linear
 EXRs of the same camera and size: per region (lightsplit's object IDs; the background is its own
 region), the mean colour of each image and their ratio, and the layout (the fraction of pixels
-whose two values agree within 25%, which a shifted or mirrored object would lower).
+whose two values agree within 25%, which a shifted or mirrored object would lower). The
+per-region figures are the binary's own (`lightsplit compare --by-object --json`, over each
+region's inner pixels); Blender's Combined pass is written as a plain RGB EXR for it first.
 
     python scripts/compare-blender.py LIGHTSPLIT.exr BLENDER.exr [SIDE_BY_SIDE.png]
+
+The binary is target/release/lightsplit, or $LIGHTSPLIT.
 
 Needs the OpenEXR and numpy modules (pip). Exit status 1 when a region's mean luminance differs
 by more than 5%.
 """
 
+import json
+import os
+import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import OpenEXR
@@ -35,27 +43,27 @@ def main():
     b = rgb(theirs, blender_prefix)
     if a.shape != b.shape:
         sys.exit(f"sizes differ: {a.shape} and {b.shape}")
-    ids = ours["objectid.ID"].astype(int)
     la, lb = luminance(a), luminance(b)
+    binary = os.environ.get("LIGHTSPLIT", "target/release/lightsplit")
+    with tempfile.TemporaryDirectory() as tmp:
+        plain = os.path.join(tmp, "blender-rgb.exr")
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        rgb_channels = {c: b[..., i].astype(np.float32) for i, c in enumerate("RGB")}
+        with OpenEXR.File(header, rgb_channels) as f:
+            f.write(plain)
+        out = subprocess.run([binary, "compare", sys.argv[1], plain, "--by-object", "--json"],
+                             check=True, capture_output=True, text=True).stdout
     worst = 0.0
     print(f"{'region':>10} {'pixels':>7} {'lightsplit':>28} {'blender':>28} {'ratio':>7}")
-    for region in sorted(set(ids.ravel())):
-        m = ids == region
+    for r in json.loads(out)["regions"]:
         # Pixels on a region's edge mix it with its neighbours differently in each renderer:
-        # only pixels whose four neighbours are in the same region count.
-        inner = m.copy()
-        inner[1:, :] &= m[:-1, :]
-        inner[:-1, :] &= m[1:, :]
-        inner[:, 1:] &= m[:, :-1]
-        inner[:, :-1] &= m[:, 1:]
-        if inner.sum() < 20:
+        # the binary's means and ratio are over its inner pixels alone.
+        if r["inner"] < 20 or r["ratio"] is None:
             continue
-        ma, mb = a[inner].mean(axis=0), b[inner].mean(axis=0)
-        ratio = luminance(ma) / max(luminance(mb), 1e-9)
-        name = "background" if region < 0 else f"object {region}"
-        print(f"{name:>10} {inner.sum():>7} {np.array2string(ma, precision=4):>28} "
-              f"{np.array2string(mb, precision=4):>28} {ratio:>7.3f}")
-        worst = max(worst, abs(ratio - 1.0))
+        ma, mb = np.array(r["test_mean"]), np.array(r["reference_mean"])
+        print(f"{r['name']:>10} {r['inner']:>7} {np.array2string(ma, precision=4):>28} "
+              f"{np.array2string(mb, precision=4):>28} {r['ratio']:>7.3f}")
+        worst = max(worst, abs(r["ratio"] - 1.0))
     agree = np.mean(np.abs(la - lb) <= 0.25 * np.maximum(lb, 0.05))
     print(f"layout: {100 * agree:.1f}% of pixels agree within 25%")
     print(f"worst region mean differs by {100 * worst:.1f}%")

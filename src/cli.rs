@@ -149,12 +149,7 @@ pub struct ConvergeArgs {
     #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
     pub filters: Vec<String>,
     /// What the filters apply to.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "indirect",
-        value_enum
-    )]
+    #[arg(long, value_delimiter = ',', default_value = "indirect", value_enum)]
     pub targets: Vec<Target>,
     /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
     /// pixels alone, as --edge-pure does); a list measures each.
@@ -303,6 +298,18 @@ pub struct CompareArgs {
     /// Write a brightened difference image (the paper's Figure 6): darker is a larger difference.
     #[arg(long)]
     pub diff: Option<PathBuf>,
+    /// Also give the errors of each object (by the object-ID layer of the test image, or of
+    /// --ids): RMSE, relMSE, mean colours and their ratio, and the detail kept.
+    #[arg(long)]
+    pub by_object: bool,
+    /// Also give the errors of a named group of objects, NAME=ID,ID,... (-1 the background);
+    /// repeatable.
+    #[arg(long = "region", value_name = "NAME=IDS")]
+    pub regions: Vec<String>,
+    /// The EXR whose object-ID layer says which object each pixel shows (default: the test
+    /// image), for --by-object and --region.
+    #[arg(long, value_name = "EXR")]
+    pub ids: Option<PathBuf>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,

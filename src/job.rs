@@ -128,6 +128,9 @@ pub struct Job<'s> {
     pub warnings: Vec<String>,
 }
 
+/// A render done, not yet written ([`Job::write`]).
+pub struct Rendered(render::RenderOutput);
+
 /// A finished (or stopped) job.
 pub struct Done {
     pub stats: RenderStats,
@@ -197,8 +200,7 @@ impl<'s> Job<'s> {
         }
         if let Some(text) = &request.part {
             let flag = if text == "auto" { "--part auto" } else { "--part" };
-            let part =
-                if text == "auto" { part::part_from_scheduler(env) } else { part::parse_part(text) };
+            let part = if text == "auto" { part::part_from_scheduler(env) } else { part::parse_part(text) };
             options.part = part.map_err(|e| input(format!("{flag}: {e}")))?;
             options.part.check(options.spp).map_err(|e| input(format!("{flag}: {e}")))?;
         }
@@ -281,14 +283,20 @@ impl<'s> Job<'s> {
     }
 
     /// Renders, calling `progress` with the samples done; `stop`, once set, ends the render
-    /// after its pass. Writes the part file when the job is a part or was stopped, the output
-    /// otherwise (what a stopped render has, too); removes a checkpoint that has served.
-    pub fn run(&mut self, progress: &(dyn Fn(u64) + Sync), stop: &AtomicBool) -> Result<Done, JobError> {
+    /// after its pass (a checkpoint is written as the render goes). Nothing is written of the
+    /// result until [`Job::write`]: a caller that stops gracefully while rendering and at once
+    /// while writing switches between the two here.
+    pub fn render(
+        &mut self,
+        progress: &(dyn Fn(u64) + Sync),
+        stop: &AtomicBool,
+    ) -> Result<Rendered, JobError> {
         let resume = self.resume.take();
         let checkpoint_key = self.key.clone().unwrap_or_default();
         let job = &*self;
         let write_checkpoint = |sums: &Sums| {
-            if let Err(e) = part::write(&job.part_path, sums, &job.header(checkpoint_key.clone(), 0.0, false)) {
+            if let Err(e) = part::write(&job.part_path, sums, &job.header(checkpoint_key.clone(), 0.0, false))
+            {
                 eprintln!("warning: checkpoint not written: {e}");
             }
         };
@@ -300,7 +308,14 @@ impl<'s> Job<'s> {
             resume,
             keep_sums: self.part_mode,
         };
-        let out = render::render_controlled(self.scene, &self.options, control)?;
+        Ok(Rendered(render::render_controlled(self.scene, &self.options, control)?))
+    }
+
+    /// Writes what [`Job::render`] made: the part file when the job is a part or was stopped,
+    /// the output otherwise (what a stopped render has, too); removes a checkpoint that has
+    /// served.
+    pub fn write(&mut self, rendered: Rendered) -> Result<Done, JobError> {
+        let out = rendered.0;
         let interrupted = out.stats.interrupted;
         if let Some(sums) = &out.sums {
             let key = match self.key.take() {

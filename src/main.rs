@@ -171,17 +171,6 @@ fn load_scene(path: &Path) -> Result<(scene::Scene, Setting), Failure> {
     Ok((scene, filter))
 }
 
-
-
-
-
-
-
-
-
-
-
-
 /// The output of a render of `scene` when none is named: its stem, as an EXR, here.
 fn default_output(scene: &Path) -> PathBuf {
     let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "render".into());

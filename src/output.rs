@@ -79,7 +79,9 @@ impl clap::ValueEnum for Layer {
     fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
         use clap::builder::PossibleValue;
         Some(match self {
-            Layer::Final => PossibleValue::new("final").help("The final image (filtered when a filter is on)"),
+            Layer::Final => {
+                PossibleValue::new("final").help("The final image (filtered when a filter is on)")
+            }
             Layer::Raw => PossibleValue::new("raw").help("The unfiltered beauty"),
             Layer::Component(c) => PossibleValue::new(c.name()),
             Layer::IndirectFiltered => PossibleValue::new("indirect-filtered")
@@ -166,7 +168,9 @@ pub fn write(
     exposure: f32,
     meta: &film::Metadata,
 ) -> Result<f64, OutputError> {
-    if let (Some(method), true) = (&setting.method, filter_reads(setting).variance && film.variance.is_empty()) {
+    if let (Some(method), true) =
+        (&setting.method, filter_reads(setting).variance && film.variance.is_empty())
+    {
         return Err(OutputError::NoVariance(method.name()));
     }
     let start = Instant::now();

@@ -9,8 +9,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::Vec3;
 use lightsplit::film::Film;
-use lightsplit::filter::{composite, EdgeStops, Method, Target};
 use lightsplit::film::Sums;
+use lightsplit::filter::{composite, EdgeStops, Method, Target};
 use lightsplit::render::{render_controlled, Control, Part, RenderOptions};
 use lightsplit::scene::{self, Scene};
 
@@ -150,8 +150,7 @@ fn merged_parts_equal_the_whole_render() {
 fn adaptive_parts_merge_to_the_sample_weighted_mean() {
     let scene = cornell();
     let options = RenderOptions { adaptive: Some(0.2), ..options(&scene, 128) };
-    let parts: Vec<Sums> =
-        (0..2).map(|i| sums(&scene, &options, Part { index: i, count: 2 })).collect();
+    let parts: Vec<Sums> = (0..2).map(|i| sums(&scene, &options, Part { index: i, count: 2 })).collect();
     for p in &parts {
         let (lo, hi) = (p.samples.iter().min().copied(), p.samples.iter().max().copied());
         assert!(lo < hi, "adaptive sampling stopped some pixels early ({lo:?} to {hi:?})");

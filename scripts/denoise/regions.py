@@ -7,11 +7,15 @@ Per region (objects picked by ID from FILM's objectid layer: the carpet, the thr
 the marble pedestal), for each IMAGE (EXR or PFM): RMSE and relMSE against the reference in the
 region alone, and how much of the reference's fine detail the image keeps: the correlation of
 its high-pass (the image minus its 3x3 box blur, inside the region) with the reference's. 1 is
-all of it, 0 none (a blur); noise lowers it too. Prints a markdown table; writes crops of the
-pictures and the pedestal on the carpet, side by side in the order given, the reference last.
+all of it, 0 none (a blur); noise lowers it too. The figures are the binary's own
+(`lightsplit compare --ids FILM --region NAME=IDS --json`); this script prints them as a markdown
+table and writes crops of the pictures and the pedestal on the carpet, side by side in the order
+given, the reference last.
 """
 
 import argparse
+import json
+import subprocess
 
 import numpy as np
 
@@ -32,15 +36,18 @@ def rgb(layers):
     return np.stack([layers[c] for c in "RGB"], -1)
 
 
-def box3(x):
-    p = np.pad(x, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    return sum(p[dy:dy + x.shape[0], dx:dx + x.shape[1]] for dy in range(3) for dx in range(3)) / 9.0
-
-
 def srgb8(x):
     x = np.clip(x, 0.0, 1.0)
     y = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return (y * 255.0 + 0.5).astype(np.uint8)
+
+
+def regions(binary, film, image, reference):
+    """The binary's per-region errors of `image` against `reference`, by `film`'s object IDs."""
+    flags = [f"--region={name}={','.join(map(str, ids))}" for name, ids in REGIONS]
+    out = subprocess.run([binary, "compare", image, reference, "--ids", film, *flags, "--json"],
+                         check=True, capture_output=True, text=True).stdout
+    return {r["name"]: r for r in json.loads(out)["regions"]}
 
 
 def main():
@@ -49,30 +56,23 @@ def main():
     ap.add_argument("reference")
     ap.add_argument("images", nargs="+")
     ap.add_argument("--crops")
+    ap.add_argument("--bin", default="target/release/lightsplit", help="the lightsplit binary")
     args = ap.parse_args()
-    film = load(args.film)
-    ref = rgb(load(args.reference))
-    obj = film["objectid.ID"]
-    images = [(s.split("=", 1)[0], rgb(load(s.split("=", 1)[1]))) for s in args.images]
-    hp_ref = ref - box3(ref)
-    print("| region (pixels) | " + " | ".join(n for n, _ in images) + " |")
-    print("|---|" + "---|" * len(images))
-    for name, ids in REGIONS:
-        # Inside the region and away from its border, so the high-pass sees the texture.
-        mask = np.isin(obj, ids)
-        inner = mask & np.isin(np.roll(obj, 1, 0), ids) & np.isin(np.roll(obj, -1, 0), ids)
-        inner &= np.isin(np.roll(obj, 1, 1), ids) & np.isin(np.roll(obj, -1, 1), ids)
+    named = [(s.split("=", 1)[0], s.split("=", 1)[1]) for s in args.images]
+    rows = [(name, regions(args.bin, args.film, path, args.reference)) for name, path in named]
+    print("| region (pixels) | " + " | ".join(n for n, _ in named) + " |")
+    print("|---|" + "---|" * len(named))
+    for name, _ in REGIONS:
         cells = []
-        for _, img in images:
-            d = (img - ref)[mask]
-            rmse = np.sqrt(np.mean(d ** 2))
-            rel = np.mean(np.mean(d ** 2, axis=-1) / (np.mean(ref[mask], axis=-1) ** 2 + 1e-2))
-            a, b = (img - box3(img))[inner].ravel(), hp_ref[inner].ravel()
-            corr = float(np.dot(a, b) / np.sqrt(np.dot(a, a) * np.dot(b, b) + 1e-30))
-            cells.append(f"{rmse:.2e} / {rel:.2e}, detail {corr:.2f}")
-        print(f"| {name} ({int(mask.sum())}) | " + " | ".join(cells) + " |")
+        for _, r in rows:
+            detail = "-" if r[name]["detail"] is None else f"{r[name]['detail']:.2f}"
+            cells.append(f"{r[name]['rmse']:.2e} / {r[name]['relmse']:.2e}, detail {detail}")
+        print(f"| {name} ({rows[0][1][name]['pixels']}) | " + " | ".join(cells) + " |")
     if args.crops:
         import mitsuba as mi
+
+        ref = rgb(load(args.reference))
+        images = [(n, rgb(load(p))) for n, p in named]
 
         # The middle picture with the teapot and pedestal, and the carpet in front.
         h, w = ref.shape[:2]

@@ -2,6 +2,7 @@
 
 use lightsplit::filter::{Method, Setting};
 use lightsplit::job::filter_label;
+use lightsplit::metrics::regions::{by_region, Region};
 use lightsplit::{film, metrics};
 
 use crate::cli::{CompareArgs, FilterCommandArgs};
@@ -38,26 +39,71 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         film::check_output(diff)?;
         film::check_not_an_input(diff, &[args.test.clone(), args.reference.clone()])?;
     }
+    let regions = args.regions.iter().map(|r| Region::parse(r)).collect::<Result<Vec<_>, _>>()?;
     let test = film::read_image(&args.test)?;
     let reference = film::read_image(&args.reference)?;
     let errors = metrics::compare(&test, &reference)?;
+    let by_region = if args.by_object || !regions.is_empty() {
+        let (width, height, ids) = film::read_object_ids(args.ids.as_ref().unwrap_or(&args.test))?;
+        if (width, height) != (test.width, test.height) {
+            return Err(Failure::input(format!(
+                "the object IDs are {width}x{height} and the images {}x{}: not the same render",
+                test.width, test.height
+            )));
+        }
+        let mut all = if args.by_object { Region::each_object(&ids) } else { Vec::new() };
+        all.extend(regions);
+        Some(by_region(&test, &reference, &ids, &all)?)
+    } else {
+        None
+    };
     if let Some(diff) = &args.diff {
         let image = metrics::difference_image(&test, &reference);
         film::write(&image, diff, 0.0)?;
     }
     if args.json {
-        say!("{}", serde_json::to_string(&errors).map_err(Failure::failed)?);
-    } else {
+        let mut json = serde_json::to_value(errors).map_err(Failure::failed)?;
+        if let (Some(rows), Some(map)) = (&by_region, json.as_object_mut()) {
+            map.insert("regions".into(), serde_json::to_value(rows).map_err(Failure::failed)?);
+        }
+        say!("{json}");
+        return Ok(());
+    }
+    say!(
+        "{} against {}: sse {:.6e}  rmse {:.6e}  relmse {:.6e}  (worst 0.1% dropped: rmse {:.6e}  relmse {:.6e})",
+        args.test.display(),
+        args.reference.display(),
+        errors.sse,
+        errors.rmse,
+        errors.relmse,
+        errors.rmse_trimmed,
+        errors.relmse_trimmed
+    );
+    if let Some(rows) = by_region {
+        let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0).max(6);
         say!(
-            "{} against {}: sse {:.6e}  rmse {:.6e}  relmse {:.6e}  (worst 0.1% dropped: rmse {:.6e}  relmse {:.6e})",
-            args.test.display(),
-            args.reference.display(),
-            errors.sse,
-            errors.rmse,
-            errors.relmse,
-            errors.rmse_trimmed,
-            errors.relmse_trimmed
+            "{:width$}  {:>7}  {:>7}  {:>10}  {:>10}  {:>7}  {:>6}",
+            "region",
+            "pixels",
+            "inner",
+            "rmse",
+            "relmse",
+            "ratio",
+            "detail"
         );
+        let or_dash = |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
+        for r in rows {
+            say!(
+                "{:width$}  {:>7}  {:>7}  {:>10.3e}  {:>10.3e}  {:>7}  {:>6}",
+                r.name,
+                r.pixels,
+                r.inner,
+                r.rmse,
+                r.relmse,
+                or_dash(r.ratio, 3),
+                or_dash(r.detail, 2)
+            );
+        }
     }
     Ok(())
 }

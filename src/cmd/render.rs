@@ -37,11 +37,14 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
     }
     let bar = progress_bar(job.total_samples(), args.run.json);
     bar.inc(job.resumed_samples());
+    // A signal while rendering stops the render after its pass, and what it has is written; a
+    // signal while writing ends the process, leaving the output as it was.
     GRACEFUL.store(true, Ordering::SeqCst);
-    let done = job.run(&|n| bar.inc(n), &STOP);
+    let rendered = job.render(&|n| bar.inc(n), &STOP);
     GRACEFUL.store(false, Ordering::SeqCst);
-    let done = done?;
+    let rendered = rendered?;
     bar.finish_and_clear();
+    let done = job.write(rendered)?;
 
     let (options, s) = (&job.options, &done.stats);
     if args.run.json {

@@ -117,11 +117,7 @@ impl Choice {
 }
 
 /// Every combination of the filters, targets and edge modes asked for; `none` once, unfiltered.
-pub fn choices(
-    filters: &[String],
-    targets: &[Target],
-    edge: &[Edge],
-) -> Result<Vec<Choice>, ConvergeError> {
+pub fn choices(filters: &[String], targets: &[Target], edge: &[Edge]) -> Result<Vec<Choice>, ConvergeError> {
     let mut out = Vec::new();
     for f in filters {
         if f == "none" {

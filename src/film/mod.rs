@@ -9,6 +9,7 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
+pub mod layers;
 mod sums;
 
 pub use crate::scene::image::{read_exr_channels, read_exr_layer, Channels, Image, Words};
@@ -68,22 +69,31 @@ impl Film {
     /// left out is empty (no pixels), and the EXR writer leaves its layers out.
     pub fn with_buffers(width: u32, height: u32, split: bool, guides: bool) -> Film {
         let n = width as usize * height as usize;
-        let image = |on: bool| if on { Image::new(width, height) } else { Image::empty() };
-        let floats = |on: bool, value: f32| if on { vec![value; n] } else { Vec::new() };
-        Film {
+        let mut film = Film {
             width,
             height,
-            raw: Image::new(width, height),
-            components: Split::from_fn(|_| image(split)),
-            albedo: image(guides),
-            normal: image(guides),
-            depth: floats(guides, 0.0),
-            object: floats(guides, -1.0),
-            coverage: floats(guides, 1.0),
-            alpha: floats(guides, 1.0),
-            variance: floats(split, 0.0),
-            component_variance: Split::from_fn(|_| floats(split, 0.0)),
+            raw: Image::empty(),
+            components: Split::from_fn(|_| Image::empty()),
+            albedo: Image::empty(),
+            normal: Image::empty(),
+            depth: Vec::new(),
+            object: Vec::new(),
+            coverage: Vec::new(),
+            alpha: Vec::new(),
+            variance: Vec::new(),
+            component_variance: Split::from_fn(|_| Vec::new()),
+        };
+        for layer in &layers::LAYERS {
+            let on = match layer.group {
+                layers::Group::Beauty => true,
+                layers::Group::Split | layers::Group::Variance => split,
+                layers::Group::Guides => guides,
+            };
+            if on {
+                film.set_values(layer.buffer, vec![layer.missing; n * layer.width()]);
+            }
         }
+        film
     }
 
     /// Whether the film holds the component split.
@@ -356,54 +366,88 @@ fn write_pfm(image: &Image, path: &Path) -> Result<(), String> {
 /// Consumes the film: each buffer is freed as soon as its channels exist, so the channels never
 /// sit beside a second copy of the film.
 pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<Image>) -> Channels {
-    let has_guides = film.has_guides();
-    let Film {
-        raw,
-        components,
-        albedo,
-        normal,
-        depth,
-        object,
-        coverage,
-        alpha,
-        variance,
-        component_variance,
-        ..
-    } = film;
     let mut out: Channels = Vec::new();
     // A buffer the render did not fill (empty) has no layer.
-    let mut rgb = |prefix: &str, img: Image, names: [&str; 3]| {
+    let mut rgb = |names: [&str; 3], img: Image| {
         if img.pixels.is_empty() {
             return;
         }
         for (c, name) in names.iter().enumerate() {
-            let full = if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
-            out.push((full, img.pixels.iter().map(|p| p[c]).collect()));
+            out.push((name.to_string(), img.pixels.iter().map(|p| p[c]).collect()));
         }
     };
-    rgb("", final_image, ["R", "G", "B"]);
-    rgb("raw", raw, ["R", "G", "B"]);
-    for (c, layer) in Component::ALL.into_iter().zip(components) {
-        rgb(c.name(), layer, ["R", "G", "B"]);
-    }
+    rgb(["R", "G", "B"], final_image);
     if let Some(f) = indirect_filtered {
-        rgb("indirect_filtered", f, ["R", "G", "B"]);
+        rgb(["indirect_filtered.R", "indirect_filtered.G", "indirect_filtered.B"], f);
     }
-    rgb("albedo", albedo, ["R", "G", "B"]);
-    rgb("normal", normal, ["X", "Y", "Z"]);
-    if has_guides {
-        out.push(("depth.Z".into(), depth));
-        out.push(("objectid.ID".into(), object));
-        out.push(("objectid.coverage".into(), coverage));
-        out.push(("A".into(), alpha));
-    }
-    if !variance.is_empty() {
-        out.push(("raw_variance.Y".into(), variance));
-        for (c, v) in Component::ALL.into_iter().zip(component_variance) {
-            out.push((format!("{}_variance.Y", c.name()), v));
+    out.extend(layer_channels(&film, ""));
+    out
+}
+
+/// The channels of every layer `film` holds ([`layers::LAYERS`]), each name after `prefix`.
+pub fn layer_channels(film: &Film, prefix: &str) -> Channels {
+    let mut out: Channels = Vec::new();
+    for (layer, values) in film.layers() {
+        let width = layer.width();
+        for (c, name) in layer.channels.iter().enumerate() {
+            let channel = if width == 1 {
+                values.to_vec()
+            } else {
+                values.iter().skip(c).step_by(width).copied().collect()
+            };
+            out.push((format!("{prefix}{name}"), channel));
         }
     }
     out
+}
+
+/// The layers of a film from `channels`, each name after `prefix`: the layers of the groups
+/// `wanted` says, each required ([`layers::LayerDef::required`]) unless `lenient` (an EXR a
+/// render wrote: an optional layer it lacks, from before the layer existed, takes its
+/// [`layers::LayerDef::missing`] value, or none for the variances). Every channel must have a
+/// value for each pixel.
+pub fn film_from_layers(
+    width: u32,
+    height: u32,
+    channels: &Channels,
+    prefix: &str,
+    wanted: impl Fn(layers::Group) -> bool,
+    lenient: bool,
+) -> Result<Film, String> {
+    let n = width as usize * height as usize;
+    let find = |name: &str| channels.iter().find(|(c, _)| c == name).map(|(_, d)| d);
+    let mut film = Film::with_buffers(width, height, false, false);
+    film.variance = Vec::new();
+    film.component_variance = Split::from_fn(|_| Vec::new());
+    // The variances are all there or none.
+    let has_variance =
+        find(&format!("{prefix}{}", layers::layer(layers::Buffer::Variance).channels[0])).is_some();
+    for layer in layers::LAYERS.iter().filter(|l| wanted(l.group)) {
+        let found: Vec<Option<&Vec<f32>>> =
+            layer.channels.iter().map(|c| find(&format!("{prefix}{c}"))).collect();
+        let optional =
+            lenient && (!layer.required || layer.group == layers::Group::Variance && !has_variance);
+        if let Some(at) = found.iter().position(Option::is_none) {
+            if optional {
+                if layer.group != layers::Group::Variance {
+                    film.set_values(layer.buffer, vec![layer.missing; n * layer.width()]);
+                }
+                continue;
+            }
+            return Err(format!("no `{prefix}{}` channel (not a lightsplit render?)", layer.channels[at]));
+        }
+        let found: Vec<&Vec<f32>> = found.into_iter().flatten().collect();
+        if found.iter().any(|c| c.len() != n) {
+            return Err("channel sizes do not match the image".into());
+        }
+        let values = if found.len() == 1 {
+            found[0].clone()
+        } else {
+            (0..n).flat_map(|i| found.iter().map(move |c| c[i])).collect()
+        };
+        film.set_values(layer.buffer, values);
+    }
+    Ok(film)
 }
 
 /// Writes a film: every layer into an EXR, or the final image alone into PNG or HDR. Consumes
@@ -674,56 +718,7 @@ impl Film {
     /// A film back from the channels of a multi-layer EXR written by [`write_film`]. Every layer
     /// the filters need must be there; `albedo` may be missing.
     pub fn from_channels(width: u32, height: u32, channels: &Channels) -> Result<Film, String> {
-        let find = |name: &str| -> Result<&Vec<f32>, String> {
-            channels
-                .iter()
-                .find(|(n, _)| n == name)
-                .map(|(_, d)| d)
-                .ok_or_else(|| format!("no `{name}` channel (not a lightsplit render?)"))
-        };
-        let rgb = |prefix: &str, names: [&str; 3]| -> Result<Image, String> {
-            let [r, g, b] = names.map(|c| find(&format!("{prefix}.{c}")));
-            let (r, g, b) = (r?, g?, b?);
-            if g.len() != r.len() || b.len() != r.len() {
-                return Err("channel sizes do not match the image".into());
-            }
-            Ok(Image { width, height, pixels: (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect() })
-        };
-        let mut film = Film::new(width, height);
-        film.raw = rgb("raw", ["R", "G", "B"])?;
-        for (c, layer) in film.components.named_mut() {
-            *layer = rgb(c.name(), ["R", "G", "B"])?;
-        }
-        film.normal = rgb("normal", ["X", "Y", "Z"])?;
-        if let Ok(albedo) = rgb("albedo", ["R", "G", "B"]) {
-            film.albedo = albedo;
-        }
-        film.depth = find("depth.Z")?.clone();
-        film.object = find("objectid.ID")?.clone();
-        // Files written before the coverage layer existed: every pixel counts as pure.
-        if let Ok(alpha) = find("A") {
-            film.alpha = alpha.clone();
-        }
-        if let Ok(coverage) = find("objectid.coverage") {
-            film.coverage = coverage.clone();
-        }
-        // Files written before the variance layers existed have none.
-        match find("raw_variance.Y") {
-            Ok(v) => {
-                film.variance = v.clone();
-                for (c, layer) in Component::ALL.into_iter().zip(film.component_variance.iter_mut()) {
-                    *layer = find(&format!("{}_variance.Y", c.name()))?.clone();
-                }
-            }
-            Err(_) => {
-                film.variance = Vec::new();
-                film.component_variance = Split::from_fn(|_| Vec::new());
-            }
-        }
-        let n = width as usize * height as usize;
-        if film.depth.len() != n || film.raw.pixels.len() != n {
-            return Err("channel sizes do not match the image".into());
-        }
+        let film = film_from_layers(width, height, channels, "", |_| true, true)?;
         film.check_finite()?;
         Ok(film)
     }
@@ -768,10 +763,9 @@ impl Film {
 pub fn read_image(path: &Path) -> Result<Image, ReadError> {
     match Format::from_path(path).map_err(|e| ReadError(e.to_string()))? {
         Format::Exr | Format::Hdr | Format::Pfm => crate::scene::image::read(path).map_err(ReadError),
-        Format::Png => Err(ReadError(format!(
-            "{}: compare needs linear values: use .exr, .hdr or .pfm",
-            path.display()
-        ))),
+        Format::Png => {
+            Err(ReadError(format!("{}: compare needs linear values: use .exr, .hdr or .pfm", path.display())))
+        }
     }
 }
 
@@ -779,6 +773,19 @@ pub fn read_image(path: &Path) -> Result<Image, ReadError> {
 pub fn read_film(path: &Path) -> Result<Film, ReadError> {
     let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
     Film::from_channels(width, height, &channels).map_err(|e| ReadError(format!("{}: {e}", path.display())))
+}
+
+/// The object-ID layer (`objectid.ID`) of an EXR that `lightsplit render` wrote, with its size.
+pub fn read_object_ids(path: &Path) -> Result<(u32, u32, Vec<f32>), ReadError> {
+    let (width, height, channels, _) = read_exr_layer(path).map_err(ReadError)?;
+    let ids = channels.into_iter().find(|(name, _)| name == "objectid.ID").map(|(_, v)| v);
+    let ids = ids.ok_or_else(|| {
+        ReadError(format!(
+            "{}: no `objectid.ID` layer (an EXR that lightsplit rendered has one; a part file or a PNG none)",
+            path.display()
+        ))
+    })?;
+    Ok((width, height, ids))
 }
 
 /// An image that cannot be read: always the input's fault. The message names the file.
@@ -1035,7 +1042,7 @@ mod tests {
     #[test]
     fn bad_extension_and_missing_directory_fail_before_writing() {
         assert!(matches!(check_output(Path::new("x.jpg")), Err(WriteError::Extension(_))));
-        assert!(matches!(check_output(Path::new("/no/such/dir/x.png")), Err(WriteError::Io(..))));
+        assert!(matches!(check_output(Path::new("/no/such/dir/x.png")), Err(WriteError::Refused(..))));
         assert_eq!(check_output(Path::new("x.EXR")).expect("ok"), Format::Exr);
     }
 }

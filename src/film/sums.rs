@@ -3,6 +3,7 @@
 
 use glam::Vec3;
 
+use super::layers::{self, Mean};
 use super::{variance_of_mean, Film, Image};
 use crate::component::{Component, Split};
 
@@ -65,10 +66,15 @@ impl Sums {
     /// Nothing yet: `film`'s buffers zeroed (the object unknown).
     pub fn empty(width: u32, height: u32, split: bool, guides: bool) -> Sums {
         let mut film = Film::with_buffers(width, height, split, guides);
-        film.coverage.fill(0.0);
-        film.alpha.fill(0.0);
-        film.variance = Vec::new();
-        film.component_variance = Split::from_fn(|_| Vec::new());
+        for layer in &layers::LAYERS {
+            match (layer.mean, layer.rule) {
+                // The variances come of the squares, at the end.
+                (Mean::FromSquares, _) => film.set_values(layer.buffer, Vec::new()),
+                // Counts of samples: none yet.
+                (_, layers::Rule::Count) => film.values_mut(layer.buffer).fill(0.0),
+                _ => {}
+            }
+        }
         let n = width as usize * height as usize;
         Sums { film, squares: Squares::zeros(n, split), samples: vec![0; n] }
     }
@@ -80,37 +86,44 @@ impl Sums {
 
     /// The film of means, with each pixel's variance of the mean from the sums of squares (at
     /// most the largest 32-bit float: a spread too wide for 32 bits is written as that, finite).
+    /// Each layer's sums become values as its row says ([`layers::Mean`]).
     pub fn into_means(self) -> Film {
         let Sums { mut film, squares, samples } = self;
-        let has_squares = !squares.is_empty();
-        if has_squares {
-            film.variance = vec![0.0; samples.len()];
-            film.component_variance = Split::from_fn(|_| vec![0.0; samples.len()]);
+        if !squares.is_empty() {
+            // From the sums, before they become means.
+            let variance = |n: u32, sum: Vec3, sum_sq: f64| {
+                let v = variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
+                v.min(f32::MAX as f64) as f32
+            };
+            let of = |sums: &Image, squares: &[f64]| -> Vec<f32> {
+                samples
+                    .iter()
+                    .zip(&sums.pixels)
+                    .zip(squares)
+                    .map(|((&n, &s), &q)| variance(n, s, q))
+                    .collect()
+            };
+            film.variance = of(&film.raw, &squares.beauty);
+            for c in Component::ALL {
+                film.component_variance[c] = of(&film.components[c], &squares.components[c]);
+            }
         }
-        let variance = |n: u32, sum: Vec3, sum_sq: f64| {
-            let v = variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
-            v.min(f32::MAX as f64) as f32
-        };
-        for (at, &n) in samples.iter().enumerate() {
-            let inv = if n > 0 { 1.0 / n as f32 } else { 0.0 };
-            if has_squares {
-                // From the sums, before they become means.
-                film.variance[at] = variance(n, film.raw.pixels[at], squares.beauty[at]);
-                for c in Component::ALL {
-                    film.component_variance[c][at] =
-                        variance(n, film.components[c].pixels[at], squares.components[c][at]);
+        let inv: Vec<f32> = samples.iter().map(|&n| if n > 0 { 1.0 / n as f32 } else { 0.0 }).collect();
+        for layer in &layers::LAYERS {
+            let width = layer.width();
+            let values = film.values_mut(layer.buffer);
+            match layer.mean {
+                Mean::Average => {
+                    for (pixel, &inv) in values.chunks_exact_mut(width).zip(&inv) {
+                        pixel.iter_mut().for_each(|v| *v *= inv);
+                    }
                 }
-            }
-            film.raw.pixels[at] *= inv;
-            for layer in film.components.iter_mut().filter(|l| !l.pixels.is_empty()) {
-                layer.pixels[at] *= inv;
-            }
-            if film.has_guides() {
-                film.albedo.pixels[at] *= inv;
-                film.normal.pixels[at] = film.normal.pixels[at].normalize_or_zero();
-                film.depth[at] *= inv;
-                film.coverage[at] *= inv;
-                film.alpha[at] *= inv;
+                Mean::Normalise => {
+                    for pixel in values.chunks_exact_mut(width) {
+                        pixel.copy_from_slice(&Vec3::from_slice(pixel).normalize_or_zero().to_array());
+                    }
+                }
+                Mean::First | Mean::FromSquares => {}
             }
         }
         film
@@ -130,33 +143,28 @@ impl Sums {
         {
             return Err("one has the component split or the guide buffers and the other not".into());
         }
-        let add3 = |x: &mut Image, y: &Image| {
-            x.pixels.iter_mut().zip(&y.pixels).for_each(|(p, q)| *p += *q)
-        };
-        let add1 = |x: &mut Vec<f32>, y: &Vec<f32>| x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
-        if a.has_guides() {
-            for (i, (&o, &n)) in b.object.iter().zip(&other.samples).enumerate() {
-                if n == 0 {
-                    continue;
+        let width = a.width;
+        for layer in &layers::LAYERS {
+            let (x, y) = (a.values_mut(layer.buffer), b.values(layer.buffer));
+            match layer.mean {
+                Mean::Average | Mean::Normalise => x.iter_mut().zip(y).for_each(|(p, q)| *p += *q),
+                Mean::First => {
+                    for (i, (&o, &n)) in y.iter().zip(&other.samples).enumerate() {
+                        if n == 0 {
+                            continue;
+                        }
+                        if self.samples[i] > 0 && x[i] != o {
+                            let (px, py) = (i as u32 % width, i as u32 / width);
+                            return Err(format!(
+                                "pixel ({px}, {py}) shows object {o} in one and {} in the other",
+                                x[i]
+                            ));
+                        }
+                        x[i] = o;
+                    }
                 }
-                if self.samples[i] > 0 && a.object[i] != o {
-                    let (x, y) = (i as u32 % a.width, i as u32 / a.width);
-                    return Err(format!(
-                        "pixel ({x}, {y}) shows object {o} in one and {} in the other",
-                        a.object[i]
-                    ));
-                }
-                a.object[i] = o;
+                Mean::FromSquares => {}
             }
-            add3(&mut a.albedo, &b.albedo);
-            add3(&mut a.normal, &b.normal);
-            add1(&mut a.depth, &b.depth);
-            add1(&mut a.coverage, &b.coverage);
-            add1(&mut a.alpha, &b.alpha);
-        }
-        add3(&mut a.raw, &b.raw);
-        for (x, y) in a.components.iter_mut().zip(&b.components) {
-            add3(x, y);
         }
         for (x, y) in self.squares.layers_mut().zip(other.squares.layers()) {
             x.iter_mut().zip(y).for_each(|(p, q)| *p += *q);
@@ -167,4 +175,3 @@ impl Sums {
         Ok(())
     }
 }
-

@@ -1,12 +1,12 @@
 //! The part file's format: its header, its channels, and the checks that refuse sums no render
 //! could have made.
 
-use glam::Vec3;
 use std::path::Path;
 
 use super::parse_part;
 use crate::component::{Component, Split};
-use crate::film::{self, Channels, Film, Image, Metadata, Squares, Sums, Words, WriteError};
+use crate::film::layers::{Group, Rule};
+use crate::film::{self, Channels, Film, Metadata, Squares, Sums, Words, WriteError};
 use crate::render::Part;
 use crate::scene::limits;
 
@@ -57,8 +57,7 @@ fn channels(sums: &Sums) -> (Channels, Words) {
     if film.has_guides() {
         out.push(("A".into(), film.alpha.iter().zip(&inv).map(|(a, i)| a * i).collect()));
     }
-    let layers = film::film_channels(film.clone(), Image::empty(), None);
-    out.extend(layers.into_iter().map(|(name, data)| (format!("{SUMS}{name}"), data)));
+    out.extend(film::layer_channels(film, SUMS));
     out.push((SAMPLES.into(), sums.samples.iter().map(|&n| n as f32).collect()));
     let mut words = Words::new();
     for (layer, squares) in squared_layers().zip(sums.squares.layers()).filter(|(_, s)| !s.is_empty()) {
@@ -174,6 +173,11 @@ pub fn read(path: &Path) -> Result<(Header, Sums), String> {
     Ok((header, sums))
 }
 
+/// The values of pixel `i` of a layer of `width` values a pixel.
+fn pixel_of(values: &[f32], width: usize, i: usize) -> &[f32] {
+    &values[i * width..(i + 1) * width]
+}
+
 /// `(x, y)` of pixel `at` of an image `width` wide.
 fn pixel(at: usize, width: u32) -> String {
     let w = width.max(1) as usize;
@@ -242,55 +246,47 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
             })?;
         }
     }
-    let rgb: Vec<(String, &Image)> = std::iter::once(("raw".to_string(), &f.raw))
-        .chain(f.components.named().map(|(c, l)| (c.name().to_string(), l)))
-        .chain(f.has_guides().then(|| ("albedo".to_string(), &f.albedo)))
-        .filter(|(_, l)| !l.pixels.is_empty())
-        .collect();
-    let scalars: Vec<(&str, &Vec<f32>)> = if f.has_guides() {
-        vec![("depth.Z", &f.depth), ("objectid.coverage", &f.coverage), ("A", &f.alpha)]
-    } else {
-        Vec::new()
-    };
+    // Each layer by its rule: first what every sum must be, then the squares, then what the
+    // directions, the object and the counts must be besides.
+    let held: Vec<_> = f.layers().filter(|(l, _)| l.rule != Rule::None).collect();
+    let layer = |name: &str| format!("{SUMS}{name}");
+    for (l, v) in held.iter().filter(|(l, _)| matches!(l.rule, Rule::Light | Rule::Scalar | Rule::Count)) {
+        let (name, wd) = (layer(l.name()), l.width());
+        refuse_any(&name, "NaN or infinite", n, w, |i| pixel_of(v, wd, i).iter().any(|x| !x.is_finite()))?;
+        refuse_any(&name, "negative", n, w, |i| pixel_of(v, wd, i).iter().any(|&x| x < 0.0))?;
+        refuse_any(&name, "not zero where no sample was taken", n, w, |i| {
+            samples[i] == 0 && pixel_of(v, wd, i).iter().any(|&x| x != 0.0)
+        })?;
+    }
     let squares: Vec<(&str, &Vec<f64>)> =
         squared_layers().zip(sums.squares.layers()).filter(|(_, s)| !s.is_empty()).collect();
-    let layer = |name: &str| format!("{SUMS}{name}");
-    for (name, image) in &rgb {
-        let p = &image.pixels;
-        refuse_any(&layer(name), "NaN or infinite", n, w, |i| !p[i].is_finite())?;
-        refuse_any(&layer(name), "negative", n, w, |i| p[i].min_element() < 0.0)?;
-        refuse_any(&layer(name), "not zero where no sample was taken", n, w, |i| {
-            samples[i] == 0 && p[i] != Vec3::ZERO
-        })?;
-    }
-    for (name, v) in &scalars {
-        refuse_any(&layer(name), "NaN or infinite", n, w, |i| !v[i].is_finite())?;
-        refuse_any(&layer(name), "negative", n, w, |i| v[i] < 0.0)?;
-        refuse_any(&layer(name), "not zero where no sample was taken", n, w, |i| {
-            samples[i] == 0 && v[i] != 0.0
-        })?;
-    }
     for (name, v) in &squares {
         let name = squares_name(name);
         refuse_any(&name, "NaN or infinite", n, w, |i| !v[i].is_finite())?;
         refuse_any(&name, "negative", n, w, |i| v[i] < 0.0)?;
         refuse_any(&name, "not zero where no sample was taken", n, w, |i| samples[i] == 0 && v[i] != 0.0)?;
     }
-    if f.has_guides() {
-        let normal = &f.normal.pixels;
-        refuse_any(&layer("normal"), "NaN or infinite", n, w, |i| !normal[i].is_finite())?;
-        refuse_any(&layer("normal"), "not zero where no sample was taken", n, w, |i| {
-            samples[i] == 0 && normal[i] != Vec3::ZERO
-        })?;
-        let object = &f.object;
-        refuse_any(&layer("objectid.ID"), "not an object (a whole number from -1)", n, w, |i| {
-            !(object[i].is_finite() && object[i] >= -1.0 && object[i].fract() == 0.0)
-        })?;
-        for (name, count) in [("objectid.coverage", &f.coverage), ("A", &f.alpha)] {
-            refuse_any(&layer(name), "not a whole number of at most the pixel's samples", n, w, |i| {
-                !(count[i].fract() == 0.0 && count[i] <= samples[i] as f32)
-            })?;
+    for (l, v) in &held {
+        let (name, wd) = (layer(l.name()), l.width());
+        match l.rule {
+            Rule::Direction => {
+                refuse_any(&name, "NaN or infinite", n, w, |i| {
+                    pixel_of(v, wd, i).iter().any(|x| !x.is_finite())
+                })?;
+                refuse_any(&name, "not zero where no sample was taken", n, w, |i| {
+                    samples[i] == 0 && pixel_of(v, wd, i).iter().any(|&x| x != 0.0)
+                })?;
+            }
+            Rule::Object => refuse_any(&name, "not an object (a whole number from -1)", n, w, |i| {
+                !(v[i].is_finite() && v[i] >= -1.0 && v[i].fract() == 0.0)
+            })?,
+            _ => {}
         }
+    }
+    for (l, v) in held.iter().filter(|(l, _)| l.rule == Rule::Count) {
+        refuse_any(&layer(l.name()), "not a whole number of at most the pixel's samples", n, w, |i| {
+            !(v[i].fract() == 0.0 && v[i] <= samples[i] as f32)
+        })?;
     }
     if !sums.squares.is_empty() {
         let light = std::iter::once(("raw", &f.raw)).chain(f.components.named().map(|(c, l)| (c.name(), l)));
@@ -307,51 +303,26 @@ fn find<'a>(channels: &'a Channels, name: &str) -> Result<&'a Vec<f32>, String> 
     channels.iter().find(|(n, _)| n == name).map(|(_, d)| d).ok_or_else(|| format!("no `{name}` channel"))
 }
 
-/// The sums film of a part file's `sums.` channels: the split and the guides when it has them.
+/// The sums film of a part file's `sums.` channels: the split and the guides when it has them,
+/// each of their layers required ([`film::layers::LAYERS`]); no variances (the merge makes them
+/// from the sums of squares).
 fn film_of(width: u32, height: u32, channels: &Channels) -> Result<Film, String> {
     let has = |name: &str| channels.iter().any(|(n, _)| n == &format!("{SUMS}{name}"));
     let (split, guides) = (has("direct.R"), has("objectid.ID"));
-    let mut film = Film::with_buffers(width, height, split, guides);
-    // The variances are the merge's to make, from the sums of squares.
-    film.variance = Vec::new();
-    film.component_variance = Split::from_fn(|_| Vec::new());
-    let get = |name: &str| find(channels, &format!("{SUMS}{name}")).cloned();
-    let rgb = |prefix: &str, names: [&str; 3]| -> Result<Image, String> {
-        let [r, g, b] = names.map(|c| get(&format!("{prefix}.{c}")));
-        let (r, g, b) = (r?, g?, b?);
-        if g.len() != r.len() || b.len() != r.len() {
-            return Err("channel sizes do not match the image".into());
-        }
-        let pixels = (0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect();
-        Ok(Image { width, height, pixels })
-    };
-    film.raw = rgb("raw", ["R", "G", "B"])?;
-    if split {
-        for (c, layer) in film.components.named_mut() {
-            *layer = rgb(c.name(), ["R", "G", "B"])?;
-        }
-    }
-    if guides {
-        film.albedo = rgb("albedo", ["R", "G", "B"])?;
-        film.normal = rgb("normal", ["X", "Y", "Z"])?;
-        film.depth = get("depth.Z")?;
-        film.object = get("objectid.ID")?;
-        film.coverage = get("objectid.coverage")?;
-        film.alpha = get("A")?;
-    }
-    let n = width as usize * height as usize;
-    let sizes_ok = film.raw.pixels.len() == n
-        && film.components.iter().all(|c| c.pixels.is_empty() || c.pixels.len() == n)
-        && [&film.depth, &film.object, &film.coverage, &film.alpha]
-            .iter()
-            .all(|v| v.is_empty() || v.len() == n)
-        && [&film.albedo, &film.normal].iter().all(|i| i.pixels.is_empty() || i.pixels.len() == n);
-    if !sizes_ok {
-        return Err("channel sizes do not match the image".into());
-    }
-    Ok(film)
+    film::film_from_layers(
+        width,
+        height,
+        channels,
+        SUMS,
+        |group| match group {
+            Group::Beauty => true,
+            Group::Split => split,
+            Group::Guides => guides,
+            Group::Variance => false,
+        },
+        false,
+    )
 }
-
 
 #[cfg(test)]
 mod tests {

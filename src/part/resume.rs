@@ -11,11 +11,7 @@ use crate::scene::Scene;
 /// (whose part, spp and key it must have). A checkpoint holds the buffers its own output
 /// needed; when it holds more than this render's output needs (written for an EXR, resumed to
 /// a PNG), `options` takes them on, since they change no sample of the beauty.
-pub fn read_checkpoint(
-    path: &Path,
-    scene: &Scene,
-    options: &mut RenderOptions,
-) -> Result<Sums, String> {
+pub fn read_checkpoint(path: &Path, scene: &Scene, options: &mut RenderOptions) -> Result<Sums, String> {
     let header = read_header(path).map_err(|e| {
         format!(
             "a resume file is a part file (`.part.exr`, an EXR that --part, --checkpoint or a \
@@ -64,4 +60,3 @@ pub fn read_checkpoint(
     options.features = with_its_buffers.features;
     Ok(sums)
 }
-

@@ -95,5 +95,4 @@ mod tests {
             .is_err_and(|e| e.contains("LIGHTSPLIT_PART_COUNT")));
         assert!(part_from_scheduler(env(&[])).is_err_and(|e| e.contains("no scheduler found")));
     }
-
 }

@@ -1,6 +1,8 @@
 //! Error metrics behind `compare` and `converge`: the paper's sum of squared differences, RMSE
 //! and relative MSE, each also with the worst 0.1% of pixels dropped.
 
+pub mod regions;
+
 use glam::Vec3;
 
 use crate::error::InputError;
