@@ -199,7 +199,7 @@ fn whole(key: &str, v: f32) -> Result<u32, String> {
 
 /// One layer to filter: an image of means and the variance of each pixel's mean luminance.
 #[derive(Clone, Copy)]
-pub struct Layer<'a> {
+pub struct FilterInput<'a> {
     pub image: &'a Image,
     /// Without it (an old film), the colour stop sees no noise and nothing is smoothed.
     pub variance: Option<&'a [f32]>,
@@ -208,10 +208,10 @@ pub struct Layer<'a> {
     pub component: Option<Component>,
 }
 
-impl<'a> Layer<'a> {
+impl<'a> FilterInput<'a> {
     /// A layer that is no particular component.
-    pub fn new(image: &'a Image, variance: Option<&'a [f32]>) -> Layer<'a> {
-        Layer { image, variance, component: None }
+    pub fn new(image: &'a Image, variance: Option<&'a [f32]>) -> FilterInput<'a> {
+        FilterInput { image, variance, component: None }
     }
 }
 
@@ -226,7 +226,7 @@ const PLANES: usize = 5;
 /// than one object stay out of their neighbours' windows and are filtered only among
 /// themselves). The film's guides and
 /// the layers must have the film's size.
-pub fn filter(layers: &[Layer], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
     let (w, h) = (film.width as usize, film.height as usize);
     // Layers that are zero everywhere, or have no passes, stay as they are.
     let live: Vec<usize> = (0..layers.len())
@@ -906,7 +906,7 @@ mod tests {
         let variance = vec![0.5; 40 * 23];
         for a in [Atrous::default(), Atrous { taps: 3, passes: 6, sigma_l: 0.5, ..Atrous::default() }] {
             for pure in [false, true] {
-                let out = filter(&[Layer::new(&image, Some(&variance))], &film, &a, pure);
+                let out = filter(&[FilterInput::new(&image, Some(&variance))], &film, &a, pure);
                 assert_eq!(out[0], image, "{a:?}");
             }
         }
@@ -924,7 +924,7 @@ mod tests {
             *px = albedo * 3.0;
         }
         let variance = vec![1.0; 32 * 32];
-        let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
+        let out = filter(&[FilterInput::new(&image, Some(&variance))], &film, &Atrous::default(), false);
         for (a, b) in out[0].pixels.iter().zip(&image.pixels) {
             assert!(a.is_finite() && (*a - *b).abs().max_element() <= 1e-5 * b.max_element(), "{a} vs {b}");
         }
@@ -936,7 +936,7 @@ mod tests {
         let (film, image) = flat(w, h, |x, _| Vec3::splat(1.0 + 0.01 * x as f32));
         let variance = vec![1e-4; (w * h) as usize];
         for a in [Atrous::default(), Atrous { taps: 3, passes: 6, ..Atrous::default() }] {
-            let out = filter(&[Layer::new(&image, Some(&variance))], &film, &a, false);
+            let out = filter(&[FilterInput::new(&image, Some(&variance))], &film, &a, false);
             // Away from the left and right borders, farther than the filter reaches (62 pixels
             // for five 5x5 passes, 63 for six 3x3), the symmetric taps cancel.
             for y in 0..h {
@@ -966,7 +966,7 @@ mod tests {
                 }
             }
             let variance = vec![0.3; (w * h) as usize];
-            let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
+            let out = filter(&[FilterInput::new(&image, Some(&variance))], &film, &Atrous::default(), false);
             for y in 0..h {
                 for x in 0..w {
                     let (got, input) = (out[0].get(x, y), image.get(x, y));
@@ -990,7 +990,7 @@ mod tests {
         let (mut film, image) = flat(20, 20, |_, _| Vec3::splat(0.5 + next()));
         film.coverage[210] = 0.5;
         let variance = vec![0.3; 400];
-        let layer = [Layer::new(&image, Some(&variance))];
+        let layer = [FilterInput::new(&image, Some(&variance))];
         let pure = filter(&layer, &film, &Atrous::default(), true);
         assert_eq!(pure[0].pixels[210], image.pixels[210]);
         let not = filter(&layer, &film, &Atrous::default(), false);
@@ -1002,7 +1002,7 @@ mod tests {
         let pure = filter(&layer, &film, &Atrous::default(), true);
         let mut bright = image.clone();
         column.iter().for_each(|&i| bright.pixels[i] *= 10.0);
-        let brighter = filter(&[Layer::new(&bright, Some(&variance))], &film, &Atrous::default(), true);
+        let brighter = filter(&[FilterInput::new(&bright, Some(&variance))], &film, &Atrous::default(), true);
         let spread = |img: &Image| {
             let v: Vec<f32> = column.iter().map(|&i| img.pixels[i].x).collect();
             v.iter().fold(f32::MIN, |a, &b| a.max(b)) - v.iter().fold(f32::MAX, |a, &b| a.min(b))
@@ -1055,7 +1055,7 @@ mod tests {
         });
         let n = (w * h) as f32;
         let variance = vec![sd * sd; n as usize];
-        let out = filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false);
+        let out = filter(&[FilterInput::new(&image, Some(&variance))], &film, &Atrous::default(), false);
         let mean = |img: &Image| img.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n as f64;
         let (m_in, m_out) = (mean(&image), mean(&out[0]));
         let tolerance = 4.0 * sd as f64 / (n as f64).sqrt();
@@ -1077,7 +1077,9 @@ mod tests {
         let variance: Vec<f32> = (0..57 * 33).map(|_| 0.1 * next()).collect();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
-            pool.install(|| filter(&[Layer::new(&image, Some(&variance))], &film, &Atrous::default(), false))
+            pool.install(|| {
+                filter(&[FilterInput::new(&image, Some(&variance))], &film, &Atrous::default(), false)
+            })
         };
         let one = run(1);
         assert_ne!(one[0], image);
@@ -1102,7 +1104,8 @@ mod tests {
             caustic: Strength { sigma_l: None, passes: Some(0) },
             ..Atrous::default()
         };
-        let layer = |image, component| Layer { image, variance: Some(&variance), component: Some(component) };
+        let layer =
+            |image, component| FilterInput { image, variance: Some(&variance), component: Some(component) };
         let together = filter(
             &[
                 layer(&direct, Component::Direct),
@@ -1115,7 +1118,7 @@ mod tests {
         );
         // Each layer as if filtered alone, with its component's settings as the filter's own.
         let alone = |image, sigma_l, passes| {
-            filter(&[Layer::new(image, Some(&variance))], &film, &Atrous { sigma_l, passes, ..a }, true)
+            filter(&[FilterInput::new(image, Some(&variance))], &film, &Atrous { sigma_l, passes, ..a }, true)
                 .remove(0)
         };
         assert_eq!(together[0], alone(&direct, 1.5, 1));

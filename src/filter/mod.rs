@@ -15,7 +15,7 @@ use std::borrow::Cow;
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use atrous::{Atrous, Layer, Strength};
+pub use atrous::{Atrous, FilterInput, Strength};
 pub use section::Overrides;
 
 use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
@@ -229,7 +229,7 @@ pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) ->
     match Plan::of(method) {
         Plan::Local(window) => local(image, &window, film, stops),
         Plan::Wavelet(a) => {
-            let mut out = atrous::filter(&[Layer::new(image, None)], film, a, stops.pure);
+            let mut out = atrous::filter(&[FilterInput::new(image, None)], film, a, stops.pure);
             out.pop().unwrap_or_else(|| image.clone())
         }
     }
@@ -237,7 +237,7 @@ pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) ->
 
 /// Filters each layer: the paper's filters one by one, à-trous with each layer's variance and
 /// the guides' geometry shared (its object stop is always on; `stops.pure` also applies).
-pub fn filter_layers(layers: &[Layer], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Image> {
+pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Image> {
     match Plan::of(method) {
         Plan::Local(window) => layers.iter().map(|l| local(l.image, &window, film, stops)).collect(),
         Plan::Wavelet(a) => atrous::filter(layers, film, a, stops.pure),
@@ -590,7 +590,7 @@ pub fn composite<'a>(
     stops: &EdgeStops,
 ) -> (Cow<'a, Image>, Option<Image>) {
     let Some(kernel) = kernel else { return (Cow::Borrowed(&film.raw), None) };
-    let layer = |c: Component| Layer {
+    let layer = |c: Component| FilterInput {
         image: &film.components[c],
         variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
         component: Some(c),
@@ -604,10 +604,10 @@ pub fn composite<'a>(
     };
     if filtered.is_empty() {
         let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
-        let mut out = filter_layers(&[Layer::new(&film.raw, variance)], kernel, film, stops);
+        let mut out = filter_layers(&[FilterInput::new(&film.raw, variance)], kernel, film, stops);
         return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
     }
-    let layers: Vec<Layer> = filtered.iter().map(|&c| layer(c)).collect();
+    let layers: Vec<FilterInput> = filtered.iter().map(|&c| layer(c)).collect();
     let mut images = filter_layers(&layers, kernel, film, stops);
     let mut out = film.components[Emitted].clone();
     for c in [Direct, Caustic, Indirect] {
@@ -839,7 +839,7 @@ mod tests {
         let (out, indirect) = composite(&noisy, Some(&k), Target::Components, &EdgeStops::default());
         let indirect = indirect.expect("filtered indirect");
         let direct = filter_layers(
-            &[Layer::new(&noisy.components[Direct], Some(&noisy.component_variance[Direct]))],
+            &[FilterInput::new(&noisy.components[Direct], Some(&noisy.component_variance[Direct]))],
             &k,
             &noisy,
             &EdgeStops::default(),

@@ -319,7 +319,7 @@ pub fn render_controlled(
 /// One pixel's guide sums over its samples, and the object of sample 0 (never averaged) with
 /// how many samples saw it.
 #[derive(Clone, Copy, Default)]
-struct Guides {
+struct GuideSums {
     albedo: Vec3,
     normal: Vec3,
     depth: f32,
@@ -387,7 +387,7 @@ impl Tile {
 struct TileSums {
     beauty: Vec<Vec3>,
     components: Vec<Split<Vec3>>,
-    guides: Vec<Guides>,
+    guides: Vec<GuideSums>,
     /// The sums of the squared sample luminances, of the beauty then of each component (with
     /// the split only), in f64 as [`film::Squares`] keeps them.
     squares: Vec<(f64, Split<f64>)>,
@@ -421,7 +421,7 @@ impl TileSums {
                     .map(|i| {
                         let at = at(i);
                         let object = film.object[at];
-                        Guides {
+                        GuideSums {
                             albedo: film.albedo.pixels[at],
                             normal: film.normal.pixels[at],
                             depth: film.depth[at],
@@ -574,15 +574,30 @@ pub fn render_with_control<A: Accel>(
     options: &RenderOptions,
     control: &Control,
 ) -> RenderOutput {
+    // Every combination of the four features, each its own integrator: an exhaustive match,
+    // so a feature added to `Features` fails to compile here until it is listed.
     macro_rules! specialised {
-        ($($bits:literal)*) => {
-            match options.features.bits() {
-                $($bits => render_features::<A, $bits>(scene, accel, options, control),)*
-                _ => render_features::<A, { features::ALL }>(scene, accel, options, control),
+        ($(($mis:literal, $split:literal, $guides:literal, $textures:literal))*) => {
+            match options.features {
+                $(Features { mis: $mis, split: $split, guides: $guides, textures: $textures } => {
+                    const BITS: u8 = ($mis as u8 * features::MIS)
+                        | ($split as u8 * features::SPLIT)
+                        | ($guides as u8 * features::GUIDES)
+                        | ($textures as u8 * features::TEXTURES);
+                    render_features::<A, BITS>(scene, accel, options, control)
+                })*
             }
         };
     }
-    specialised!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15)
+    specialised!((false, false, false, false)(true, false, false, false)(false, true, false, false)(
+        true, true, false, false
+    )(false, false, true, false)(true, false, true, false)(false, true, true, false)(
+        true, true, true, false
+    )(false, false, false, true)(true, false, false, true)(false, true, false, true)(
+        true, true, false, true
+    )(false, false, true, true)(true, false, true, true)(false, true, true, true)(
+        true, true, true, true
+    ))
 }
 
 /// [`render_with`] for one feature set `F`.

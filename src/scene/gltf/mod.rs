@@ -50,7 +50,7 @@ pub struct Primitive {
 
 /// A primitive placed by a node.
 #[derive(Clone, Debug)]
-pub struct Part {
+pub struct NodePrimitive {
     /// `node/mesh/primitive` names, for messages and the object-ID buffer.
     pub name: String,
     /// The node's name (the object it belongs to).
@@ -61,7 +61,7 @@ pub struct Part {
     pub world: DMat4,
 }
 
-impl Part {
+impl NodePrimitive {
     /// The part's vertices in the glTF's world.
     pub fn positions<'a>(&'a self, g: &'a Gltf) -> impl Iterator<Item = DVec3> + 'a {
         g.primitives[self.primitive].positions.iter().map(|p| self.world.transform_point3(p.as_dvec3()))
@@ -142,7 +142,7 @@ pub enum PunctualLight {
 #[derive(Clone, Debug)]
 pub struct Gltf {
     pub primitives: Vec<Primitive>,
-    pub parts: Vec<Part>,
+    pub parts: Vec<NodePrimitive>,
     pub materials: Vec<PbrMaterial>,
     /// Images by texture use: `(image, srgb)` decoded to linear RGB.
     pub images: Vec<Arc<Image>>,
@@ -291,7 +291,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             };
             for p in range {
                 out.primitives[p].uses += 1;
-                out.parts.push(Part {
+                out.parts.push(NodePrimitive {
                     name: format!("{node_name}/{}", out.primitives[p].name),
                     node: node_name.clone(),
                     primitive: p,
@@ -593,7 +593,7 @@ pub fn place(
 /// f64 before the placement is rounded to f32). A primitive placed once, or by a mirroring
 /// transform (whose winding must turn around to keep geometric normals outward), is copied
 /// into the scene's coordinates, in f64 before rounding.
-fn part_mesh(primitive: &Primitive, part: &Part, at: &Placement) -> Mesh {
+fn part_mesh(primitive: &Primitive, part: &NodePrimitive, at: &Placement) -> Mesh {
     let linear = at.linear * DMat3::from_mat4(part.world);
     let translate = at.linear * part.world.w_axis.truncate() + at.translate - at.origin;
     if primitive.uses > 1 && linear.determinant() > 0.0 {
