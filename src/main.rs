@@ -124,7 +124,9 @@ fn remove_temporaries_on_signals() {
                         );
                         continue;
                     }
-                    film::remove_temporaries_and_exit(128 + signal)
+                    // Held until the process ends: no write starts meanwhile.
+                    let _held = film::remove_temporaries();
+                    std::process::exit(128 + signal)
                 }
             });
         }

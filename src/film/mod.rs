@@ -496,7 +496,7 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: Vec<u8>) -> Result<
     atomically(path, |tmp| encode_png(tmp, width, height, &rgb, image::ExtendedColorType::Rgb8))
 }
 
-/// The temporary files being written now, removed by [`remove_temporaries_and_exit`] when a
+/// The temporary files being written now, removed by [`remove_temporaries`] when a
 /// signal stops the process in the middle of a write.
 static WRITING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
@@ -539,19 +539,22 @@ fn remove_stale_temporaries(path: &Path) {
     }
 }
 
-/// Removes every temporary file being written and exits with `code`, holding the list so that
-/// no write starts another (for a SIGINT or SIGTERM handler: the outputs already there are left
-/// as they were).
-pub fn remove_temporaries_and_exit(code: i32) -> ! {
+/// Writes held: while it lives, no write starts or ends ([`remove_temporaries`]).
+pub struct WritesHeld(#[allow(dead_code)] std::sync::MutexGuard<'static, Vec<PathBuf>>);
+
+/// Removes every temporary file being written, and holds the list until the guard returned is
+/// dropped, so that no write starts another meanwhile: for a SIGINT or SIGTERM handler, which
+/// then ends the process (the outputs already there are left as they were).
+pub fn remove_temporaries() -> WritesHeld {
     let writing = WRITING.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     for tmp in writing.iter() {
         let _ = fs::remove_file(tmp);
     }
-    std::process::exit(code)
+    WritesHeld(writing)
 }
 
 /// Runs `write` on a temporary file beside `path`, then renames it over `path`. The temporary
-/// is listed while it exists, so a signal removes it ([`remove_temporaries_and_exit`]), and the
+/// is listed while it exists, so a signal removes it ([`remove_temporaries`]), and the
 /// stale temporaries of `path` a killed process left are removed first.
 fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> Result<(), WriteError> {
     remove_stale_temporaries(path);
