@@ -124,8 +124,6 @@ pub struct Job<'s> {
     time_limit: Option<f64>,
     layer: Layer,
     exposure: f32,
-    /// What the user should know before the render starts (an exposure a format ignores).
-    pub warnings: Vec<String>,
 }
 
 /// A render done, not yet written ([`Job::write`]).
@@ -186,7 +184,6 @@ impl<'s> Job<'s> {
             request.layer.check(format, &setting)?;
             setting
         };
-        let warnings: Vec<String> = output::exposure_warning(request.exposure, format).into_iter().collect();
         scene::limits::check_render_memory(options.width, options.height).map_err(|e| input(e.0))?;
         if request.all_features {
             options.features = Features::ALL;
@@ -239,7 +236,6 @@ impl<'s> Job<'s> {
             time_limit: request.time_limit,
             layer: request.layer,
             exposure: request.exposure,
-            warnings,
         })
     }
 

@@ -7,8 +7,11 @@ Per region (objects picked by ID from FILM's objectid layer: the carpet, the thr
 the marble pedestal), for each IMAGE (EXR or PFM): RMSE and relMSE against the reference in the
 region alone, and how much of the reference's fine detail the image keeps: the correlation of
 its high-pass (the image minus its 3x3 box blur, inside the region) with the reference's. 1 is
-all of it, 0 none (a blur); noise lowers it too. The figures are the binary's own
-(`lightsplit compare --ids FILM --region NAME=IDS --json`); this script prints them as a markdown
+all of it, 0 none (a blur); noise lowers it too. The figures are the binary's own, with its
+definitions: relMSE per channel as `compare` has it (before, this script divided each pixel's
+mean squared error by its mean value squared), and a pixel on the image's edge inner when its
+neighbours inside the image are in the region (before, they wrapped around). They come from
+`lightsplit compare --ids FILM --region NAME=IDS --json`; this script prints them as a markdown
 table and writes crops of the pictures and the pedestal on the carpet, side by side in the order
 given, the reference last.
 """

@@ -3,6 +3,7 @@
 use lightsplit::filter::{Method, Setting};
 use lightsplit::job::filter_label;
 use lightsplit::metrics::regions::{by_region, Region};
+use lightsplit::output::OutputError;
 use lightsplit::{film, metrics};
 
 use crate::cli::{CompareArgs, FilterCommandArgs};
@@ -18,7 +19,11 @@ pub fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
         filter: filter_label(&setting),
         ..film::Metadata::of_exr(&args.input).unwrap_or_default()
     };
-    let seconds = args.out.write(film, &setting, &args.output, &meta)?;
+    let seconds = args.out.write(film, &setting, &args.output, &meta).map_err(|e| match e {
+        // Which file lacks them.
+        OutputError::NoVariance(_) => Failure::input(format!("{}: {e}", args.input.display())),
+        e => e.into(),
+    })?;
     if args.json {
         say!(
             "{}",
@@ -37,7 +42,8 @@ pub fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
 pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
     if let Some(diff) = &args.diff {
         film::check_output(diff)?;
-        film::check_not_an_input(diff, &[args.test.clone(), args.reference.clone()])?;
+        let inputs: Vec<_> = [&args.test, &args.reference].into_iter().chain(&args.ids).cloned().collect();
+        film::check_not_an_input(diff, &inputs)?;
     }
     let regions = args.regions.iter().map(|r| Region::parse(r)).collect::<Result<Vec<_>, _>>()?;
     let test = film::read_image(&args.test)?;
@@ -62,11 +68,16 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         film::write(&image, diff, 0.0)?;
     }
     if args.json {
-        let mut json = serde_json::to_value(errors).map_err(Failure::failed)?;
-        if let (Some(rows), Some(map)) = (&by_region, json.as_object_mut()) {
-            map.insert("regions".into(), serde_json::to_value(rows).map_err(Failure::failed)?);
+        /// The whole image's errors, in their order, then the regions'.
+        #[derive(serde::Serialize)]
+        struct WithRegions<'a> {
+            #[serde(flatten)]
+            errors: &'a metrics::Errors,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            regions: Option<&'a [metrics::regions::RegionErrors]>,
         }
-        say!("{json}");
+        let json = WithRegions { errors: &errors, regions: by_region.as_deref() };
+        say!("{}", serde_json::to_string(&json).map_err(Failure::failed)?);
         return Ok(());
     }
     say!(

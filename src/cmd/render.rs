@@ -4,6 +4,7 @@
 use std::sync::atomic::Ordering;
 
 use lightsplit::job::{Job, Request};
+use lightsplit::{film, output};
 
 use crate::cli::RenderArgs;
 use crate::{default_output, load_scene, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
@@ -31,10 +32,13 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         layer: args.out.layer,
         exposure: args.out.exposure,
     };
-    let mut job = Job::new(&scene, &scene_filter, request, |name| std::env::var_os(name))?;
-    for warning in &job.warnings {
-        eprintln!("warning: {warning}");
+    // Said before the job's checks, as a warning is (the output's name is checked first).
+    if let Ok(format) = film::Format::from_path(&request.output) {
+        if let Some(warning) = output::exposure_warning(request.exposure, format) {
+            eprintln!("warning: {warning}");
+        }
     }
+    let mut job = Job::new(&scene, &scene_filter, request, |name| std::env::var_os(name))?;
     let bar = progress_bar(job.total_samples(), args.run.json);
     bar.inc(job.resumed_samples());
     // A signal while rendering stops the render after its pass, and what it has is written; a

@@ -251,6 +251,27 @@ impl Film {
         }
     }
 
+    /// Takes a buffer's values out of the film (as [`Film::values`]), leaving it empty.
+    pub fn take_values(&mut self, buffer: Buffer) -> Vec<f32> {
+        let image = |i: &mut super::Image| -> Vec<f32> {
+            let pixels = std::mem::take(&mut i.pixels);
+            *i = super::Image::empty();
+            bytemuck::allocation::cast_vec(pixels)
+        };
+        match buffer {
+            B::Raw => image(&mut self.raw),
+            B::Component(c) => image(&mut self.components[c]),
+            B::Albedo => image(&mut self.albedo),
+            B::Normal => image(&mut self.normal),
+            B::Depth => std::mem::take(&mut self.depth),
+            B::Object => std::mem::take(&mut self.object),
+            B::Coverage => std::mem::take(&mut self.coverage),
+            B::Alpha => std::mem::take(&mut self.alpha),
+            B::Variance => std::mem::take(&mut self.variance),
+            B::ComponentVariance(c) => std::mem::take(&mut self.component_variance[c]),
+        }
+    }
+
     /// Replaces a buffer with `values` (pixel after pixel, as [`Film::values`]), or empties it.
     pub fn set_values(&mut self, buffer: Buffer, values: Vec<f32>) {
         let image = |v: Vec<f32>, (w, h): (u32, u32)| {

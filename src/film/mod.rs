@@ -380,7 +380,21 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
     if let Some(f) = indirect_filtered {
         rgb(["indirect_filtered.R", "indirect_filtered.G", "indirect_filtered.B"], f);
     }
-    out.extend(layer_channels(&film, ""));
+    let mut film = film;
+    for layer in &layers::LAYERS {
+        // Each buffer leaves the film as its channels are made.
+        let values = film.take_values(layer.buffer);
+        if values.is_empty() {
+            continue;
+        }
+        if layer.width() == 1 {
+            out.push((layer.channels[0].to_string(), values));
+            continue;
+        }
+        for (c, name) in layer.channels.iter().enumerate() {
+            out.push((name.to_string(), values.iter().skip(c).step_by(layer.width()).copied().collect()));
+        }
+    }
     out
 }
 
@@ -425,16 +439,20 @@ pub fn film_from_layers(
     for layer in layers::LAYERS.iter().filter(|l| wanted(l.group)) {
         let found: Vec<Option<&Vec<f32>>> =
             layer.channels.iter().map(|c| find(&format!("{prefix}{c}"))).collect();
-        let optional =
-            lenient && (!layer.required || layer.group == layers::Group::Variance && !has_variance);
+        let variance = layer.group == layers::Group::Variance;
+        if lenient && variance && !has_variance {
+            // A file written before the variance layers existed: none.
+            continue;
+        }
+        // The variances, once one is there, are all required.
+        let optional = lenient && !layer.required && !variance;
         if let Some(at) = found.iter().position(Option::is_none) {
             if optional {
-                if layer.group != layers::Group::Variance {
-                    film.set_values(layer.buffer, vec![layer.missing; n * layer.width()]);
-                }
+                film.set_values(layer.buffer, vec![layer.missing; n * layer.width()]);
                 continue;
             }
-            return Err(format!("no `{prefix}{}` channel (not a lightsplit render?)", layer.channels[at]));
+            let hint = if lenient { " (not a lightsplit render?)" } else { "" };
+            return Err(format!("no `{prefix}{}` channel{hint}", layer.channels[at]));
         }
         let found: Vec<&Vec<f32>> = found.into_iter().flatten().collect();
         if found.iter().any(|c| c.len() != n) {
@@ -788,6 +806,13 @@ pub fn read_object_ids(path: &Path) -> Result<(u32, u32, Vec<f32>), ReadError> {
             path.display()
         ))
     })?;
+    if let Some(at) = ids.iter().position(|&o| !(o.is_finite() && o >= -1.0 && o.fract() == 0.0)) {
+        return Err(ReadError(format!(
+            "{}: `objectid.ID` at pixel {at} is {}, not an object (a whole number from -1)",
+            path.display(),
+            ids[at]
+        )));
+    }
     Ok((width, height, ids))
 }
 
@@ -1040,6 +1065,25 @@ mod tests {
             assert_eq!(&back.1, data, "{name}");
         }
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    /// The variance layers are all there or none: a file with some is damaged, one without any
+    /// was written before they existed.
+    #[test]
+    fn the_variance_layers_are_read_all_or_none() {
+        let film = Film::new(3, 2);
+        let channels = film_channels(film, Image::new(3, 2), None);
+        let without =
+            |name: &str| -> Channels { channels.iter().filter(|(n, _)| n != name).cloned().collect() };
+        let e = Film::from_channels(3, 2, &without("direct_variance.Y")).expect_err("one of them missing");
+        assert!(e.contains("direct_variance.Y"), "{e}");
+        let old: Channels = channels.iter().filter(|(n, _)| !n.contains("_variance")).cloned().collect();
+        let back = Film::from_channels(3, 2, &old).expect("a file of before the variances");
+        assert!(back.variance.is_empty() && back.component_variance.iter().all(Vec::is_empty));
+        let back = Film::from_channels(3, 2, &without("raw_variance.Y")).expect("read as none");
+        assert!(back.variance.is_empty() && back.component_variance.iter().all(Vec::is_empty));
+        let all = Film::from_channels(3, 2, &channels).expect("every layer");
+        assert_eq!(all.layers().count(), layers::LAYERS.len());
     }
 
     #[test]
