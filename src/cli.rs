@@ -14,7 +14,7 @@ use lightsplit::film::{Film, Format};
 use lightsplit::filter::{Overrides, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
-use lightsplit::scene::limits;
+use lightsplit::scene::{limits, Environment};
 
 use crate::Failure;
 
@@ -380,6 +380,11 @@ pub struct RenderArgs {
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
+    /// What lights the scene from infinity, replacing its sky or environment map (or the
+    /// default white sky of a model rendered directly): an HDRI (.hdr, .exr, .pfm), `white` (a
+    /// uniform sky of radiance 1) or `none`; its other lights and emission are kept.
+    #[arg(long, value_name = "FILE|white|none", value_parser = environment)]
+    pub environment: Option<Environment>,
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     pub debug_nonfinite: bool,
@@ -476,6 +481,14 @@ fn depth(text: &str) -> Result<u32, String> {
 fn threads(text: &str) -> Result<usize, String> {
     let max = limits::max_threads();
     number(text, |n| (1..=max).contains(&n), &format!("1 to {max} (16 a core)"))
+}
+
+/// `--environment`: `white`, `none` or a file.
+fn environment(text: &str) -> Result<Environment, String> {
+    if text.is_empty() {
+        return Err("an HDRI's path, `white` or `none`".into());
+    }
+    Ok(Environment::parse(text))
 }
 
 /// `--exposure`: any finite number of stops.

@@ -185,6 +185,68 @@ fn the_cornell_box_from_gltf_renders_as_from_obj() {
     assert!(level.min_element() > 0.05, "not black: {level}");
 }
 
+/// A model with emission and no punctual light is lit by the default environment too (its
+/// emission kept), said in a note; `--environment` replaces what lights it from infinity: none,
+/// a white sky, or an HDRI (which becomes one of the render's inputs); a file it cannot read is
+/// bad input.
+#[test]
+fn the_default_environment_lights_an_emissive_model_and_environment_replaces_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.json["materials"] = json!([{"emissiveFactor": [0.02, 0.02, 0.02]}]);
+    doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    doc.node(json!({"mesh": 0}), true);
+    std::fs::write(dir.path().join("m.glb"), doc.glb()).expect("write");
+    let mut s = scene::load(&dir.path().join("m.glb")).expect("loads");
+    assert!(
+        s.notes.iter().any(|n| n.contains("default environment") && n.contains("its own emission")),
+        "{:?}",
+        s.notes
+    );
+    assert_eq!(s.lights, [Light::Sky { radiance: Vec3::ONE, diffuse_source: true }]);
+    s.set_environment(&scene::Environment::None).expect("none");
+    assert!(s.lights.is_empty());
+    let hdr = dir.path().join("e.pfm");
+    std::fs::write(&hdr, pfm(4, 2, &[0.5; 24])).expect("write");
+    s.set_environment(&scene::Environment::File(hdr.clone())).expect("an HDRI");
+    assert!(matches!(s.lights[..], [Light::Environment { .. }]), "{:?}", s.lights);
+    assert!(s.inputs.contains(&hdr));
+    let render = |env: &str| {
+        let o = Command::new(env!("CARGO_BIN_EXE_lightsplit"))
+            .args([
+                "render",
+                "m.glb",
+                "-o",
+                &format!("{env}.exr"),
+                "--spp",
+                "4",
+                "--width",
+                "32",
+                "--height",
+                "24",
+            ])
+            .args(["--environment", env])
+            .current_dir(dir.path())
+            .output()
+            .expect("runs");
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    for env in ["none", "white", "e.pfm"] {
+        let (code, err) = render(env);
+        assert_eq!(code, Some(0), "{env}: {err}");
+    }
+    let image = |name: &str| lightsplit::film::read_image(&dir.path().join(name)).expect("reads");
+    // Without an environment only the quad's emission is seen; the sky of the PFM is 0.5.
+    let (none, pfm) = (image("none.exr"), image("e.pfm.exr"));
+    assert_eq!(none.get(0, 0), Vec3::ZERO);
+    assert!((none.get(16, 12) - Vec3::splat(0.02)).abs().max_element() < 1e-6, "{}", none.get(16, 12));
+    assert!((pfm.get(0, 0) - Vec3::splat(0.5)).abs().max_element() < 1e-6, "{}", pfm.get(0, 0));
+    assert_eq!(image("white.exr").get(0, 0), Vec3::ONE);
+    let (code, err) = render("missing.hdr");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--environment") && err.contains("missing.hdr"), "{err}");
+}
+
 /// `lightsplit render model.glb` renders the file itself: without a camera it frames the bounds,
 /// without lights it is lit by the default environment, and both are said.
 #[test]

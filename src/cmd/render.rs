@@ -10,7 +10,10 @@ use crate::cli::RenderArgs;
 use crate::{default_output, load_scene, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
 
 pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
-    let (scene, scene_filter) = load_scene(&args.scene)?;
+    let (mut scene, scene_filter) = load_scene(&args.scene)?;
+    if let Some(environment) = &args.environment {
+        scene.set_environment(environment)?;
+    }
     let request = Request {
         output: args.output.clone().unwrap_or_else(|| default_output(&args.scene)),
         width: args.width,

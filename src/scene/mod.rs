@@ -453,7 +453,58 @@ impl Scene {
     }
 }
 
+/// What lights a scene from infinity, as `render --environment` asks for it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Environment {
+    /// A latitude-longitude HDRI (`.hdr`, `.exr` or `.pfm`), at scale 1, its light direct
+    /// (an HDRI often holds a sun), as a scene file's environment light without keys.
+    File(PathBuf),
+    /// A uniform white sky of radiance 1: the default of a model rendered directly.
+    White,
+    /// Nothing at infinity: only the scene's own lights and emission.
+    None,
+}
+
+impl Environment {
+    /// `white`, `none`, or a file's path.
+    pub fn parse(text: &str) -> Environment {
+        match text {
+            "white" => Environment::White,
+            "none" => Environment::None,
+            path => Environment::File(PathBuf::from(path)),
+        }
+    }
+}
+
+impl Light {
+    /// Whether the light is at infinity in every direction (a sky or an environment map), as
+    /// `--environment` replaces it; a sun is a light of its own.
+    pub fn is_environment(&self) -> bool {
+        matches!(self, Light::Sky { .. } | Light::Environment { .. } | Light::CloudySky { .. })
+    }
+}
+
 impl Scene {
+    /// Replaces what lights the scene from infinity (its skies and environment maps, or the
+    /// default white sky of a model rendered directly) with `environment`; its other lights
+    /// and its emission are kept. A file becomes one of the scene's inputs.
+    pub fn set_environment(&mut self, environment: &Environment) -> Result<(), crate::error::InputError> {
+        let light = match environment {
+            Environment::None => None,
+            Environment::White => Some(Light::Sky { radiance: Vec3::ONE, diffuse_source: true }),
+            Environment::File(path) => {
+                let error = |e: String| crate::error::InputError(format!("--environment: {e}"));
+                limits::check_input_file(path).map_err(error)?;
+                let map = environment::EnvironmentMap::load(path, 1.0, 0.0).map_err(error)?;
+                self.inputs.push(path.clone());
+                Some(Light::Environment { map: Arc::new(map), diffuse_source: false })
+            }
+        };
+        self.lights.retain(|l| !l.is_environment());
+        self.lights.extend(light);
+        Ok(())
+    }
+
     /// The number of triangles over all meshes.
     pub fn triangle_count(&self) -> usize {
         self.shapes

@@ -635,8 +635,9 @@ fn part_mesh(primitive: &Primitive, part: &NodePrimitive, at: &Placement) -> Mes
 const WIDTH: u32 = 640;
 
 /// A glTF file as a whole scene (`lightsplit render model.glb`): its camera, or one framing its
-/// bounds from the front (+z, glTF's forward) and a little above; its lights, or with none (and
-/// nothing emissive) a uniform white sky of radiance 1, said in [`Scene::notes`].
+/// bounds from the front (+z, glTF's forward) and a little above; its lights, or with no
+/// punctual light a uniform white sky of radiance 1 (its emission kept), said in
+/// [`Scene::notes`] (`render --environment` changes it).
 pub fn scene(path: &Path) -> Result<Scene, SceneError> {
     let error = |e: String| SceneError::new(path, None, e);
     crate::scene::limits::check_input_file(path).map_err(error)?;
@@ -687,8 +688,13 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
     let stem = path.file_stem().map_or_else(|| "gltf".into(), |s| s.to_string_lossy().into_owned());
     let placed = place(&g, &stem, &at, 0, 0, crate::scene::DIFFUSE_ROUGHNESS, &mut object);
     let mut lights = placed.lights;
-    if lights.is_empty() && !placed.shapes.iter().any(Shape::is_emissive) {
-        notes.push("no lights: lit by the default environment, a uniform white sky of radiance 1".into());
+    if lights.is_empty() {
+        let emission =
+            if placed.shapes.iter().any(Shape::is_emissive) { ", and its own emission" } else { "" };
+        notes.push(format!(
+            "no lights: lit by the default environment, a uniform white sky of radiance 1{emission} \
+             (`--environment FILE.hdr|white|none` changes it)"
+        ));
         lights.push(Light::Sky { radiance: Vec3::ONE, diffuse_source: true });
     }
     let mut maps = vec![Maps::default(); placed.materials.len()];
