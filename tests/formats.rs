@@ -185,6 +185,33 @@ fn the_cornell_box_from_gltf_renders_as_from_obj() {
     assert!(level.min_element() > 0.05, "not black: {level}");
 }
 
+/// `KHR_materials_emissive_strength` scales the emissive factor past 1; an extension a file uses
+/// but does not require, and that is not read, is named in a note and the file loads.
+#[test]
+fn emissive_strength_scales_emission_and_unread_extensions_are_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.json["extensionsUsed"] = json!(["KHR_materials_emissive_strength", "KHR_materials_sheen"]);
+    doc.json["materials"] = json!([{
+        "emissiveFactor": [0.5, 0.25, 1.0],
+        "extensions": {
+            "KHR_materials_emissive_strength": {"emissiveStrength": 4.0},
+            "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0]}
+        }
+    }]);
+    doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    doc.node(json!({"mesh": 0}), true);
+    let path = doc.write_gltf(dir.path(), "strength");
+    let s = scene::load(&path).expect("loads");
+    assert_eq!(s.shapes[0].emission, Vec3::new(2.0, 1.0, 4.0));
+    assert!(
+        s.notes.iter().any(|n| n.contains("extensions not read") && n.contains("KHR_materials_sheen")),
+        "{:?}",
+        s.notes
+    );
+    assert!(s.notes.iter().all(|n| !n.contains("KHR_materials_emissive_strength")), "{:?}", s.notes);
+}
+
 /// A model with emission and no punctual light is lit by the default environment too (its
 /// emission kept), said in a note; `--environment` replaces what lights it from infinity: none,
 /// a white sky, or an HDRI (which becomes one of the render's inputs); a file it cannot read is

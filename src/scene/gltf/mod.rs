@@ -2,12 +2,13 @@
 //! crate and its bytes read by [`data`]:
 //! the default scene's node hierarchy with its transforms, triangle meshes with indices, normals
 //! and texture coordinates, the metallic-roughness materials with their textures, emission, the
-//! first camera, and `KHR_lights_punctual` lights. Meshes come out in their own coordinates,
+//! first camera, `KHR_lights_punctual` lights and `KHR_materials_emissive_strength`. Meshes come out in their own coordinates,
 //! read once, with each node's transform into the glTF's world (f64); the rest comes out in that
 //! world. [`crate::scene::file`] and [`scene`] place it in a scene, where a mesh that several
 //! nodes use is shared (instanced), not copied.
 //!
-//! Not read (yet): occlusion, alpha modes, texture transforms, emissive strength,
+//! Not read (yet): occlusion, alpha modes, texture transforms, the other material extensions
+//! (named in a note when a file uses them),
 //! skins, morph targets, animations, orthographic cameras, points and lines.
 
 use std::collections::HashMap;
@@ -154,6 +155,9 @@ pub struct Gltf {
     pub notes: Vec<String>,
 }
 
+/// The extensions read (the others a file uses are named in a note).
+const READ_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_materials_emissive_strength"];
+
 /// Reads a glTF or GLB file. Every problem is one message: what is wrong, and where in the file
 /// (which buffer, accessor, mesh or primitive).
 pub fn load(path: &Path) -> Result<Gltf, String> {
@@ -184,6 +188,13 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     let root = document.as_json();
     let mut buffers = Buffers::load(root, blob, base)?;
     let mut notes = Vec::new();
+    // An extension the file uses but does not require, and that is not read, is named: the
+    // model renders without it (one it requires and is not read, the crate refuses).
+    let unread: Vec<&str> =
+        root.extensions_used.iter().map(String::as_str).filter(|e| !READ_EXTENSIONS.contains(e)).collect();
+    if !unread.is_empty() {
+        notes.push(format!("extensions not read (the model renders without them): {}", unread.join(", ")));
+    }
 
     // Images: decoded when a material first uses them, once per colour space.
     let mut images: Vec<Arc<Image>> = Vec::new();
@@ -210,7 +221,9 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             .metallic_roughness_texture()
             .map(|t| image_of(t.texture(), false).map(|i| i.0))
             .transpose()?;
-        let mut emission = Vec3::from(m.emissive_factor());
+        // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        let mut emission = Vec3::from(m.emissive_factor()) * strength;
         if let Some(t) = m.emissive_texture() {
             emission *= image_of(t.texture(), true)?.1.mean();
         }
