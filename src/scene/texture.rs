@@ -45,10 +45,12 @@ pub enum Texture {
         seed: u32,
     },
     /// An image (linear RGB, top row first) over the unit square of (u, v), repeated `repeat`
-    /// times in each direction; v = 0 is the image's bottom row.
+    /// times in each direction; v = 0 is the image's bottom row. `transform`, when there is
+    /// one, maps (u, v) first (a glTF texture's `KHR_texture_transform`, in these coordinates).
     Image {
         image: Arc<Image>,
         repeat: Vec2,
+        transform: Option<glam::Affine2>,
     },
 }
 
@@ -68,8 +70,12 @@ impl Texture {
     /// Half the size of a texel in texture coordinates (an image's; 1 for anything else).
     pub fn texel(&self) -> f32 {
         match self {
-            Texture::Image { image, repeat } => {
-                0.5 / (image.width.max(image.height) as f32 * repeat.max_element().max(1e-6)).max(1.0)
+            Texture::Image { image, repeat, transform } => {
+                // How much the transform stretches (u, v) at most.
+                let stretch =
+                    transform.map_or(1.0, |t| t.matrix2.x_axis.length().max(t.matrix2.y_axis.length()));
+                0.5 / (image.width.max(image.height) as f32 * (repeat.max_element() * stretch).max(1e-6))
+                    .max(1.0)
             }
             _ => 1.0,
         }
@@ -107,7 +113,9 @@ impl Texture {
         match self {
             Texture::Constant(c) => *c,
             Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. } => a.lerp(*b, self.scalar(p, uv)),
-            Texture::Image { image, repeat } => bilinear(image, uv * *repeat),
+            Texture::Image { image, repeat, transform } => {
+                bilinear(image, transform.map_or(uv, |t| t.transform_point2(uv)) * *repeat)
+            }
         }
     }
 
@@ -219,7 +227,7 @@ mod tests {
         let mut img = Image::new(2, 2);
         img.set(0, 0, Vec3::new(1.0, 0.0, 0.0)); // top left
         img.set(0, 1, Vec3::new(0.0, 1.0, 0.0)); // bottom left
-        let t = Texture::Image { image: Arc::new(img), repeat: Vec2::ONE };
+        let t = Texture::Image { image: Arc::new(img), repeat: Vec2::ONE, transform: None };
         // Pixel centres: (0.25, 0.75) is the top-left pixel, (0.25, 0.25) the bottom-left.
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.75)), Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.25)), Vec3::new(0.0, 1.0, 0.0));

@@ -348,8 +348,11 @@ pub(super) fn add(
                                 let image = read(t).map_err(|e| {
                                     SceneError::new(ctx.path, line, format!("mesh `{file}`: {key}: {e}"))
                                 })?;
-                                out.textures
-                                    .push(crate::scene::texture::Texture::Image { image, repeat: Vec2::ONE });
+                                out.textures.push(crate::scene::texture::Texture::Image {
+                                    image,
+                                    repeat: Vec2::ONE,
+                                    transform: None,
+                                });
                                 out.libraries.push(t.clone());
                                 let k = out.textures_before + out.textures.len() as u32 - 1;
                                 images.insert((t.clone(), linear), k);

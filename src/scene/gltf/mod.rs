@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 mod data;
 
-use glam::{DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
+use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 
 use crate::scene::image::Image;
 use crate::scene::texture::Texture;
@@ -147,6 +147,9 @@ pub struct Gltf {
     pub materials: Vec<PbrMaterial>,
     /// Images by texture use: `(image, srgb)` decoded to linear RGB.
     pub images: Vec<Arc<Image>>,
+    /// Textures: an image of [`Gltf::images`] and the transform of its (u, v)
+    /// ([`uv_transform`]); the materials' textures index these.
+    pub textures: Vec<(usize, Option<Affine2>)>,
     pub camera: Option<GltfCamera>,
     pub lights: Vec<PunctualLight>,
     /// The external files it read (buffers, images), besides itself.
@@ -155,8 +158,25 @@ pub struct Gltf {
     pub notes: Vec<String>,
 }
 
+/// `KHR_texture_transform`'s map of glTF's (u, v) (`offset`, then `rotation` in radians, then
+/// `scale`, as the extension's matrix `T R S`) in the renderer's (u, v), whose v runs up the
+/// image where glTF's runs down: v flipped, mapped, flipped back.
+pub fn uv_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Affine2 {
+    let (s, c) = rotation.sin_cos();
+    // The columns (cos, -sin) and (sin, cos): the extension's GLSL matrix read as rows, as the
+    // Khronos viewer applies it (TextureTransformTest's arrows point at its check marks so).
+    let gltf = Affine2::from_mat2_translation(
+        glam::Mat2::from_cols(Vec2::new(c, -s), Vec2::new(s, c)) * glam::Mat2::from_diagonal(scale),
+        offset,
+    );
+    let flip =
+        Affine2::from_mat2_translation(glam::Mat2::from_diagonal(Vec2::new(1.0, -1.0)), Vec2::new(0.0, 1.0));
+    flip * gltf * flip
+}
+
 /// The extensions read (the others a file uses are named in a note).
-const READ_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_materials_emissive_strength"];
+const READ_EXTENSIONS: &[&str] =
+    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_texture_transform"];
 
 /// Reads a glTF or GLB file. Every problem is one message: what is wrong, and where in the file
 /// (which buffer, accessor, mesh or primitive).
@@ -211,21 +231,63 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         Ok((images.len() - 1, image))
     };
 
+    // Textures: an image and the transform of its (u, v), once per pair.
+    let mut textures: Vec<(usize, Option<Affine2>)> = Vec::new();
+    let mut texture_of = |texture: gltf::Texture,
+                          transform: Option<gltf::texture::TextureTransform>,
+                          tex_coord: u32,
+                          srgb: bool,
+                          notes: &mut Vec<String>|
+     -> Result<(usize, Arc<Image>), String> {
+        let (image, pixels) = image_of(texture, srgb)?;
+        let transform = match transform {
+            None => None,
+            Some(t) => {
+                if t.tex_coord().is_some_and(|k| k != 0) || tex_coord != 0 {
+                    notes.push(
+                        "a texture reads a second set of texture coordinates, not read: the first is used"
+                            .into(),
+                    );
+                }
+                let values = [t.offset()[0], t.offset()[1], t.rotation(), t.scale()[0], t.scale()[1]];
+                if !values.iter().all(|v| v.is_finite()) {
+                    return Err("a texture transform that is not finite".into());
+                }
+                Some(uv_transform(t.offset().into(), t.rotation(), t.scale().into()))
+            }
+        };
+        let key = (image, transform);
+        let at = match textures.iter().position(|k| *k == key) {
+            Some(at) => at,
+            None => {
+                textures.push(key);
+                textures.len() - 1
+            }
+        };
+        Ok((at, pixels))
+    };
+
     let mut materials = Vec::new();
     for m in document.materials() {
         let pbr = m.pbr_metallic_roughness();
         let [r, g, b, _] = pbr.base_color_factor();
-        let base_color_texture =
-            pbr.base_color_texture().map(|t| image_of(t.texture(), true).map(|i| i.0)).transpose()?;
+        let base_color_texture = pbr
+            .base_color_texture()
+            .map(|t| {
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes).map(|t| t.0)
+            })
+            .transpose()?;
         let metallic_roughness_texture = pbr
             .metallic_roughness_texture()
-            .map(|t| image_of(t.texture(), false).map(|i| i.0))
+            .map(|t| {
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), false, &mut notes).map(|t| t.0)
+            })
             .transpose()?;
         // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
         let strength = m.emissive_strength().unwrap_or(1.0);
         let mut emission = Vec3::from(m.emissive_factor()) * strength;
         if let Some(t) = m.emissive_texture() {
-            emission *= image_of(t.texture(), true)?.1.mean();
+            emission *= texture_of(t.texture(), None, 0, true, &mut notes)?.1.mean();
         }
         let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
         let unit = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
@@ -252,7 +314,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             Some(t) if !t.scale().is_finite() => {
                 return Err(format!("material `{name}`: a normal map scale that is not finite"))
             }
-            Some(t) => Some((image_of(t.texture(), false)?.0, t.scale())),
+            Some(t) => Some((texture_of(t.texture(), None, 0, false, &mut notes)?.0, t.scale())),
             None => None,
         };
         materials.push(PbrMaterial {
@@ -273,6 +335,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         parts: Vec::new(),
         materials,
         images,
+        textures,
         camera: None,
         lights: Vec::new(),
         files: Vec::new(),
@@ -544,7 +607,11 @@ pub fn place(
     diffuse_from: f32,
     object: &mut dyn FnMut(&str) -> u32,
 ) -> Placed {
-    let textures = g.images.iter().map(|i| Texture::Image { image: i.clone(), repeat: Vec2::ONE }).collect();
+    let textures = g
+        .textures
+        .iter()
+        .map(|&(i, transform)| Texture::Image { image: g.images[i].clone(), repeat: Vec2::ONE, transform })
+        .collect();
     let mut out = Placed { textures, ..Placed::default() };
     let texture = |i: usize| first_texture + i as u32;
     let default = PbrMaterial::default();
@@ -735,4 +802,35 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
         maps,
         notes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn near(a: Vec2, b: Vec2) -> bool {
+        (a - b).abs().max_element() < 1e-6
+    }
+
+    /// `KHR_texture_transform` in the renderer's (u, v), whose v runs up where glTF's runs down.
+    #[test]
+    fn texture_transforms_map_gltf_coordinates_as_the_extension_says() {
+        // glTF (0.25, 0.25), the renderer's (0.25, 0.75): offset by half in u, to glTF's (0.75, 0.25).
+        let t = uv_transform(Vec2::new(0.5, 0.0), 0.0, Vec2::ONE);
+        assert!(near(t.transform_point2(Vec2::new(0.25, 0.75)), Vec2::new(0.75, 0.75)));
+        // Scale about glTF's origin, the image's top-left corner: glTF (0.5, 0.5) to (1, 1).
+        let t = uv_transform(Vec2::ZERO, 0.0, Vec2::splat(2.0));
+        assert!(near(t.transform_point2(Vec2::new(0.5, 0.5)), Vec2::new(1.0, 0.0)));
+        // A quarter turn: glTF's (1, 0) to (0, -1), the renderer's (1, 1) to (0, 2), the way
+        // TextureTransformTest's arrows point at its check marks.
+        let t = uv_transform(Vec2::ZERO, std::f32::consts::FRAC_PI_2, Vec2::ONE);
+        assert!(
+            near(t.transform_point2(Vec2::new(1.0, 1.0)), Vec2::new(0.0, 2.0)),
+            "{}",
+            t.transform_point2(Vec2::ONE)
+        );
+        // None at all: the identity.
+        let t = uv_transform(Vec2::ZERO, 0.0, Vec2::ONE);
+        assert!(near(t.transform_point2(Vec2::new(0.3, 0.8)), Vec2::new(0.3, 0.8)));
+    }
 }
