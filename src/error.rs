@@ -14,42 +14,25 @@ pub trait Classify: std::fmt::Display {
 #[error("{0}")]
 pub struct InputError(pub String);
 
-impl Classify for InputError {
-    fn is_input(&self) -> bool {
-        true
-    }
+/// `Classify` for error types that are always, or never, the input's fault.
+macro_rules! classified {
+    ($is_input:literal: $($t:ty),+ $(,)?) => {
+        $(impl Classify for $t {
+            fn is_input(&self) -> bool {
+                $is_input
+            }
+        })+
+    };
 }
 
-impl Classify for crate::scene::SceneError {
-    /// A scene file that cannot be read is always the input's fault.
-    fn is_input(&self) -> bool {
-        true
-    }
-}
-
-impl Classify for crate::part::MergeError {
-    /// Parts that do not make one render, or a part file that is not one.
-    fn is_input(&self) -> bool {
-        true
-    }
-}
+// A bad sentence, a scene file or an image that cannot be read, parts that do not make one render (or a
+// part file that is not one): the input's. A backend that cannot build a valid scene, threads
+// that cannot start, a stress row that cannot run: a failure of the program or the machine.
+classified!(true: InputError, crate::scene::SceneError, crate::film::ReadError, crate::part::MergeError);
+classified!(false: crate::accel::AccelError, crate::stress::StressError);
 
 impl Classify for crate::converge::ConvergeError {
     fn is_input(&self) -> bool {
         matches!(self, crate::converge::ConvergeError::Input(_))
-    }
-}
-
-impl Classify for crate::accel::AccelError {
-    /// A backend that cannot build a valid scene, or threads that cannot start.
-    fn is_input(&self) -> bool {
-        false
-    }
-}
-
-impl Classify for crate::stress::StressError {
-    /// A row that cannot run is a bug of the suite or the machine.
-    fn is_input(&self) -> bool {
-        false
     }
 }

@@ -87,23 +87,17 @@ fn classified(e: impl Classify) -> JobError {
     }
 }
 
-impl From<film::WriteError> for JobError {
-    fn from(e: film::WriteError) -> Self {
-        classified(e)
-    }
+/// A layer's error as a job's, by [`classified`].
+macro_rules! job_error_from {
+    ($($t:ty),+) => {
+        $(impl From<$t> for JobError {
+            fn from(e: $t) -> Self {
+                classified(e)
+            }
+        })+
+    };
 }
-
-impl From<OutputError> for JobError {
-    fn from(e: OutputError) -> Self {
-        classified(e)
-    }
-}
-
-impl From<RenderError> for JobError {
-    fn from(e: RenderError) -> Self {
-        classified(e)
-    }
-}
+job_error_from!(film::WriteError, OutputError, RenderError);
 
 /// A render, checked and ready to run.
 pub struct Job<'s> {

@@ -384,33 +384,31 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
     for layer in &layers::LAYERS {
         // Each buffer leaves the film as its channels are made.
         let values = film.take_values(layer.buffer);
-        if values.is_empty() {
-            continue;
-        }
-        if layer.width() == 1 {
-            out.push((layer.channels[0].to_string(), values));
-            continue;
-        }
-        for (c, name) in layer.channels.iter().enumerate() {
-            out.push((name.to_string(), values.iter().skip(c).step_by(layer.width()).copied().collect()));
+        if !values.is_empty() {
+            push_layer(&mut out, "", layer, values.into());
         }
     }
     out
+}
+
+/// Pushes a layer's values ([`Film::values`]) as its channels, each name after `prefix`: moved
+/// into its one channel when it has one, split pixel by pixel when it has three.
+fn push_layer(out: &mut Channels, prefix: &str, layer: &layers::LayerDef, values: std::borrow::Cow<[f32]>) {
+    let width = layer.width();
+    if width == 1 {
+        out.push((format!("{prefix}{}", layer.channels[0]), values.into_owned()));
+        return;
+    }
+    for (c, name) in layer.channels.iter().enumerate() {
+        out.push((format!("{prefix}{name}"), values.iter().skip(c).step_by(width).copied().collect()));
+    }
 }
 
 /// The channels of every layer `film` holds ([`layers::LAYERS`]), each name after `prefix`.
 pub fn layer_channels(film: &Film, prefix: &str) -> Channels {
     let mut out: Channels = Vec::new();
     for (layer, values) in film.layers() {
-        let width = layer.width();
-        for (c, name) in layer.channels.iter().enumerate() {
-            let channel = if width == 1 {
-                values.to_vec()
-            } else {
-                values.iter().skip(c).step_by(width).copied().collect()
-            };
-            out.push((format!("{prefix}{name}"), channel));
-        }
+        push_layer(&mut out, prefix, layer, values.into());
     }
     out
 }
@@ -820,12 +818,6 @@ pub fn read_object_ids(path: &Path) -> Result<(u32, u32, Vec<f32>), ReadError> {
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct ReadError(pub String);
-
-impl crate::error::Classify for ReadError {
-    fn is_input(&self) -> bool {
-        true
-    }
-}
 
 #[cfg(test)]
 mod tests {
