@@ -6,7 +6,7 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
-use super::bsdf::{alpha, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr};
+use super::bsdf::{alpha, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr, Principled, SheenLobe};
 use super::surface::{apply_height, apply_normal_map, Surface};
 use crate::math::Frame;
 use crate::scene::texture::Texture;
@@ -111,15 +111,15 @@ impl<'a> Shading<'a> {
     /// points to).
     #[inline(always)]
     pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, entering: bool, u: U) -> U::Output {
-        match self.scene.materials[self.shape.material as usize] {
-            Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
-            Material::Mirror { color } => u.with(&Mirror { color, n }),
-            Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
-            Material::Glossy { specular, roughness, base } => {
+        match &self.scene.materials[self.shape.material as usize] {
+            &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
+            &Material::Mirror { color } => u.with(&Mirror { color, n }),
+            &Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
+            &Material::Glossy { specular, roughness, base } => {
                 let lobes = GlossyLobes { specular, alpha: alpha(roughness), base: self.color(base) };
                 u.with(&Glossy { lobes, frame: Frame::new(n) })
             }
-            Material::Pbr { base_color, metallic, roughness, diffuse_from } => {
+            &Material::Pbr { base_color, metallic, roughness, diffuse_from } => {
                 let (metallic, roughness) = self.metal_rough(metallic, roughness);
                 let color = base_color * self.color(Vec3::ONE);
                 let lobes = GlossyLobes {
@@ -132,6 +132,28 @@ impl<'a> Shading<'a> {
                     base: color * (1.0 - metallic),
                     frame: Frame::new(n),
                     rough: roughness >= diffuse_from,
+                })
+            }
+            Material::Layered(l) => {
+                let (metallic, roughness) = self.metal_rough(l.metallic, l.roughness);
+                let layers = &l.layers;
+                u.with(&Principled {
+                    frame: Frame::new(n),
+                    entering,
+                    color: l.base_color * self.color(Vec3::ONE),
+                    metallic,
+                    alpha: alpha(roughness),
+                    f0: layers.f0,
+                    f90: layers.f90,
+                    transmission: layers.transmission,
+                    ior: layers.ior,
+                    thin: layers.thin,
+                    coat: layers.clearcoat,
+                    coat_alpha: alpha(layers.clearcoat_roughness),
+                    sheen: SheenLobe::new(layers.sheen_color, layers.sheen_roughness),
+                    sheen_roughness: layers.sheen_roughness,
+                    rough: roughness >= l.diffuse_from,
+                    coat_rough: layers.clearcoat_roughness >= l.diffuse_from,
                 })
             }
         }

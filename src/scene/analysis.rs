@@ -145,6 +145,12 @@ impl Analysis {
                     a.lobes.glossy_base = true;
                     a.lobes.diffuse = true;
                 }
+                Material::Layered(l) => {
+                    a.lobes.glossy = true;
+                    a.lobes.glossy_base = true;
+                    a.lobes.diffuse = true;
+                    a.lobes.glass |= l.layers.transmission > 0.0;
+                }
                 Material::Glossy { base, .. } => {
                     a.lobes.glossy = true;
                     a.lobes.glossy_base |= base.max_element() > 0.0 || scene.maps(m as u32).color.is_some();

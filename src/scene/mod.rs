@@ -146,6 +146,57 @@ pub enum Material {
     /// conductor) and the base from `base_color` to black. The GGX lobe is an S vertex below
     /// roughness `diffuse_from` and a D vertex from it up; the base is always D.
     Pbr { base_color: Vec3, metallic: f32, roughness: f32, diffuse_from: f32 },
+    /// glTF's metallic-roughness material with its layers (specular, ior, transmission,
+    /// clearcoat, sheen): [`crate::render::bsdf::Principled`].
+    Layered(Box<Layered>),
+}
+
+/// glTF's layered material: metallic-roughness and the layers of its material extensions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Layered {
+    pub base_color: Vec3,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// The roughness from which the specular lobe and the clearcoat count as diffuse.
+    pub diffuse_from: f32,
+    pub layers: Layers,
+}
+
+/// The factors of glTF's material extensions, as one layered BSDF reads them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Layers {
+    /// The dielectric's reflectance at normal incidence and at grazing
+    /// (`KHR_materials_specular`, `KHR_materials_ior`).
+    pub f0: Vec3,
+    pub f90: f32,
+    /// The index of refraction transmitted light bends by.
+    pub ior: f32,
+    /// The fraction of the dielectric's base transmitted instead of diffused.
+    pub transmission: f32,
+    /// Thin-walled (`KHR_materials_volume` absent or of thickness 0): transmitted light goes
+    /// straight through.
+    pub thin: bool,
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
+    pub sheen_color: Vec3,
+    pub sheen_roughness: f32,
+}
+
+impl Default for Layers {
+    /// No layer: glTF's plain metallic-roughness dielectric (index 1.5).
+    fn default() -> Self {
+        Layers {
+            f0: Vec3::splat(0.04),
+            f90: 1.0,
+            ior: 1.5,
+            transmission: 0.0,
+            thin: true,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Vec3::ZERO,
+            sheen_roughness: 0.0,
+        }
+    }
 }
 
 /// Triangles shared with the accelerators without copying. `positions` is 16 bytes a vertex

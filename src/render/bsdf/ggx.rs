@@ -11,9 +11,10 @@ use super::{Lobe, MIN_ALPHA};
 use crate::math::{cosine_hemisphere, luminance};
 
 /// The directional albedo of a GGX lobe with Schlick's Fresnel, split as f0 A + B (the
-/// "split-sum" table of real-time rendering): A and B by the cosine of the view and the GGX
-/// alpha, 32 x 32 cells, integrated once by sampling visible normals (256 stratified points a
-/// cell) and read bilinearly.
+/// "split-sum" table of real-time rendering): A and B by the cosine of the view (indexed by its
+/// square root, finer toward grazing, where the albedo changes fastest) and the GGX alpha (by
+/// its square root, the perceptual roughness, finer where the lobe is sharp), 32 x 32 cells, integrated once by sampling visible normals (1,024 stratified points a
+/// cell, crowded toward the steep normals) and read bilinearly.
 pub struct SpecularAlbedo {
     table: Vec<(f32, f32)>,
 }
@@ -31,21 +32,28 @@ impl SpecularAlbedo {
         let n = Self::N;
         let mut table = Vec::with_capacity(n * n);
         for j in 0..n {
-            let alpha = (j as f32 / (n - 1) as f32).max(MIN_ALPHA);
+            let y = j as f32 / (n - 1) as f32;
+            let alpha = (y * y).max(MIN_ALPHA);
             for i in 0..n {
-                let cos = (i as f32 / (n - 1) as f32).max(1e-3);
+                let x = i as f32 / (n - 1) as f32;
+                let cos = (x * x).max(1e-3);
                 let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
                 let g = GlossyLobes { specular: Vec3::ONE, alpha, base: Vec3::ZERO };
                 let (mut a, mut b) = (0.0f64, 0.0f64);
-                let k = 16;
+                let k = 32;
                 for s in 0..k * k {
-                    let u = Vec2::new(((s % k) as f32 + 0.5) / k as f32, ((s / k) as f32 + 0.5) / k as f32);
+                    // The radius on the projected disk, u.x = 1 - (1 - v)^2: strata crowd toward
+                    // its rim, where the steepest visible normals send light below the surface
+                    // (the tail that uniform strata miss at low alpha), each weighted by the
+                    // map's Jacobian 2 (1 - v).
+                    let v = ((s % k) as f32 + 0.5) / k as f32;
+                    let u = Vec2::new(1.0 - (1.0 - v) * (1.0 - v), ((s / k) as f32 + 0.5) / k as f32);
                     let wi = g.sample_specular(wo, u);
                     if wi.z <= 0.0 {
                         continue;
                     }
                     let h = (wo + wi).normalize_or_zero();
-                    let w = (g.g2(wo, wi) / g.g1(wo)) as f64;
+                    let w = (g.g2(wo, wi) / g.g1(wo)) as f64 * 2.0 * (1.0 - v) as f64;
                     let m = (1.0 - wo.dot(h)).clamp(0.0, 1.0) as f64;
                     let fresnel = m.powi(5);
                     a += w * (1.0 - fresnel);
@@ -58,11 +66,28 @@ impl SpecularAlbedo {
         SpecularAlbedo { table }
     }
 
+    /// The directional albedo of a lobe with Schlick's Fresnel from `f0` (normal incidence) to
+    /// `f90` (grazing), single scattering: f0 A + f90 B.
+    pub fn single(&self, f0: Vec3, f90: Vec3, cos: f32, alpha: f32) -> Vec3 {
+        let (a, b) = self.at(cos, alpha);
+        f0 * a + f90 * b
+    }
+
+    /// The factor that restores the energy single-scattering GGX loses between its microfacets
+    /// (Turquin 2019, "Practical multiple scattering compensation for microfacet models"):
+    /// 1 + f0 (1 - E) / E, E being the albedo of the lobe with a white Fresnel. A white metal
+    /// then reflects all the light; a dielectric lobe (small f0) gains little.
+    pub fn multiscatter(&self, f0: Vec3, cos: f32, alpha: f32) -> Vec3 {
+        let (a, b) = self.at(cos, alpha);
+        let e = (a + b).clamp(1e-3, 1.0);
+        Vec3::ONE + f0 * ((1.0 - e) / e)
+    }
+
     /// (A, B) at view cosine `cos` and alpha `alpha`, bilinearly.
     pub fn at(&self, cos: f32, alpha: f32) -> (f32, f32) {
         let n = Self::N;
-        let x = (cos.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
-        let y = (alpha.clamp(0.0, 1.0) * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let x = (cos.clamp(0.0, 1.0).sqrt() * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let y = (alpha.clamp(0.0, 1.0).sqrt() * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
         let (i, j) = (x as usize, y as usize);
         let (fx, fy) = (x - i as f32, y - j as f32);
         let t = |i: usize, j: usize| self.table[j * n + i];
@@ -82,14 +107,20 @@ pub struct GlossyLobes {
 
 /// Schlick's approximation of the Fresnel reflectance.
 fn schlick(f0: Vec3, cos: f32) -> Vec3 {
+    schlick_to(f0, Vec3::ONE, cos)
+}
+
+/// Schlick's Fresnel from `f0` at normal incidence to `f90` at grazing (glTF's
+/// `KHR_materials_specular` lowers f90 below 1).
+pub(super) fn schlick_to(f0: Vec3, f90: Vec3, cos: f32) -> Vec3 {
     let m = (1.0 - cos).clamp(0.0, 1.0);
     let m2 = m * m;
-    f0 + (Vec3::ONE - f0) * (m2 * m2 * m)
+    f0 + (f90 - f0) * (m2 * m2 * m)
 }
 
 impl GlossyLobes {
     /// GGX normal distribution of microfacet normal `m`.
-    fn d(&self, m: Vec3) -> f32 {
+    pub(super) fn d(&self, m: Vec3) -> f32 {
         if m.z <= 0.0 {
             return 0.0;
         }
@@ -108,12 +139,12 @@ impl GlossyLobes {
         0.5 * ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0)
     }
 
-    fn g1(&self, w: Vec3) -> f32 {
+    pub(super) fn g1(&self, w: Vec3) -> f32 {
         1.0 / (1.0 + self.lambda(w))
     }
 
     /// Height-correlated masking and shadowing.
-    fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub(super) fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
         1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
     }
 
@@ -154,8 +185,9 @@ impl GlossyLobes {
         self.g1(wo) * self.d(h) / (4.0 * wo.z)
     }
 
-    /// A direction from the GGX lobe by sampling a visible microfacet normal and reflecting.
-    pub fn sample_specular(&self, wo: Vec3, u: Vec2) -> Vec3 {
+    /// A microfacet normal seen from `wo` (above the surface), by the distribution of visible
+    /// normals: density G1(wo) max(0, wo.m) D(m) / wo.z.
+    pub fn visible_normal(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let a = self.alpha;
         // The view direction in the hemisphere configuration (alpha = 1).
         let vh = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
@@ -170,7 +202,12 @@ impl GlossyLobes {
         let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
         // Back to the ellipsoid configuration.
-        let m = Vec3::new(a * nh.x, a * nh.y, nh.z.max(0.0)).normalize();
+        Vec3::new(a * nh.x, a * nh.y, nh.z.max(0.0)).normalize()
+    }
+
+    /// A direction from the GGX lobe by sampling a visible microfacet normal and reflecting.
+    pub fn sample_specular(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        let m = self.visible_normal(wo, u);
         2.0 * wo.dot(m) * m - wo
     }
 

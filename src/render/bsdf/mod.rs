@@ -14,6 +14,8 @@ mod glass;
 mod glossy;
 mod mirror;
 mod pbr;
+mod principled;
+mod sheen;
 #[cfg(test)]
 mod tests;
 
@@ -23,6 +25,8 @@ pub use glass::Glass;
 pub use glossy::Glossy;
 pub use mirror::Mirror;
 pub use pbr::Pbr;
+pub use principled::{dielectric_f0, Principled};
+pub use sheen::SheenLobe;
 
 use glam::Vec3;
 
@@ -44,8 +48,9 @@ pub enum Lobe {
     Diffuse,
     /// Specular-like (S) with a density: a glossy surface's GGX lobe. Light sampling sees it.
     Specular,
-    /// Specular-like (S) in one direction only: a mirror, glass. Light sampling cannot see it,
-    /// and emission found after it takes no MIS weight.
+    /// Specular-like (S) that light sampling cannot see: in one direction only (a mirror,
+    /// glass), or through the surface (transmission, which next-event estimation never
+    /// reaches). Emission found after it takes no MIS weight.
     Delta,
 }
 

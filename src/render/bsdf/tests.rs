@@ -10,23 +10,31 @@ fn wo(theta_deg: f32) -> Vec3 {
     Vec3::new(t.sin(), 0.0, t.cos())
 }
 
-/// Checks a non-delta BSDF through the interface the integrator uses, at normal `n`: the
-/// directions `sample` gives follow `pdf` (restricted to above the surface, where `sample`
-/// gives directions), and each sample's pdf and weight are its lobe's pdf and f cos / pdf.
+/// Checks a BSDF's non-delta lobes through the interface the integrator uses, at normal `n`:
+/// the directions `sample` gives above the surface follow `pdf` (a direction through the
+/// surface counts as none), and each non-delta sample's pdf and weight are those of a lobe of
+/// its kind (several lobes may share a kind: the one of the sample's density), f cos / pdf.
 fn check_through_the_interface<B: Bsdf>(name: &str, b: &B, wo: Vec3, n: Vec3) {
-    let z = z_score(|s| b.sample(wo, s).map(|bs| bs.wi), |d| if n.dot(d) > 0.0 { b.pdf(wo, d) } else { 0.0 });
+    let above = |s: &mut crate::render::sampler::Sampler| {
+        b.sample(wo, s).filter(|bs| n.dot(bs.wi) > 0.0 && !bs.lobe.is_delta()).map(|bs| bs.wi)
+    };
+    let z = z_score(above, |d| if n.dot(d) > 0.0 { b.pdf(wo, d) } else { 0.0 });
     assert!(z < 4.0, "{name}: z = {z}");
     let mut s = crate::render::sampler::Sampler::new(3, 1, 4);
     let mut checked = 0;
-    for _ in 0..2000 {
+    // Until 2,000 non-delta samples are checked (a mostly transmitting BSDF gives few).
+    for _ in 0..100_000 {
+        if checked == 2000 {
+            break;
+        }
         let Some(bs) = b.sample(wo, &mut s) else { continue };
         let cos = n.dot(bs.wi);
-        if cos <= 1e-3 || bs.pdf <= 1e-3 {
+        if cos <= 1e-3 || bs.pdf <= 1e-3 || bs.lobe.is_delta() {
             continue;
         }
-        let mut lobe = None;
+        let mut lobe: Option<(Vec3, f32)> = None;
         b.eval_lobes(wo, bs.wi, |l, f, pdf| {
-            if l == bs.lobe {
+            if l == bs.lobe && lobe.is_none_or(|(_, p)| (p - bs.pdf).abs() > (pdf - bs.pdf).abs()) {
                 lobe = Some((f, pdf));
             }
         });
@@ -267,5 +275,117 @@ fn the_pbr_bsdf_samples_its_density_tags_its_lobe_and_keeps_energy() {
         let total: f32 = (0..n).filter_map(|_| white.sample(wo(theta), &mut s)).map(|b| b.weight.x).sum();
         let albedo = total / n as f32;
         assert!((albedo - 1.0).abs() < 0.02, "albedo {albedo} at {theta} degrees");
+    }
+}
+
+/// A layered BSDF at normal +z: a white dielectric base of roughness 0.5 with none of the
+/// layers, which each case then adds.
+fn principled() -> Principled {
+    let (f0, f90) = dielectric_f0(1.5, 1.0, Vec3::ONE);
+    Principled {
+        frame: Frame::new(Vec3::Z),
+        entering: true,
+        color: Vec3::ONE,
+        metallic: 0.0,
+        alpha: alpha(0.5),
+        f0,
+        f90,
+        transmission: 0.0,
+        ior: 1.5,
+        thin: false,
+        coat: 0.0,
+        coat_alpha: alpha(0.1),
+        sheen: SheenLobe::new(Vec3::ZERO, 0.5),
+        sheen_roughness: 0.5,
+        rough: false,
+        coat_rough: false,
+    }
+}
+
+/// The layered BSDF's cases: name, BSDF.
+fn layered_cases() -> Vec<(&'static str, Principled)> {
+    let p = principled();
+    vec![
+        ("dielectric", p),
+        ("rough metal", Principled { metallic: 1.0, alpha: alpha(0.8), ..p }),
+        ("half metal", Principled { metallic: 0.5, alpha: alpha(0.3), ..p }),
+        ("clearcoat", Principled { coat: 1.0, coat_alpha: alpha(0.3), ..p }),
+        ("rough clearcoat", Principled { coat: 0.7, coat_alpha: alpha(0.6), ..p }),
+        ("sheen", Principled { sheen: SheenLobe::new(Vec3::ONE, 0.4), sheen_roughness: 0.4, ..p }),
+        ("smooth sheen", Principled { sheen: SheenLobe::new(Vec3::ONE, 0.0), sheen_roughness: 0.0, ..p }),
+        ("specular colour", Principled { f0: Vec3::new(0.2, 0.04, 0.01), f90: 0.6, ..p }),
+        ("transmission", Principled { transmission: 1.0, alpha: alpha(0.3), ..p }),
+        ("thin transmission", Principled { transmission: 0.6, thin: true, alpha: alpha(0.4), ..p }),
+        (
+            "everything",
+            Principled {
+                metallic: 0.3,
+                transmission: 0.5,
+                coat: 0.5,
+                sheen: SheenLobe::new(Vec3::splat(0.8), 0.6),
+                sheen_roughness: 0.6,
+                ..p
+            },
+        ),
+    ]
+}
+
+/// The mean sample weight of `b` seen from `wo`, refraction counted at the radiance it carries
+/// (without the 1 / eta^2 of crossing into the other medium), with its standard error, over
+/// `n` samples.
+fn albedo_of(b: &Principled, wo: Vec3, n: usize) -> (f64, f64) {
+    let mut s = crate::render::sampler::Sampler::new(11, 7, 5);
+    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        let Some(bs) = b.sample(wo, &mut s) else { continue };
+        let scale = match (bs.wi.z < 0.0 && !b.thin, b.entering) {
+            (true, true) => b.ior * b.ior,
+            (true, false) => 1.0 / (b.ior * b.ior),
+            (false, _) => 1.0,
+        };
+        let w = (bs.weight.x * scale) as f64;
+        sum += w;
+        sum2 += w * w;
+    }
+    let mean = sum / n as f64;
+    let var = (sum2 / n as f64 - mean * mean).max(0.0);
+    (mean, (var / n as f64).sqrt())
+}
+
+/// The furnace test of every layer: a white, non-absorbing layered material reflects and
+/// transmits all the light at every view angle, within 4 standard errors and the accuracy of
+/// the albedo tables (0.5%, the largest table error seen, at 85 degrees, 0.3%).
+#[test]
+fn white_layered_materials_keep_all_the_light() {
+    let inside = Principled { transmission: 1.0, entering: false, alpha: alpha(0.2), ..principled() };
+    for (name, b) in layered_cases().into_iter().chain([("seen from inside", inside)]) {
+        if name == "specular colour" || name == "everything" {
+            continue; // not white
+        }
+        let b = Principled { color: Vec3::ONE, ..b };
+        for theta in [0.0, 30.0, 60.0, 75.0, 85.0] {
+            let (albedo, error) = albedo_of(&b, wo(theta), 100_000);
+            let tolerance = 4.0 * error + 0.005;
+            assert!((albedo - 1.0).abs() < tolerance, "{name} at {theta} degrees: albedo {albedo} +- {error}");
+        }
+    }
+}
+
+/// Every layered case samples its reflecting lobes by their densities, through the interface
+/// the integrator uses, and its transmitted directions by the transmission density.
+#[test]
+fn the_layered_bsdf_samples_its_density() {
+    for (name, b) in layered_cases() {
+        for theta in [20.0, 70.0] {
+            check_through_the_interface(name, &b, wo(theta), Vec3::Z);
+            if b.transmission > 0.0 {
+                let wo = wo(theta);
+                let z = z_score(
+                    |s| b.sample(wo, s).map(|bs| bs.wi).filter(|d| d.z < 0.0),
+                    |d| b.transmission_pdf(wo, d),
+                );
+                assert!(z < 4.0, "{name} transmission at {theta}: z = {z}");
+            }
+        }
     }
 }

@@ -22,8 +22,8 @@ use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 use crate::scene::image::Image;
 use crate::scene::texture::Texture;
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Instance, Light, Maps, Material, Mesh, RenderSettings, Scene, SceneError,
-    Shape,
+    Camera, FilmSettings, Geometry, Instance, Layered, Layers, Light, Maps, Material, Mesh, RenderSettings, Scene,
+    SceneError, Shape,
 };
 use data::Buffers;
 use gltf::mesh::{Mode, Semantic};
@@ -84,6 +84,8 @@ pub struct PbrMaterial {
     pub emission: Vec3,
     /// A tangent-space normal map (linear) and its scale.
     pub normal_texture: Option<(usize, f32)>,
+    /// The material extensions' layers, when it has any.
+    pub layers: Option<Layers>,
 }
 
 impl PbrMaterial {
@@ -98,6 +100,7 @@ impl PbrMaterial {
             && self.metallic_roughness_texture.is_none()
             && self.normal_texture.is_none()
             && (self.base_color_texture.is_none() || self.base_color == Vec3::ONE)
+            && self.layers.is_none()
     }
 }
 
@@ -113,6 +116,7 @@ impl Default for PbrMaterial {
             metallic_roughness_texture: None,
             emission: Vec3::ZERO,
             normal_texture: None,
+            layers: None,
         }
     }
 }
@@ -175,8 +179,22 @@ pub fn uv_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Affine2 {
 }
 
 /// The extensions read (the others a file uses are named in a note).
-const READ_EXTENSIONS: &[&str] =
-    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_texture_transform"];
+const READ_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_clearcoat",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_sheen",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
+    "KHR_texture_transform",
+];
+
+/// The extensions read here from the material's JSON, which the `gltf` crate does not know (it
+/// refuses a file that requires them, so they are taken off the required list first).
+const READ_RAW: &[&str] = &["KHR_materials_clearcoat", "KHR_materials_sheen"];
 
 /// Reads a glTF or GLB file. Every problem is one message: what is wrong, and where in the file
 /// (which buffer, accessor, mesh or primitive).
@@ -189,7 +207,8 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| format!("not valid glTF: {e}"))?;
     // The crate's validation reads a primitive's POSITION accessor before it checks that the
     // accessor exists (and panics if it does not): that one index is checked first.
-    let json = document.into_json();
+    let mut json = document.into_json();
+    json.extensions_required.retain(|e| !READ_RAW.contains(&e.as_str()));
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (k, primitive) in mesh.primitives.iter().enumerate() {
             for (semantic, a) in &primitive.attributes {
@@ -270,13 +289,22 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     let mut materials = Vec::new();
     for m in document.materials() {
         let pbr = m.pbr_metallic_roughness();
-        let [r, g, b, _] = pbr.base_color_factor();
-        let base_color_texture = pbr
-            .base_color_texture()
+        let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
+        let spec_gloss = m.pbr_specular_glossiness();
+        let [r, g, b, _] = match &spec_gloss {
+            Some(sg) => sg.diffuse_factor(),
+            None => pbr.base_color_factor(),
+        };
+        let color_texture = match &spec_gloss {
+            Some(sg) => sg.diffuse_texture(),
+            None => pbr.base_color_texture(),
+        };
+        let base_color_texture = color_texture
             .map(|t| {
                 texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes).map(|t| t.0)
             })
             .transpose()?;
+        let (metallic, roughness, layers) = layers(&m, &name, &mut notes)?;
         let metallic_roughness_texture = pbr
             .metallic_roughness_texture()
             .map(|t| {
@@ -289,9 +317,8 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         if let Some(t) = m.emissive_texture() {
             emission *= texture_of(t.texture(), None, 0, true, &mut notes)?.1.mean();
         }
-        let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
         let unit = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
-        if ![r, g, b, pbr.metallic_factor(), pbr.roughness_factor()].into_iter().all(unit) {
+        if ![r, g, b, metallic, roughness].into_iter().all(unit) {
             return Err(format!("material `{name}`: a colour, metallic or roughness factor outside [0, 1]"));
         }
         if !emission.is_finite() || emission.min_element() < 0.0 {
@@ -321,11 +348,12 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             name,
             base_color: Vec3::new(r, g, b),
             base_color_texture,
-            metallic: pbr.metallic_factor(),
-            roughness: pbr.roughness_factor(),
+            metallic,
+            roughness,
             metallic_roughness_texture,
             emission,
             normal_texture,
+            layers,
         });
     }
 
@@ -402,6 +430,131 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     }
     out.files = std::mem::take(&mut buffers.files);
     Ok(out)
+}
+
+/// A number of an extension's JSON object: `default` when absent, an error naming the material
+/// when not a finite number in `range`.
+fn number(
+    object: &serde_json::Value,
+    key: &str,
+    default: f32,
+    range: std::ops::RangeInclusive<f32>,
+    name: &str,
+) -> Result<f32, String> {
+    match object.get(key) {
+        None => Ok(default),
+        Some(v) => match v.as_f64().map(|v| v as f32) {
+            Some(v) if v.is_finite() && range.contains(&v) => Ok(v),
+            _ => Err(format!(
+                "material `{name}`: `{key}` is {v}, not a number in [{}, {}]",
+                range.start(),
+                range.end()
+            )),
+        },
+    }
+}
+
+/// A colour of an extension's JSON object (three numbers in [0, 1]), `default` when absent.
+fn color(object: &serde_json::Value, key: &str, default: Vec3, name: &str) -> Result<Vec3, String> {
+    let Some(v) = object.get(key) else { return Ok(default) };
+    let c: Option<Vec<f32>> =
+        v.as_array().filter(|a| a.len() == 3).and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect());
+    match c {
+        Some(c) if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) => Ok(Vec3::new(c[0], c[1], c[2])),
+        _ => Err(format!("material `{name}`: `{key}` is {v}, not three numbers in [0, 1]")),
+    }
+}
+
+/// A material's metallic and roughness factors and the layers of its extensions (`None` when
+/// it has none of them): `KHR_materials_specular` and `_ior` give the dielectric's Fresnel,
+/// `_transmission` and `_volume` what crosses it, `_clearcoat` and `_sheen` the layers on top
+/// (these two read from the JSON, which the crate does not know). A specular-glossiness
+/// material is converted as Khronos' glTF-Transform converts it: its diffuse colour the base,
+/// metallic 0, roughness 1 - glossiness, and its specular colour the dielectric's f0 (the
+/// converter's index of 1000 and specular colour). What is not read (the extensions'
+/// textures, volume absorption, unlit) is named in `notes`.
+fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f32, f32, Option<Layers>), String> {
+    let pbr = m.pbr_metallic_roughness();
+    let mut layers = Layers::default();
+    let mut any = false;
+    let mut unread = Vec::new();
+    let (mut metallic, mut roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
+    if let Some(sg) = m.pbr_specular_glossiness() {
+        let specular = Vec3::from(sg.specular_factor());
+        let glossiness = sg.glossiness_factor();
+        if !specular.is_finite() || !glossiness.is_finite() {
+            return Err(format!("material `{name}`: a specular or glossiness factor that is not finite"));
+        }
+        (metallic, roughness) = (0.0, (1.0 - glossiness).clamp(0.0, 1.0));
+        layers.f0 = specular.clamp(Vec3::ZERO, Vec3::ONE);
+        any = true;
+        if sg.specular_glossiness_texture().is_some() {
+            unread.push("its specular-glossiness texture");
+        }
+    }
+    let ior = m.ior().unwrap_or(1.5);
+    if !(ior.is_finite() && (1.0..=10.0).contains(&ior)) {
+        return Err(format!("material `{name}`: an index of refraction of {ior}, outside [1, 10]"));
+    }
+    layers.ior = ior;
+    if let Some(sp) = m.specular() {
+        let (factor, tint) = (sp.specular_factor(), Vec3::from(sp.specular_color_factor()));
+        if !(factor.is_finite() && (0.0..=1.0).contains(&factor)) || !tint.is_finite() || tint.min_element() < 0.0 {
+            return Err(format!("material `{name}`: a specular factor outside [0, 1] or a negative specular colour"));
+        }
+        (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, factor, tint);
+        any = true;
+        if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
+            unread.push("its specular textures");
+        }
+    } else if m.pbr_specular_glossiness().is_none() && m.ior().is_some() {
+        (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, 1.0, Vec3::ONE);
+        any = true;
+    }
+    if let Some(t) = m.transmission() {
+        let factor = t.transmission_factor();
+        if !(factor.is_finite() && (0.0..=1.0).contains(&factor)) {
+            return Err(format!("material `{name}`: a transmission factor outside [0, 1]"));
+        }
+        layers.transmission = factor;
+        any = true;
+        if t.transmission_texture().is_some() {
+            unread.push("its transmission texture");
+        }
+    }
+    if let Some(v) = m.volume() {
+        let thickness = v.thickness_factor();
+        if !(thickness.is_finite() && thickness >= 0.0) {
+            return Err(format!("material `{name}`: a negative or non-finite volume thickness"));
+        }
+        layers.thin = thickness == 0.0;
+        if v.attenuation_distance().is_finite() && Vec3::from(v.attenuation_color()) != Vec3::ONE {
+            unread.push("its volume's absorption");
+        }
+    }
+    if let Some(c) = m.extension_value("KHR_materials_clearcoat") {
+        layers.clearcoat = number(c, "clearcoatFactor", 0.0, 0.0..=1.0, name)?;
+        layers.clearcoat_roughness = number(c, "clearcoatRoughnessFactor", 0.0, 0.0..=1.0, name)?;
+        any |= layers.clearcoat > 0.0;
+        if ["clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"].iter().any(|k| c.get(k).is_some()) {
+            unread.push("its clearcoat textures");
+        }
+    }
+    if let Some(sh) = m.extension_value("KHR_materials_sheen") {
+        layers.sheen_color = color(sh, "sheenColorFactor", Vec3::ZERO, name)?;
+        layers.sheen_roughness = number(sh, "sheenRoughnessFactor", 0.0, 0.0..=1.0, name)?;
+        any |= layers.sheen_color.max_element() > 0.0;
+        if ["sheenColorTexture", "sheenRoughnessTexture"].iter().any(|k| sh.get(k).is_some()) {
+            unread.push("its sheen textures");
+        }
+    }
+    if m.unlit() {
+        unread.push("unlit (it is rendered lit)");
+    }
+    if !unread.is_empty() {
+        notes.push(format!("material `{name}`: not read: {}", unread.join(", ")));
+    }
+    Ok((metallic, roughness, any.then_some(layers)))
 }
 
 /// Checks that the nodes form disjoint trees, as glTF requires, before they are walked: no node
@@ -618,6 +771,14 @@ pub fn place(
     for (k, m) in g.materials.iter().chain(std::iter::once(&default)).enumerate() {
         out.materials.push(if m.is_lambertian() {
             Material::Diffuse { albedo: m.base_color }
+        } else if let Some(layers) = m.layers {
+            Material::Layered(Box::new(Layered {
+                base_color: m.base_color,
+                metallic: m.metallic,
+                roughness: m.roughness,
+                diffuse_from,
+                layers,
+            }))
         } else {
             Material::Pbr {
                 base_color: m.base_color,
