@@ -191,12 +191,12 @@ fn the_cornell_box_from_gltf_renders_as_from_obj() {
 fn emissive_strength_scales_emission_and_unread_extensions_are_named() {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut doc = GltfDoc::quad();
-    doc.json["extensionsUsed"] = json!(["KHR_materials_emissive_strength", "KHR_materials_sheen"]);
+    doc.json["extensionsUsed"] = json!(["KHR_materials_emissive_strength", "KHR_materials_iridescence"]);
     doc.json["materials"] = json!([{
         "emissiveFactor": [0.5, 0.25, 1.0],
         "extensions": {
             "KHR_materials_emissive_strength": {"emissiveStrength": 4.0},
-            "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0]}
+            "KHR_materials_iridescence": {"iridescenceFactor": 1.0}
         }
     }]);
     doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
@@ -205,7 +205,7 @@ fn emissive_strength_scales_emission_and_unread_extensions_are_named() {
     let s = scene::load(&path).expect("loads");
     assert_eq!(s.shapes[0].emission, Vec3::new(2.0, 1.0, 4.0));
     assert!(
-        s.notes.iter().any(|n| n.contains("extensions not read") && n.contains("KHR_materials_sheen")),
+        s.notes.iter().any(|n| n.contains("extensions not read") && n.contains("KHR_materials_iridescence")),
         "{:?}",
         s.notes
     );
@@ -509,4 +509,127 @@ fn an_obj_bump_map_tilts_the_floor_toward_its_slope() {
     let cos = |deg: f32| deg.to_radians().cos();
     assert!((west / flat_west - cos(45.0 - 8.53) / cos(45.0)).abs() < 0.03, "{}", west / flat_west);
     assert!((east / flat_east - cos(45.0 + 8.53) / cos(45.0)).abs() < 0.03, "{}", east / flat_east);
+}
+
+/// A quad document with one mesh (and one node) per material of `materials`, in order.
+fn quads_of(materials: serde_json::Value) -> GltfDoc {
+    let mut doc = GltfDoc::quad();
+    let primitive = doc.json["meshes"][0]["primitives"][0].clone();
+    let n = materials.as_array().map_or(0, |m| m.len());
+    doc.json["materials"] = materials;
+    doc.json["meshes"] = json!([]);
+    for k in 0..n {
+        let mut p = primitive.clone();
+        p["material"] = json!(k);
+        doc.json["meshes"].as_array_mut().expect("meshes").push(json!({"primitives": [p]}));
+        doc.node(json!({"mesh": k, "translation": [k as f32 * 1.5, 0.0, 0.0]}), true);
+    }
+    doc
+}
+
+/// glTF's material extensions become one layered material: specular and ior the dielectric's
+/// Fresnel, transmission and volume what crosses it (with Beer-Lambert absorption), clearcoat
+/// and sheen the layers on top (read even when required), specular-glossiness converted; a
+/// plain material stays the metallic-roughness one; a bad factor is one error naming it.
+#[test]
+fn the_material_extensions_become_one_layered_material() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = quads_of(json!([
+        {"name": "coated", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.1, 0.1, 1], "roughnessFactor": 0.4},
+         "extensions": {
+            "KHR_materials_clearcoat": {"clearcoatFactor": 0.9, "clearcoatRoughnessFactor": 0.2},
+            "KHR_materials_sheen": {"sheenColorFactor": [0.5, 0.4, 0.3], "sheenRoughnessFactor": 0.6},
+            "KHR_materials_specular": {"specularFactor": 0.5, "specularColorFactor": [1.0, 0.5, 0.5]},
+            "KHR_materials_ior": {"ior": 2.0}}},
+        {"name": "glass", "pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0.1},
+         "extensions": {
+            "KHR_materials_transmission": {"transmissionFactor": 1.0},
+            "KHR_materials_volume": {"thicknessFactor": 0.1, "attenuationColor": [0.5, 0.25, 1.0], "attenuationDistance": 2.0}}},
+        {"name": "specgloss", "extensions": {"KHR_materials_pbrSpecularGlossiness": {
+            "diffuseFactor": [0.2, 0.3, 0.4, 1], "specularFactor": [0.9, 0.8, 0.1], "glossinessFactor": 0.7}}},
+        {"name": "plain", "pbrMetallicRoughness": {"metallicFactor": 0.5, "roughnessFactor": 0.3}}
+    ]));
+    doc.json["extensionsUsed"] = json!([
+        "KHR_materials_clearcoat",
+        "KHR_materials_sheen",
+        "KHR_materials_specular",
+        "KHR_materials_ior",
+        "KHR_materials_transmission",
+        "KHR_materials_volume",
+        "KHR_materials_pbrSpecularGlossiness"
+    ]);
+    doc.json["extensionsRequired"] = json!(["KHR_materials_clearcoat", "KHR_materials_sheen"]);
+    let path = doc.write_gltf(dir.path(), "layers");
+    let s = scene::load(&path).expect("loads");
+    let layered = |k: usize| match &s.materials[k] {
+        scene::Material::Layered(l) => l.clone(),
+        other => panic!("material {k} is {other:?}"),
+    };
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 1e-5;
+    let coated = layered(0);
+    assert_eq!((coated.base_color, coated.roughness), (Vec3::new(0.8, 0.1, 0.1), 0.4));
+    let l = coated.layers;
+    // f0 = ((2 - 1) / (2 + 1))^2 = 1/9, times the specular colour and factor.
+    assert!(close(l.f0, Vec3::new(1.0, 0.5, 0.5) / 9.0 * 0.5), "{}", l.f0);
+    assert_eq!((l.f90, l.ior, l.clearcoat, l.clearcoat_roughness), (0.5, 2.0, 0.9, 0.2));
+    assert_eq!((l.sheen_color, l.sheen_roughness, l.transmission), (Vec3::new(0.5, 0.4, 0.3), 0.6, 0.0));
+    let glass = layered(1).layers;
+    assert_eq!((glass.transmission, glass.thin), (1.0, false));
+    let expected = Vec3::new(0.5f32.ln(), 0.25f32.ln(), 0.0) / -2.0;
+    assert!(close(glass.absorption, expected), "{}", glass.absorption);
+    assert!(s.materials.iter().filter(|m| matches!(m, scene::Material::Layered(_))).count() == 3);
+    let sg = layered(2);
+    assert_eq!((sg.base_color, sg.metallic), (Vec3::new(0.2, 0.3, 0.4), 0.0));
+    assert!((sg.roughness - 0.3).abs() < 1e-6 && close(sg.layers.f0, Vec3::new(0.9, 0.8, 0.1)), "{sg:?}");
+    assert!(
+        matches!(s.materials[3], scene::Material::Pbr { metallic: 0.5, roughness: 0.3, .. }),
+        "{:?}",
+        s.materials[3]
+    );
+    assert!(s.notes.iter().all(|n| !n.contains("extensions not read")), "{:?}", s.notes);
+
+    for (key, value, says) in [
+        ("KHR_materials_ior", json!({"ior": 0.5}), "index of refraction"),
+        ("KHR_materials_clearcoat", json!({"clearcoatFactor": 2.0}), "clearcoatFactor"),
+        ("KHR_materials_sheen", json!({"sheenColorFactor": [1, 1]}), "sheenColorFactor"),
+        ("KHR_materials_transmission", json!({"transmissionFactor": -1}), "transmission"),
+    ] {
+        let mut bad = quads_of(json!([{"name": "bad", "extensions": {key: value}}]));
+        bad.json["extensionsUsed"] = json!([key]);
+        let path = bad.write_gltf(dir.path(), "bad");
+        let err = scene::load(&path).expect_err(key).to_string();
+        assert!(err.contains("material `bad`") && err.contains(says), "{key}: {err}");
+    }
+}
+
+/// Under layered materials (a clearcoat with sheen, a rough metal, a transmissive quad) the
+/// four components still sum to the beauty in every pixel.
+#[test]
+fn layered_materials_keep_the_components_summing_to_the_beauty() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = quads_of(json!([
+        {"pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0.5}, "extensions": {
+            "KHR_materials_clearcoat": {"clearcoatFactor": 1.0},
+            "KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1], "sheenRoughnessFactor": 0.5}}},
+        {"pbrMetallicRoughness": {"metallicFactor": 1, "roughnessFactor": 0.7},
+         "extensions": {"KHR_materials_ior": {"ior": 1.5}}},
+        {"pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0.2},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}
+    ]));
+    doc.json["extensionsUsed"] = json!([
+        "KHR_materials_clearcoat",
+        "KHR_materials_sheen",
+        "KHR_materials_ior",
+        "KHR_materials_transmission"
+    ]);
+    std::fs::write(dir.path().join("m.glb"), doc.glb()).expect("write");
+    let s = scene::load(&dir.path().join("m.glb")).expect("loads");
+    let mut options = lightsplit::render::RenderOptions::from_scene(&s);
+    (options.width, options.height, options.spp) = (48, 16, 8);
+    let f = lightsplit::render::render(&s, &options, &|_| {}).expect("renders").film;
+    for (i, raw) in f.raw.pixels.iter().enumerate() {
+        let parts: Vec3 = f.components.iter().map(|c| c.pixels[i]).sum();
+        assert!((parts - *raw).abs().max_element() <= 1e-5 * raw.abs().max_element().max(1e-3), "pixel {i}");
+    }
+    assert!(f.raw.mean().min_element() > 0.05, "lit: {}", f.raw.mean());
 }

@@ -299,7 +299,14 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             let shape = &scene.shapes[hit.shape as usize];
             record.vertex(depth, &shape.name, s.p, walk.path.beta, walk.out.beauty);
             let wo = -ray.dir;
-            walk.path.travelled += hit.t * ray.dir.length();
+            let distance = hit.t * ray.dir.length();
+            walk.path.travelled += distance;
+            // A hit from inside an absorbing object: the segment ran through its volume.
+            if s.ng.dot(wo) < 0.0 {
+                if let Some(sigma) = scene.absorption(shape.material) {
+                    walk.path.beta *= (-sigma * distance).exp();
+                }
+            }
             self.emitted(&mut walk.out, &walk.path, hit.shape, shape, &s, wo);
             if depth >= self.max_depth {
                 break;

@@ -145,7 +145,13 @@ impl<'a> Shading<'a> {
                     alpha: alpha(roughness),
                     f0: layers.f0,
                     f90: layers.f90,
-                    transmission: layers.transmission,
+                    transmission: match self.maps.transmission {
+                        Some(t) => {
+                            let texture = self.texture(t);
+                            layers.transmission * texture.color(self.point(texture), self.s.uv).x
+                        }
+                        None => layers.transmission,
+                    },
                     ior: layers.ior,
                     thin: layers.thin,
                     coat: layers.clearcoat,

@@ -176,6 +176,9 @@ pub struct Layers {
     /// Thin-walled (`KHR_materials_volume` absent or of thickness 0): transmitted light goes
     /// straight through.
     pub thin: bool,
+    /// Beer-Lambert absorption inside a closed transmissive object (not thin), per unit of
+    /// distance in the scene: -ln(attenuation colour) / attenuation distance. Zero: clear.
+    pub absorption: Vec3,
     pub clearcoat: f32,
     pub clearcoat_roughness: f32,
     pub sheen_color: Vec3,
@@ -191,6 +194,7 @@ impl Default for Layers {
             ior: 1.5,
             transmission: 0.0,
             thin: true,
+            absorption: Vec3::ZERO,
             clearcoat: 0.0,
             clearcoat_roughness: 0.0,
             sheen_color: Vec3::ZERO,
@@ -462,6 +466,8 @@ pub struct Maps {
     /// An image read as a height field over the texture coordinates (its luminance, times the
     /// scale, in scene units): an OBJ's `map_Bump`.
     pub height: Option<(u32, f32)>,
+    /// A layered material's transmission texture: its red channel multiplies the factor.
+    pub transmission: Option<u32>,
 }
 
 impl Maps {
@@ -475,6 +481,17 @@ impl Maps {
 }
 
 impl Scene {
+    /// The absorption per unit distance inside an object of material `m`, when it absorbs.
+    #[inline(always)]
+    pub fn absorption(&self, m: u32) -> Option<Vec3> {
+        match self.materials.get(m as usize) {
+            Some(Material::Layered(l)) if !l.layers.thin && l.layers.absorption != Vec3::ZERO => {
+                Some(l.layers.absorption)
+            }
+            _ => None,
+        }
+    }
+
     /// The textures material `m` reads.
     pub fn maps(&self, m: u32) -> Maps {
         self.maps.get(m as usize).copied().unwrap_or_default()

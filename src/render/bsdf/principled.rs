@@ -133,7 +133,9 @@ impl Principled {
         let albedo = [
             coat_albedo,
             luminance(sheen * sheen_albedo),
-            luminance(e_dielectric * (1.0 - self.metallic) * below_sheen + e_metal * (self.metallic * below_sheen)),
+            luminance(
+                e_dielectric * (1.0 - self.metallic) * below_sheen + e_metal * (self.metallic * below_sheen),
+            ),
             luminance(diffuse),
             luminance(through),
         ];

@@ -366,7 +366,10 @@ fn white_layered_materials_keep_all_the_light() {
         for theta in [0.0, 30.0, 60.0, 75.0, 85.0] {
             let (albedo, error) = albedo_of(&b, wo(theta), 100_000);
             let tolerance = 4.0 * error + 0.005;
-            assert!((albedo - 1.0).abs() < tolerance, "{name} at {theta} degrees: albedo {albedo} +- {error}");
+            assert!(
+                (albedo - 1.0).abs() < tolerance,
+                "{name} at {theta} degrees: albedo {albedo} +- {error}"
+            );
         }
     }
 }

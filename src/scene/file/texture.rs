@@ -191,7 +191,14 @@ mod tests {
         assert!(matches!(s.textures[0], Texture::Noise { pattern: Pattern::Marble, frequency: 2.0, .. }));
         assert_eq!(
             s.maps(0),
-            Maps { color: Some(0), bump: Some((0, 0.02)), metal_rough: None, normal: None, height: None }
+            Maps {
+                color: Some(0),
+                bump: Some((0, 0.02)),
+                metal_rough: None,
+                normal: None,
+                height: None,
+                transmission: None
+            }
         );
         assert_eq!(s.maps(7), Maps::default());
         let image = "[[texture]]\nname = \"i\"\ntype = \"image\"\nfile = \"nowhere.png\"\n";

@@ -22,8 +22,8 @@ use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 use crate::scene::image::Image;
 use crate::scene::texture::Texture;
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Instance, Layered, Layers, Light, Maps, Material, Mesh, RenderSettings, Scene,
-    SceneError, Shape,
+    Camera, FilmSettings, Geometry, Instance, Layered, Layers, Light, Maps, Material, Mesh, RenderSettings,
+    Scene, SceneError, Shape,
 };
 use data::Buffers;
 use gltf::mesh::{Mode, Semantic};
@@ -86,6 +86,8 @@ pub struct PbrMaterial {
     pub normal_texture: Option<(usize, f32)>,
     /// The material extensions' layers, when it has any.
     pub layers: Option<Layers>,
+    /// Linear: the transmitted fraction in R, multiplying the transmission factor.
+    pub transmission_texture: Option<usize>,
 }
 
 impl PbrMaterial {
@@ -117,6 +119,7 @@ impl Default for PbrMaterial {
             emission: Vec3::ZERO,
             normal_texture: None,
             layers: None,
+            transmission_texture: None,
         }
     }
 }
@@ -287,6 +290,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     };
 
     let mut materials = Vec::new();
+    let mut unread_parts = Vec::new();
     for m in document.materials() {
         let pbr = m.pbr_metallic_roughness();
         let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
@@ -304,7 +308,14 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
                 texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes).map(|t| t.0)
             })
             .transpose()?;
-        let (metallic, roughness, layers) = layers(&m, &name, &mut notes)?;
+        let (metallic, roughness, layers) = layers(&m, &name, &mut unread_parts)?;
+        let transmission_texture = m
+            .transmission()
+            .and_then(|t| t.transmission_texture())
+            .map(|t| {
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), false, &mut notes).map(|t| t.0)
+            })
+            .transpose()?;
         let metallic_roughness_texture = pbr
             .metallic_roughness_texture()
             .map(|t| {
@@ -354,9 +365,11 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             emission,
             normal_texture,
             layers,
+            transmission_texture,
         });
     }
 
+    gather_notes(&unread_parts, &mut notes);
     let scene = document.default_scene().or_else(|| document.scenes().next()).ok_or("it has no scene")?;
     let mut out = Gltf {
         primitives: Vec::new(),
@@ -432,6 +445,23 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     Ok(out)
 }
 
+/// One note per kind of thing not read, naming the materials (the first few) that have it.
+fn gather_notes(unread: &[String], notes: &mut Vec<String>) {
+    let mut by_what: Vec<(&str, Vec<&str>)> = Vec::new();
+    for u in unread {
+        let (what, material) = u.split_once('\0').unwrap_or((u, ""));
+        match by_what.iter_mut().find(|(w, _)| *w == what) {
+            Some((_, list)) => list.push(material),
+            None => by_what.push((what, vec![material])),
+        }
+    }
+    for (what, list) in by_what {
+        let shown: Vec<String> = list.iter().take(3).map(|m| format!("`{m}`")).collect();
+        let more = if list.len() > 3 { format!(" and {} more", list.len() - 3) } else { String::new() };
+        notes.push(format!("not read: {what}, of material {}{more}", shown.join(", ")));
+    }
+}
+
 /// A number of an extension's JSON object: `default` when absent, an error naming the material
 /// when not a finite number in `range`.
 fn number(
@@ -457,10 +487,14 @@ fn number(
 /// A colour of an extension's JSON object (three numbers in [0, 1]), `default` when absent.
 fn color(object: &serde_json::Value, key: &str, default: Vec3, name: &str) -> Result<Vec3, String> {
     let Some(v) = object.get(key) else { return Ok(default) };
-    let c: Option<Vec<f32>> =
-        v.as_array().filter(|a| a.len() == 3).and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect());
+    let c: Option<Vec<f32>> = v
+        .as_array()
+        .filter(|a| a.len() == 3)
+        .and_then(|a| a.iter().map(|x| x.as_f64().map(|x| x as f32)).collect());
     match c {
-        Some(c) if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) => Ok(Vec3::new(c[0], c[1], c[2])),
+        Some(c) if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) => {
+            Ok(Vec3::new(c[0], c[1], c[2]))
+        }
         _ => Err(format!("material `{name}`: `{key}` is {v}, not three numbers in [0, 1]")),
     }
 }
@@ -472,8 +506,12 @@ fn color(object: &serde_json::Value, key: &str, default: Vec3, name: &str) -> Re
 /// material is converted as Khronos' glTF-Transform converts it: its diffuse colour the base,
 /// metallic 0, roughness 1 - glossiness, and its specular colour the dielectric's f0 (the
 /// converter's index of 1000 and specular colour). What is not read (the extensions'
-/// textures, volume absorption, unlit) is named in `notes`.
-fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f32, f32, Option<Layers>), String> {
+/// textures, unlit) goes to `notes` as "what\0material", gathered by [`gather_notes`].
+fn layers(
+    m: &gltf::Material,
+    name: &str,
+    notes: &mut Vec<String>,
+) -> Result<(f32, f32, Option<Layers>), String> {
     let pbr = m.pbr_metallic_roughness();
     let mut layers = Layers::default();
     let mut any = false;
@@ -489,7 +527,7 @@ fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f3
         layers.f0 = specular.clamp(Vec3::ZERO, Vec3::ONE);
         any = true;
         if sg.specular_glossiness_texture().is_some() {
-            unread.push("its specular-glossiness texture");
+            unread.push("the specular-glossiness texture");
         }
     }
     let ior = m.ior().unwrap_or(1.5);
@@ -499,13 +537,16 @@ fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f3
     layers.ior = ior;
     if let Some(sp) = m.specular() {
         let (factor, tint) = (sp.specular_factor(), Vec3::from(sp.specular_color_factor()));
-        if !(factor.is_finite() && (0.0..=1.0).contains(&factor)) || !tint.is_finite() || tint.min_element() < 0.0 {
-            return Err(format!("material `{name}`: a specular factor outside [0, 1] or a negative specular colour"));
+        let valid = (0.0..=1.0).contains(&factor) && tint.is_finite() && tint.min_element() >= 0.0;
+        if !valid {
+            return Err(format!(
+                "material `{name}`: a specular factor outside [0, 1] or a negative specular colour"
+            ));
         }
         (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, factor, tint);
         any = true;
         if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
-            unread.push("its specular textures");
+            unread.push("specular textures");
         }
     } else if m.pbr_specular_glossiness().is_none() && m.ior().is_some() {
         (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, 1.0, Vec3::ONE);
@@ -518,9 +559,6 @@ fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f3
         }
         layers.transmission = factor;
         any = true;
-        if t.transmission_texture().is_some() {
-            unread.push("its transmission texture");
-        }
     }
     if let Some(v) = m.volume() {
         let thickness = v.thickness_factor();
@@ -528,16 +566,26 @@ fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f3
             return Err(format!("material `{name}`: a negative or non-finite volume thickness"));
         }
         layers.thin = thickness == 0.0;
-        if v.attenuation_distance().is_finite() && Vec3::from(v.attenuation_color()) != Vec3::ONE {
-            unread.push("its volume's absorption");
+        let (distance, color) = (v.attenuation_distance(), Vec3::from(v.attenuation_color()));
+        if distance.is_nan() || distance <= 0.0 || !color.is_finite() || color.min_element() < 0.0 {
+            return Err(format!("material `{name}`: an attenuation distance that is not positive or a negative attenuation colour"));
+        }
+        if distance.is_finite() {
+            // -ln(c) / d per channel; a channel of colour 0 absorbs everything (a large finite
+            // coefficient keeps the arithmetic finite).
+            layers.absorption =
+                color.max(Vec3::splat(1e-6)).min(Vec3::ONE).to_array().map(|c| -c.ln() / distance).into();
         }
     }
     if let Some(c) = m.extension_value("KHR_materials_clearcoat") {
         layers.clearcoat = number(c, "clearcoatFactor", 0.0, 0.0..=1.0, name)?;
         layers.clearcoat_roughness = number(c, "clearcoatRoughnessFactor", 0.0, 0.0..=1.0, name)?;
         any |= layers.clearcoat > 0.0;
-        if ["clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"].iter().any(|k| c.get(k).is_some()) {
-            unread.push("its clearcoat textures");
+        if ["clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"]
+            .iter()
+            .any(|k| c.get(k).is_some())
+        {
+            unread.push("clearcoat textures");
         }
     }
     if let Some(sh) = m.extension_value("KHR_materials_sheen") {
@@ -545,14 +593,14 @@ fn layers(m: &gltf::Material, name: &str, notes: &mut Vec<String>) -> Result<(f3
         layers.sheen_roughness = number(sh, "sheenRoughnessFactor", 0.0, 0.0..=1.0, name)?;
         any |= layers.sheen_color.max_element() > 0.0;
         if ["sheenColorTexture", "sheenRoughnessTexture"].iter().any(|k| sh.get(k).is_some()) {
-            unread.push("its sheen textures");
+            unread.push("sheen textures");
         }
     }
     if m.unlit() {
-        unread.push("unlit (it is rendered lit)");
+        unread.push("unlit (rendered lit)");
     }
-    if !unread.is_empty() {
-        notes.push(format!("material `{name}`: not read: {}", unread.join(", ")));
+    for what in unread {
+        notes.push(format!("{what}\u{0}{name}"));
     }
     Ok((metallic, roughness, any.then_some(layers)))
 }
@@ -771,7 +819,10 @@ pub fn place(
     for (k, m) in g.materials.iter().chain(std::iter::once(&default)).enumerate() {
         out.materials.push(if m.is_lambertian() {
             Material::Diffuse { albedo: m.base_color }
-        } else if let Some(layers) = m.layers {
+        } else if let Some(mut layers) = m.layers {
+            // Absorption is per unit of the glTF's world: per unit of the scene, divided by the
+            // placement's (mean) scale.
+            layers.absorption /= at.linear.determinant().abs().cbrt().max(1e-12) as f32;
             Material::Layered(Box::new(Layered {
                 base_color: m.base_color,
                 metallic: m.metallic,
@@ -791,6 +842,7 @@ pub fn place(
             color: m.base_color_texture.map(texture),
             metal_rough: m.metallic_roughness_texture.map(texture),
             normal: m.normal_texture.map(|(t, scale)| (texture(t), scale)),
+            transmission: m.transmission_texture.map(texture),
             ..Maps::default()
         };
         if maps != Maps::default() {
