@@ -13,7 +13,8 @@ use crate::render::sampler::{Dim, Sampler};
 /// specification's dielectric layer are: the GGX lobe (reflectance `specular` at normal
 /// incidence, Schlick's Fresnel) over a Lambertian base that receives what the lobe does not
 /// reflect, `base / pi` times 1 - E(wo), E being the lobe's directional albedo (from
-/// [`SpecularAlbedo`]). The GGX lobe is an S vertex, or a D vertex when `rough` (its roughness at
+/// [`SpecularAlbedo`]). The lobe's multiple scattering is restored (Turquin 2019), so a white
+/// rough metal reflects all the light, as Cycles' multiscatter GGX does. The GGX lobe is an S vertex, or a D vertex when `rough` (its roughness at
 /// least the material's `diffuse_from`); the base is D.
 #[derive(Clone, Copy, Debug)]
 pub struct Pbr {
@@ -34,10 +35,15 @@ impl Pbr {
         }
     }
 
-    /// The GGX lobe's directional albedo seen from `wo` (local).
+    /// The factor restoring the GGX lobe's multiple scattering, seen from `wo` (local).
+    fn multiscatter(&self, wo: Vec3) -> Vec3 {
+        SpecularAlbedo::get().multiscatter(self.lobes.specular, wo.z, self.lobes.alpha)
+    }
+
+    /// The GGX lobe's directional albedo seen from `wo` (local), multiple scattering included.
     fn specular_albedo(&self, wo: Vec3) -> Vec3 {
         let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
-        self.lobes.specular * a + Vec3::splat(b)
+        (self.lobes.specular * a + Vec3::splat(b)) * self.multiscatter(wo)
     }
 
     /// The base's weight seen from `wo` (local): 1 - the GGX lobe's directional albedo.
@@ -100,7 +106,8 @@ impl Bsdf for Pbr {
             return None;
         }
         let (weight, pdf, lobe) = if specular {
-            (g.specular_weight(wo_l, wi_l) / p_spec, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
+            let weight = g.specular_weight(wo_l, wi_l) * self.multiscatter(wo_l) / p_spec;
+            (weight, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
         } else {
             let pdf = (1.0 - p_spec) * wi_l.z * FRAC_1_PI;
             (self.eval_base(wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
@@ -112,7 +119,8 @@ impl Bsdf for Pbr {
         let g = &self.lobes;
         let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
         let p_spec = self.specular_probability(wo_l);
-        each(self.tag(), g.eval_specular(wo_l, wi_l), p_spec * g.pdf_specular(wo_l, wi_l));
+        let f = g.eval_specular(wo_l, wi_l) * self.multiscatter(wo_l);
+        each(self.tag(), f, p_spec * g.pdf_specular(wo_l, wi_l));
         each(Lobe::Diffuse, self.eval_base(wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
     }
 }
