@@ -22,13 +22,26 @@ pub struct SpecularAlbedo {
 impl SpecularAlbedo {
     const N: usize = 32;
 
-    /// The table, built on first use.
+    /// The table, as stored in `tables/specular-albedo.bin` (A and B of each cell, row by row of
+    /// alpha, as little-endian f32), decoded on first use. Integrating it takes tens of
+    /// milliseconds, which a short render would pay; a test checks that the stored table is
+    /// what [`SpecularAlbedo::build`] integrates.
     pub fn get() -> &'static SpecularAlbedo {
         static TABLE: std::sync::OnceLock<SpecularAlbedo> = std::sync::OnceLock::new();
-        TABLE.get_or_init(SpecularAlbedo::build)
+        TABLE.get_or_init(|| {
+            let floats = super::stored_table(include_bytes!("tables/specular-albedo.bin"));
+            SpecularAlbedo { table: floats.chunks_exact(2).map(|c| (c[0], c[1])).collect() }
+        })
     }
 
-    fn build() -> SpecularAlbedo {
+    /// The table's values, A and B of each cell in order, for storing.
+    #[cfg(test)]
+    pub(super) fn values(&self) -> Vec<f32> {
+        self.table.iter().flat_map(|&(a, b)| [a, b]).collect()
+    }
+
+    /// The table, integrated.
+    pub(super) fn build() -> SpecularAlbedo {
         let n = Self::N;
         let mut table = Vec::with_capacity(n * n);
         for j in 0..n {

@@ -116,6 +116,11 @@ pub trait Bsdf {
     }
 }
 
+/// A stored table's little-endian f32 values.
+fn stored_table(bytes: &[u8]) -> Vec<f32> {
+    bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
 /// The mirror direction of `wo` about `n`.
 pub fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
     2.0 * wo.dot(n) * n - wo

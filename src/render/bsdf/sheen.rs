@@ -60,10 +60,20 @@ pub struct SheenAlbedo {
 impl SheenAlbedo {
     const N: usize = 32;
 
-    /// The table, built on first use.
+    /// The table, as stored in `tables/sheen-albedo.bin` (row by row of roughness, little-endian
+    /// f32), decoded on first use; a test checks that it is what [`SheenAlbedo::build`]
+    /// integrates.
     pub fn get() -> &'static SheenAlbedo {
         static TABLE: std::sync::OnceLock<SheenAlbedo> = std::sync::OnceLock::new();
-        TABLE.get_or_init(SheenAlbedo::build)
+        TABLE.get_or_init(|| SheenAlbedo {
+            table: super::stored_table(include_bytes!("tables/sheen-albedo.bin")),
+        })
+    }
+
+    /// The table's values in order, for storing.
+    #[cfg(test)]
+    pub(super) fn values(&self) -> Vec<f32> {
+        self.table.clone()
     }
 
     /// The albedo the table holds for view cosine `cos`, roughness `roughness`, exactly.
@@ -88,7 +98,8 @@ impl SheenAlbedo {
         (sum * 2.0 * PI as f64 / (k * k) as f64) as f32
     }
 
-    fn build() -> SheenAlbedo {
+    /// The table, integrated.
+    pub(super) fn build() -> SheenAlbedo {
         let n = Self::N;
         let mut table = Vec::with_capacity(n * n);
         for j in 0..n {

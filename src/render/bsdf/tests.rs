@@ -414,3 +414,25 @@ fn a_white_rough_pbr_metal_keeps_all_the_light() {
         }
     }
 }
+
+/// The albedo tables the renderer reads are the ones their integrators make, value for value
+/// (to f32 rounding across compilers). With `LIGHTSPLIT_WRITE_TABLES=1` the test writes them
+/// instead: after a change to a lobe or an integrator.
+#[test]
+fn the_stored_albedo_tables_are_their_integrals() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/render/bsdf/tables");
+    let tables = [
+        ("specular-albedo.bin", SpecularAlbedo::build().values(), SpecularAlbedo::get().values()),
+        ("sheen-albedo.bin", sheen::SheenAlbedo::build().values(), sheen::SheenAlbedo::get().values()),
+    ];
+    for (file, built, stored) in tables {
+        if std::env::var_os("LIGHTSPLIT_WRITE_TABLES").is_some() {
+            let bytes: Vec<u8> = built.iter().flat_map(|v| v.to_le_bytes()).collect();
+            std::fs::write(dir.join(file), bytes).expect("write the table");
+            continue;
+        }
+        assert_eq!(built.len(), stored.len(), "{file}");
+        let worst = built.iter().zip(&stored).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "{file}: differs by {worst} from its integral");
+    }
+}
