@@ -12,8 +12,18 @@ reference renderer for lightsplit's glTF import. Two modes:
         glTF's camera, and writes the linear image and an object-index pass (each object's index
         is its position, from 1, in the glTF's node order) to OUT.exr.
 
+    python scripts/blender-gltf.py model IN.glb|IN.gltf OUT_DIR WIDTH HEIGHT SPP
+        A third-party model as its author would see it in Blender: imports it with Blender's glTF
+        importer, frames its bounds as `lightsplit render MODEL.glb` does when the file has no
+        camera (from the front and a little above, a vertical field of view of 40 degrees),
+        lights it by a uniform white sky of radiance 1 (lightsplit's default environment),
+        renders it with Cycles on the CPU (8 bounces of every kind, no glossy blur, no clamping,
+        no denoising) to OUT_DIR/blender.exr, and writes OUT_DIR/lightsplit.toml: the same
+        model, camera, film and sky for lightsplit (at twice the samples).
+
 scripts/compare-blender.sh runs both and compares lightsplit's render of the same file with
-Blender's. Comparison only: Blender is never a dependency of lightsplit.
+Blender's; scripts/compare-blender-models.sh does so for the Khronos sample models.
+Comparison only: Blender is never a dependency of lightsplit.
 """
 
 import math
@@ -129,10 +139,108 @@ def render(glb, env, out, width, height, spp):
     print(f"rendered {out}")
 
 
+def cycles(scene, width, height, spp):
+    """Cycles on the CPU, unbiased as lightsplit is: 8 bounces of every kind, no glossy blur,
+    no clamping, no denoising, a pixel filter of (nearly) one pixel."""
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = spp
+    c.use_denoising = False
+    c.use_adaptive_sampling = False
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+    c.transparent_max_bounces = 8
+    c.blur_glossy = 0.0
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.filter_width = 0.01
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):  # Blender 5: multilayer EXR is a media type
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    else:
+        settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+
+
+def model(path, out_dir, width, height, spp):
+    import os
+    from mathutils import Vector
+
+    clear()
+    bpy.ops.import_scene.gltf(filepath=os.path.abspath(path))
+    scene = bpy.context.scene
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    lo = [math.inf] * 3
+    hi = [-math.inf] * 3
+    for o in scene.objects:
+        if o.type != "MESH":
+            continue
+        mesh = o.evaluated_get(depsgraph).to_mesh()
+        for v in mesh.vertices:
+            p = o.matrix_world @ v.co
+            # Blender's z-up back to glTF's y-up: (x, y, z) -> (x, z, -y).
+            g = (p.x, p.z, -p.y)
+            lo = [min(a, b) for a, b in zip(lo, g)]
+            hi = [max(a, b) for a, b in zip(hi, g)]
+    centre = [(a + b) / 2 for a, b in zip(lo, hi)]
+    radius = max(0.5 * math.dist(lo, hi), 1e-6)
+    fov = 40.0
+    distance = radius / math.sin(math.radians(fov / 2))
+    back = Vector((0.0, 0.35, 1.0)).normalized()
+    position = [c + b * distance for c, b in zip(centre, back)]
+    # The camera in Blender's coordinates, its -z toward the centre and its y up (glTF's +y).
+    to_blender = lambda g: Vector((g[0], -g[2], g[1]))  # noqa: E731
+    data = bpy.data.cameras.new("frame")
+    data.sensor_fit = "VERTICAL"
+    data.angle_y = math.radians(fov)
+    data.clip_start = distance * 1e-3
+    data.clip_end = distance * 1e3
+    cam = bpy.data.objects.new("frame", data)
+    scene.collection.objects.link(cam)
+    cam.location = to_blender(position)
+    direction = to_blender(centre) - to_blender(position)
+    cam.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    world = bpy.data.worlds.new("white")
+    world.use_nodes = True
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    cycles(scene, width, height, spp)
+    scene.render.filepath = os.path.join(out_dir, "blender.exr")
+    with open(os.path.join(out_dir, "lightsplit.toml"), "w") as f:
+        vec = lambda v: "[" + ", ".join(f"{x:.9g}" for x in v) + "]"  # noqa: E731
+        f.write(f"""# Written by scripts/blender-gltf.py model: the view Blender renders.
+[camera]
+position = {vec(position)}
+look_at = {vec(centre)}
+fov = {fov}
+[film]
+width = {width}
+height = {height}
+spp = {2 * spp}
+[render]
+max_depth = 8
+[[shape]]
+type = "gltf"
+file = "{os.path.abspath(path)}"
+[[light]]
+type = "sky"
+radiance = [1, 1, 1]
+""")
+    bpy.ops.render.render(write_still=True)
+    print(f"rendered {scene.render.filepath}")
+
+
 if __name__ == "__main__":
     args = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
     if args and args[0] == "export":
         export(args[1])
+    elif args and args[0] == "model":
+        model(args[1], args[2], int(args[3]), int(args[4]), int(args[5]))
     elif args and args[0] == "render":
         render(args[1], args[2], args[3], int(args[4]), int(args[5]), int(args[6]))
     else:

@@ -132,6 +132,8 @@ impl<'a> Shading<'a> {
                     base: color * (1.0 - metallic),
                     frame: Frame::new(n),
                     rough: roughness >= diffuse_from,
+                    metallic,
+                    metal: color,
                 })
             }
             Material::Layered(l) => {

@@ -159,7 +159,8 @@ impl Analysis {
             let maps = scene.maps(m as u32);
             a.color_textures += maps.color.is_some() as usize
                 + maps.metal_rough.is_some() as usize
-                + maps.transmission.is_some() as usize;
+                + maps.transmission.is_some() as usize
+                + maps.emission.is_some() as usize;
             a.bump_maps += maps.bump.is_some() as usize
                 + maps.normal.is_some() as usize
                 + maps.height.is_some() as usize;

@@ -468,6 +468,9 @@ pub struct Maps {
     pub height: Option<(u32, f32)>,
     /// A layered material's transmission texture: its red channel multiplies the factor.
     pub transmission: Option<u32>,
+    /// An emissive texture (an image, sRGB-decoded) multiplying the emission of the shapes of
+    /// the material.
+    pub emission: Option<u32>,
 }
 
 impl Maps {
@@ -481,6 +484,25 @@ impl Maps {
 }
 
 impl Scene {
+    /// What shape `shape` emits at texture coordinates `uv`: its emission, times its
+    /// material's emissive texture there.
+    #[inline(always)]
+    pub fn emission_at(&self, shape: &Shape, uv: Vec2) -> Vec3 {
+        match self.maps(shape.material).emission {
+            Some(t) => shape.emission * self.textures[t as usize].color(DVec3::ZERO, uv),
+            None => shape.emission,
+        }
+    }
+
+    /// The mean emission of shape `shape` (its emissive texture's mean over the image), for
+    /// choosing among the lights by their power.
+    pub fn mean_emission(&self, shape: &Shape) -> Vec3 {
+        match self.maps(shape.material).emission.map(|t| &self.textures[t as usize]) {
+            Some(texture::Texture::Image { image, .. }) => shape.emission * image.mean(),
+            _ => shape.emission,
+        }
+    }
+
     /// The absorption per unit distance inside an object of material `m`, when it absorbs.
     #[inline(always)]
     pub fn absorption(&self, m: u32) -> Option<Vec3> {

@@ -7,7 +7,9 @@ use std::f32::consts::{PI, TAU};
 
 use glam::{Vec2, Vec3};
 
-use super::{Lobe, MIN_ALPHA};
+use super::Lobe;
+#[cfg(test)]
+use super::MIN_ALPHA;
 use crate::math::{cosine_hemisphere, luminance};
 
 /// The directional albedo of a GGX lobe with Schlick's Fresnel, split as f0 A + B (the
@@ -17,6 +19,8 @@ use crate::math::{cosine_hemisphere, luminance};
 /// cell, crowded toward the steep normals) and read bilinearly.
 pub struct SpecularAlbedo {
     table: Vec<(f32, f32)>,
+    /// Each alpha row's hemispherical average of the white albedo, 2 int E(mu) mu dmu.
+    average: Vec<f32>,
 }
 
 impl SpecularAlbedo {
@@ -30,8 +34,37 @@ impl SpecularAlbedo {
         static TABLE: std::sync::OnceLock<SpecularAlbedo> = std::sync::OnceLock::new();
         TABLE.get_or_init(|| {
             let floats = super::stored_table(include_bytes!("tables/specular-albedo.bin"));
-            SpecularAlbedo { table: floats.chunks_exact(2).map(|c| (c[0], c[1])).collect() }
+            SpecularAlbedo::new(floats.chunks_exact(2).map(|c| (c[0], c[1])).collect())
         })
+    }
+
+    /// The table and its rows' averages.
+    fn new(table: Vec<(f32, f32)>) -> SpecularAlbedo {
+        let n = Self::N;
+        // 2 int_0^1 E(mu) mu dmu with mu = x^2: 4 int_0^1 E(x^2) x^3 dx, by the trapezoid rule
+        // over the row's cells (x = i / (n - 1)).
+        let average = (0..n)
+            .map(|j| {
+                let f = |i: usize| {
+                    let (a, b) = table.get(j * n + i).copied().unwrap_or((0.0, 0.0));
+                    let x = i as f32 / (n - 1) as f32;
+                    4.0 * (a + b) * x * x * x
+                };
+                let inner: f32 = (1..n - 1).map(f).sum();
+                (inner + 0.5 * (f(0) + f(n - 1))) / (n - 1) as f32
+            })
+            .collect();
+        SpecularAlbedo { table, average }
+    }
+
+    /// The average white albedo over the hemisphere at alpha `alpha`, linearly.
+    fn average(&self, alpha: f32) -> f32 {
+        let n = Self::N;
+        let y = (alpha.clamp(0.0, 1.0).sqrt() * (n - 1) as f32).min((n - 1) as f32 - 1e-4);
+        let j = y as usize;
+        let (p, q) =
+            (self.average.get(j).copied().unwrap_or(1.0), self.average.get(j + 1).copied().unwrap_or(1.0));
+        p + (q - p) * (y - j as f32)
     }
 
     /// The table's values, A and B of each cell in order, for storing.
@@ -41,6 +74,7 @@ impl SpecularAlbedo {
     }
 
     /// The table, integrated.
+    #[cfg(test)]
     pub(super) fn build() -> SpecularAlbedo {
         let n = Self::N;
         let mut table = Vec::with_capacity(n * n);
@@ -76,7 +110,7 @@ impl SpecularAlbedo {
                 table.push(((a / total) as f32, (b / total) as f32));
             }
         }
-        SpecularAlbedo { table }
+        SpecularAlbedo::new(table)
     }
 
     /// The directional albedo of a lobe with Schlick's Fresnel from `f0` (normal incidence) to
@@ -86,14 +120,21 @@ impl SpecularAlbedo {
         f0 * a + f90 * b
     }
 
-    /// The factor that restores the energy single-scattering GGX loses between its microfacets
-    /// (Turquin 2019, "Practical multiple scattering compensation for microfacet models"):
-    /// 1 + f0 (1 - E) / E, E being the albedo of the lobe with a white Fresnel. A white metal
-    /// then reflects all the light; a dielectric lobe (small f0) gains little.
+    /// The factor that restores the energy single-scattering GGX loses between its microfacets,
+    /// 1 + F_ms (1 - E) / E (Turquin 2019, "Practical multiple scattering compensation for
+    /// microfacet models"), E being the albedo of the lobe with a white Fresnel, and the
+    /// Fresnel of the light that bounces between facets F_ms = F_avg E_avg / (1 - F_avg
+    /// (1 - E_avg)) (Kulla & Conty 2017: each further bounce is reflected with the average
+    /// Fresnel F_avg = f0 + (1 - f0) / 21 of Schlick's, and escapes with the average albedo
+    /// E_avg). A white metal reflects all the light; a coloured one loses what its bounces
+    /// absorb; a dielectric lobe (small f0) gains little.
     pub fn multiscatter(&self, f0: Vec3, cos: f32, alpha: f32) -> Vec3 {
         let (a, b) = self.at(cos, alpha);
         let e = (a + b).clamp(1e-3, 1.0);
-        Vec3::ONE + f0 * ((1.0 - e) / e)
+        let e_avg = self.average(alpha).clamp(1e-3, 1.0);
+        let f_avg = f0 + (Vec3::ONE - f0) / 21.0;
+        let f_ms = f_avg * e_avg / (Vec3::ONE - f_avg * (1.0 - e_avg));
+        Vec3::ONE + f_ms * ((1.0 - e) / e)
     }
 
     /// (A, B) at view cosine `cos` and alpha `alpha`, bilinearly.

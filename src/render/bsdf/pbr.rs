@@ -23,7 +23,14 @@ pub struct Pbr {
     pub base: Vec3,
     pub frame: Frame,
     pub rough: bool,
+    /// The metallic blend: the lobe's multiple scattering is that of the dielectric's (f0
+    /// 0.04) and the metal's (f0 `metal`) lobes, mixed by it.
+    pub metallic: f32,
+    pub metal: Vec3,
 }
+
+/// glTF's dielectric reflectance at normal incidence (an index of 1.5).
+const DIELECTRIC_F0: f32 = 0.04;
 
 impl Pbr {
     /// The lobe a GGX sample makes in the split.
@@ -35,9 +42,19 @@ impl Pbr {
         }
     }
 
-    /// The factor restoring the GGX lobe's multiple scattering, seen from `wo` (local).
+    /// The factor restoring the GGX lobe's multiple scattering, seen from `wo` (local): the
+    /// albedo of the mix of the dielectric's and the metal's compensated lobes over that of
+    /// the single-scattering lobe of the mixed f0 (the compensation is not linear in f0, so a
+    /// part-metal is compensated as the mix of its two lobes, as Blender mixes them).
     fn multiscatter(&self, wo: Vec3) -> Vec3 {
-        SpecularAlbedo::get().multiscatter(self.lobes.specular, wo.z, self.lobes.alpha)
+        let table = SpecularAlbedo::get();
+        let (cos, alpha, m) = (wo.z, self.lobes.alpha, self.metallic);
+        let (a, b) = table.at(cos, alpha);
+        let albedo = |f0: Vec3| f0 * a + Vec3::splat(b);
+        let dielectric = Vec3::splat(DIELECTRIC_F0);
+        let mixed = albedo(dielectric) * table.multiscatter(dielectric, cos, alpha) * (1.0 - m)
+            + albedo(self.metal) * table.multiscatter(self.metal, cos, alpha) * m;
+        mixed / albedo(self.lobes.specular).max(Vec3::splat(1e-6))
     }
 
     /// The GGX lobe's directional albedo seen from `wo` (local), multiple scattering included.
@@ -46,17 +63,23 @@ impl Pbr {
         (self.lobes.specular * a + Vec3::splat(b)) * self.multiscatter(wo)
     }
 
-    /// The base's weight seen from `wo` (local): 1 - the GGX lobe's directional albedo.
+    /// The base's weight seen from `wo` (local): 1 - the directional albedo of the dielectric's
+    /// GGX lobe (f0 0.04). The base is the dielectric part's alone (`base` already carries the
+    /// 1 - metallic of the blend), so what a part-metal's lobe reflects as a metal does not
+    /// darken it: glTF's (and Blender's) mix of a dielectric and a metal BSDF.
     fn through(&self, wo: Vec3) -> Vec3 {
-        (Vec3::ONE - self.specular_albedo(wo)).max(Vec3::ZERO)
+        let table = SpecularAlbedo::get();
+        let f0 = Vec3::splat(DIELECTRIC_F0);
+        let (a, b) = table.at(wo.z, self.lobes.alpha);
+        let e = (f0 * a + Vec3::splat(b)) * table.multiscatter(f0, wo.z, self.lobes.alpha);
+        (Vec3::ONE - e).max(Vec3::ZERO)
     }
 
     /// The probability of sampling the GGX lobe from `wo` (local): in proportion to what each
     /// reflects.
     fn specular_probability(&self, wo: Vec3) -> f32 {
-        let e = self.specular_albedo(wo);
-        let spec = luminance(e);
-        let base = luminance(self.base * (Vec3::ONE - e).max(Vec3::ZERO));
+        let spec = luminance(self.specular_albedo(wo));
+        let base = luminance(self.base * self.through(wo));
         if base <= 0.0 {
             1.0
         } else if spec <= 0.0 {

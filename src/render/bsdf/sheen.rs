@@ -77,6 +77,7 @@ impl SheenAlbedo {
     }
 
     /// The albedo the table holds for view cosine `cos`, roughness `roughness`, exactly.
+    #[cfg(test)]
     pub(super) fn integrate(cos: f32, roughness: f32, k: usize) -> f32 {
         let lobe = SheenLobe::new(Vec3::ONE, roughness);
         let cos = cos.max(1e-3);
@@ -99,6 +100,7 @@ impl SheenAlbedo {
     }
 
     /// The table, integrated.
+    #[cfg(test)]
     pub(super) fn build() -> SheenAlbedo {
         let n = Self::N;
         let mut table = Vec::with_capacity(n * n);

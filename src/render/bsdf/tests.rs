@@ -239,7 +239,14 @@ fn refraction_obeys_snell() {
 #[test]
 fn the_pbr_bsdf_samples_its_density_tags_its_lobe_and_keeps_energy() {
     let lobes = GlossyLobes { specular: Vec3::splat(0.04), alpha: alpha(0.7), base: Vec3::ZERO };
-    let pbr = |base: Vec3, rough: bool| Pbr { lobes, base, frame: Frame::new(Vec3::Z), rough };
+    let pbr = |base: Vec3, rough: bool| Pbr {
+        lobes,
+        base,
+        frame: Frame::new(Vec3::Z),
+        rough,
+        metallic: 0.0,
+        metal: Vec3::ONE,
+    };
     let (smooth, rough) = (pbr(Vec3::splat(0.5), false), pbr(Vec3::splat(0.5), true));
     for theta in [10.0, 45.0, 75.0] {
         check_through_the_interface("smooth pbr", &smooth, wo(theta), Vec3::Z);
@@ -399,7 +406,14 @@ fn the_layered_bsdf_samples_its_density() {
 fn a_white_rough_pbr_metal_keeps_all_the_light() {
     for roughness in [0.3, 0.6, 1.0] {
         let lobes = GlossyLobes { specular: Vec3::ONE, alpha: alpha(roughness), base: Vec3::ZERO };
-        let metal = Pbr { lobes, base: Vec3::ZERO, frame: Frame::new(Vec3::Z), rough: false };
+        let metal = Pbr {
+            lobes,
+            base: Vec3::ZERO,
+            frame: Frame::new(Vec3::Z),
+            rough: false,
+            metallic: 1.0,
+            metal: Vec3::ONE,
+        };
         for theta in [0.0, 45.0, 80.0] {
             let mut s = crate::render::sampler::Sampler::new(2, 4, 6);
             let n = 100_000u64;

@@ -159,8 +159,16 @@ impl Emitter {
                 };
                 // u.x picks the triangle, then, rescaled, the point within it.
                 let (t, _, ux) = triangles.sample_reuse(u.x);
-                let (q, n, magnitude) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
-                area_sample(p, q, n, magnitude, *emission, select / area, light)
+                let (q, n, magnitude, bary) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
+                let radiance = match &mesh.uvs {
+                    Some(uvs) if scene.maps(scene.shapes[*shape as usize].material).emission.is_some() => {
+                        let [ia, ib, ic] = mesh.indices[t].map(|i| i as usize);
+                        let uv = uvs[ia] * (1.0 - bary.x - bary.y) + uvs[ib] * bary.x + uvs[ic] * bary.y;
+                        scene.emission_at(&scene.shapes[*shape as usize], uv)
+                    }
+                    _ => *emission,
+                };
+                area_sample(p, q, n, magnitude, radiance, select / area, light)
             }
             Emitter::Sphere { center, radius, emission, .. } => {
                 let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
@@ -286,14 +294,15 @@ fn point_sample(
     })
 }
 
-/// A point uniformly on triangle `t`, its geometric normal (by winding) and the magnitude of its
-/// coordinates (for [`offset_ray_origin`]).
-fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3, f32) {
+/// A point uniformly on triangle `t`, its geometric normal (by winding), the magnitude of its
+/// coordinates (for [`offset_ray_origin`]) and its barycentric weights of the second and third
+/// corners.
+fn point_on_triangle(mesh: &Mesh, t: u32, u: Vec2) -> (Vec3, Vec3, f32, Vec2) {
     let [a, b, c] = mesh.triangle(t);
     let bary = uniform_triangle(u);
     let q = a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y;
     let n = (b - a).cross(c - a).normalize_or_zero();
-    (q, n, mesh.magnitude(t, [a, b, c]))
+    (q, n, mesh.magnitude(t, [a, b, c]), bary)
 }
 
 /// Turns an area sample `q` (normal `n`, coordinates of `magnitude`, one-sided emission

@@ -129,7 +129,7 @@ impl Lights {
             lights.shape_light[i] = lights.emitters.len() as u32;
             lights.emitters.push(emitter);
             lights.diffuse_source.push(false);
-            power.push(PI * area * luminance(shape.emission));
+            power.push(PI * area * luminance(scene.mean_emission(shape)));
         }
         lights.select = Distribution1D::new(&power);
         lights

@@ -197,7 +197,8 @@ mod tests {
                 metal_rough: None,
                 normal: None,
                 height: None,
-                transmission: None
+                transmission: None,
+                emission: None
             }
         );
         assert_eq!(s.maps(7), Maps::default());

@@ -80,8 +80,11 @@ pub struct PbrMaterial {
     pub roughness: f32,
     /// Linear: roughness in G, metallic in B, multiplying the factors.
     pub metallic_roughness_texture: Option<usize>,
-    /// Emitted radiance: the factor times the mean of the emissive texture, if any.
+    /// Emitted radiance: the factor (times `KHR_materials_emissive_strength`), which the
+    /// emissive texture multiplies.
     pub emission: Vec3,
+    /// sRGB-decoded, multiplying `emission`.
+    pub emissive_texture: Option<usize>,
     /// A tangent-space normal map (linear) and its scale.
     pub normal_texture: Option<(usize, f32)>,
     /// The material extensions' layers, when it has any.
@@ -120,6 +123,7 @@ impl Default for PbrMaterial {
             normal_texture: None,
             layers: None,
             transmission_texture: None,
+            emissive_texture: None,
         }
     }
 }
@@ -324,10 +328,14 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             .transpose()?;
         // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
         let strength = m.emissive_strength().unwrap_or(1.0);
-        let mut emission = Vec3::from(m.emissive_factor()) * strength;
-        if let Some(t) = m.emissive_texture() {
-            emission *= texture_of(t.texture(), None, 0, true, &mut notes)?.1.mean();
-        }
+        let emission = Vec3::from(m.emissive_factor()) * strength;
+        let emissive_texture = match m.emissive_texture() {
+            // A texture under a black factor emits nothing: not read.
+            Some(t) if emission.max_element() > 0.0 => {
+                Some(texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes)?.0)
+            }
+            _ => None,
+        };
         let unit = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
         if ![r, g, b, metallic, roughness].into_iter().all(unit) {
             return Err(format!("material `{name}`: a colour, metallic or roughness factor outside [0, 1]"));
@@ -366,6 +374,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             normal_texture,
             layers,
             transmission_texture,
+            emissive_texture,
         });
     }
 
@@ -843,6 +852,7 @@ pub fn place(
             metal_rough: m.metallic_roughness_texture.map(texture),
             normal: m.normal_texture.map(|(t, scale)| (texture(t), scale)),
             transmission: m.transmission_texture.map(texture),
+            emission: m.emissive_texture.map(texture),
             ..Maps::default()
         };
         if maps != Maps::default() {
