@@ -637,3 +637,61 @@ fn layered_materials_keep_the_components_summing_to_the_beauty() {
     }
     assert!(f.raw.mean().min_element() > 0.05, "lit: {}", f.raw.mean());
 }
+
+/// An emissive texture is a texture, not its mean: a quad whose emissive texture is black on its
+/// left half and white on its right is seen so (nothing else lights the scene), and, sampled
+/// as a light, it lights a white floor below it as a uniform emitter of half its radiance
+/// does (the floor's mean, by symmetry, within four standard errors of the difference).
+#[test]
+fn an_emissive_texture_is_seen_and_sampled_as_a_texture() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut png = Vec::new();
+    // Two texels a half, so bilinear lookups inside each half are exact.
+    image::RgbImage::from_fn(4, 1, |x, _| image::Rgb(if x < 2 { [0, 0, 0] } else { [255, 255, 255] }))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    let write = |name: &str, textured: bool| {
+        let mut doc = quads_of(json!([
+            {"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1]}, "emissiveFactor": [1, 1, 1]},
+            {"pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 1}}
+        ]));
+        if textured {
+            doc.json["materials"][0]["emissiveTexture"] = json!({"index": doc.texture(&png)});
+        } else {
+            doc.json["materials"][0]["emissiveFactor"] = json!([0.5, 0.5, 0.5]);
+        }
+        // The emitter 1 above the floor, facing down (turned half a turn about x); the floor
+        // at the origin, facing up (a quarter turn about x).
+        let (s, c) = std::f64::consts::FRAC_PI_4.sin_cos();
+        doc.json["nodes"][0] = json!({"mesh": 0, "translation": [0, 1, 0], "rotation": [c, 0, 0, s]});
+        doc.json["nodes"][1] = json!({"mesh": 1, "scale": [3, 3, 3], "rotation": [-s, 0, 0, c]});
+        std::fs::write(dir.path().join(name), doc.glb()).expect("write");
+    };
+    write("textured.glb", true);
+    write("uniform.glb", false);
+    let render = |name: &str, camera: &str, spp: u32| {
+        let text = format!(
+            "{camera}[film]\nwidth = 16\nheight = 16\n[[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
+            dir.path().join(name).display()
+        );
+        crate::common::render_text(&text, spp).film.raw
+    };
+    // From below, looking up at the emitter's face (the floor behind the camera).
+    let below = "[camera]\nposition = [0, 0.5, 0]\nlook_at = [0, 1, 0]\nup = [0, 0, 1]\nfov = 60\n";
+    let seen = render("textured.glb", below, 4);
+    // Which image side shows which half depends on the view's handedness: one is black, the
+    // other white.
+    let (left, right) = (seen.get(2, 8).x, seen.get(13, 8).x);
+    assert!(
+        left > 0.9 && right < 0.05 || right > 0.9 && left < 0.05,
+        "a half black, a half white: {left} {right}"
+    );
+    let above = "[camera]\nposition = [0, 0.6, 2.5]\nlook_at = [0, 0, 0]\nfov = 40\n";
+    let (a, b) = (render("textured.glb", above, 64), render("uniform.glb", above, 64));
+    let d: Vec<f64> = a.pixels.iter().zip(&b.pixels).map(|(p, q)| (p.x - q.x) as f64).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let se = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    assert!(mean.abs() < 4.0 * se, "textured minus uniform: {mean} +- {se}");
+    assert!(b.mean().x > 0.01, "the floor is lit: {}", b.mean());
+}
