@@ -139,13 +139,21 @@ impl<'a> Shading<'a> {
             Material::Layered(l) => {
                 let (metallic, roughness) = self.metal_rough(l.metallic, l.roughness);
                 let layers = &l.layers;
+                let (f0, roughness) = match self.maps.spec_gloss {
+                    Some((color, gloss)) => {
+                        let (c, g) = (self.texture(color), self.texture(gloss));
+                        let glossiness = (1.0 - roughness) * g.color(self.point(g), self.s.uv).x;
+                        ((layers.f0 * c.color(self.point(c), self.s.uv)).min(Vec3::ONE), 1.0 - glossiness)
+                    }
+                    None => (layers.f0, roughness),
+                };
                 u.with(&Principled {
                     frame: Frame::new(n),
                     entering,
                     color: l.base_color * self.color(Vec3::ONE),
                     metallic,
                     alpha: alpha(roughness),
-                    f0: layers.f0,
+                    f0,
                     f90: layers.f90,
                     transmission: match self.maps.transmission {
                         Some(t) => {

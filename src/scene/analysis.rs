@@ -160,7 +160,8 @@ impl Analysis {
             a.color_textures += maps.color.is_some() as usize
                 + maps.metal_rough.is_some() as usize
                 + maps.transmission.is_some() as usize
-                + maps.emission.is_some() as usize;
+                + maps.emission.is_some() as usize
+                + 2 * maps.spec_gloss.is_some() as usize;
             a.bump_maps += maps.bump.is_some() as usize
                 + maps.normal.is_some() as usize
                 + maps.height.is_some() as usize;

@@ -471,6 +471,9 @@ pub struct Maps {
     /// An emissive texture (an image, sRGB-decoded) multiplying the emission of the shapes of
     /// the material.
     pub emission: Option<u32>,
+    /// A specular-glossiness material's texture: its colour multiplying the dielectric's f0,
+    /// and (the second texture, its alpha) the glossiness, 1 - roughness.
+    pub spec_gloss: Option<(u32, u32)>,
 }
 
 impl Maps {

@@ -198,7 +198,8 @@ mod tests {
                 normal: None,
                 height: None,
                 transmission: None,
-                emission: None
+                emission: None,
+                spec_gloss: None
             }
         );
         assert_eq!(s.maps(7), Maps::default());

@@ -406,29 +406,18 @@ impl<'a> Buffers<'a> {
         let bytes = self.image_bytes(i)?;
         decode(&bytes, srgb)
     }
+
+    /// Image `i`'s alpha channel, as a grey image.
+    pub fn image_alpha(&mut self, i: usize) -> Result<Image, String> {
+        let bytes = self.image_bytes(i)?;
+        decode_alpha(&bytes)
+    }
 }
 
 /// Decodes a PNG or JPEG (the format from its bytes, not its stated MIME type) to linear RGB,
 /// 8- and 16-bit values from sRGB when `srgb`, float ones as they are.
 pub fn decode(bytes: &[u8], srgb: bool) -> Result<Image, String> {
-    use image::{ImageDecoder, ImageReader};
-    let reader =
-        || ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string());
-    let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
-    let pixels = width as u64 * height as u64;
-    if pixels == 0 || width > limits::MAX_SIZE || height > limits::MAX_SIZE {
-        return Err(format!("a size of {width}x{height} (each side 1 to {} pixels)", limits::MAX_SIZE));
-    }
-    let mut decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
-    // The decoder's buffer and the linear image (12 bytes a pixel).
-    let bytes_per_pixel = decoder.color_type().bytes_per_pixel() as u64;
-    limits::check_memory(pixels * (bytes_per_pixel + 12), &format!("a {width}x{height} image"))?;
-    // The size is checked: the decoder's own limit (512 MiB) would refuse an 8K 16-bit map.
-    let mut limits = image::Limits::no_limits();
-    limits.max_image_width = Some(width);
-    limits.max_image_height = Some(height);
-    decoder.set_limits(limits).map_err(|e| e.to_string())?;
-    let decoded = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+    let (width, height, decoded) = read_image(bytes)?;
     let curve = |x: f32| if srgb { srgb_to_linear(x) } else { x };
     let pixels: Vec<glam::Vec3> = match decoded.color().bytes_per_pixel() / decoded.color().channel_count() {
         1 => decoded
@@ -443,8 +432,42 @@ pub fn decode(bytes: &[u8], srgb: bool) -> Result<Image, String> {
             .collect(),
         _ => decoded.into_rgb32f().pixels().map(|p| glam::Vec3::from(p.0)).collect(),
     };
-    if pixels.iter().any(|p| !p.is_finite()) {
+    finite(Image { width, height, pixels })
+}
+
+/// Decodes a PNG or JPEG's alpha channel (1 where it has none), linear, in all three channels.
+pub fn decode_alpha(bytes: &[u8]) -> Result<Image, String> {
+    let (width, height, decoded) = read_image(bytes)?;
+    let pixels = decoded.into_rgba32f().pixels().map(|p| glam::Vec3::splat(p.0[3])).collect();
+    finite(Image { width, height, pixels })
+}
+
+fn finite(image: Image) -> Result<Image, String> {
+    if image.pixels.iter().any(|p| !p.is_finite()) {
         return Err("a pixel is NaN or infinite".into());
     }
-    Ok(Image { width, height, pixels })
+    Ok(image)
+}
+
+/// An image's size and decoded pixels, its size and memory checked first.
+fn read_image(bytes: &[u8]) -> Result<(u32, u32, image::DynamicImage), String> {
+    use image::{ImageDecoder, ImageReader};
+    let reader =
+        || ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string());
+    let (width, height) = reader()?.into_dimensions().map_err(|e| e.to_string())?;
+    let pixels = width as u64 * height as u64;
+    if pixels == 0 || width > limits::MAX_SIZE || height > limits::MAX_SIZE {
+        return Err(format!("a size of {width}x{height} (each side 1 to {} pixels)", limits::MAX_SIZE));
+    }
+    let mut decoder = reader()?.into_decoder().map_err(|e| e.to_string())?;
+    // The decoder's buffer and the linear image (16 bytes a pixel at most, as RGBA f32).
+    let bytes_per_pixel = decoder.color_type().bytes_per_pixel() as u64;
+    limits::check_memory(pixels * (bytes_per_pixel + 16), &format!("a {width}x{height} image"))?;
+    // The size is checked: the decoder's own limit (512 MiB) would refuse an 8K 16-bit map.
+    let mut limits = image::Limits::no_limits();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    decoder.set_limits(limits).map_err(|e| e.to_string())?;
+    let decoded = image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+    Ok((width, height, decoded))
 }

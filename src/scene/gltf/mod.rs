@@ -1,15 +1,17 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), its JSON parsed by the `gltf`
-//! crate and its bytes read by [`data`]:
-//! the default scene's node hierarchy with its transforms, triangle meshes with indices, normals
-//! and texture coordinates, the metallic-roughness materials with their textures, emission, the
-//! first camera, `KHR_lights_punctual` lights and `KHR_materials_emissive_strength`. Meshes come out in their own coordinates,
-//! read once, with each node's transform into the glTF's world (f64); the rest comes out in that
-//! world. [`crate::scene::file`] and [`scene`] place it in a scene, where a mesh that several
-//! nodes use is shared (instanced), not copied.
+//! crate and its bytes read by [`data`]: the default scene's node hierarchy with its transforms,
+//! triangle meshes with indices, normals and texture coordinates, the metallic-roughness
+//! materials with their textures and emission (its texture a texture), the material extensions
+//! of one layered BSDF (specular, ior, transmission, volume, clearcoat, sheen;
+//! specular-glossiness converted: [`layers`]), the first camera, `KHR_lights_punctual` lights,
+//! `KHR_materials_emissive_strength` and `KHR_texture_transform`. Meshes come out in their own
+//! coordinates, read once, with each node's transform into the glTF's world (f64); the rest
+//! comes out in that world. [`crate::scene::file`] and [`scene`] place it in a scene, where a
+//! mesh that several nodes use is shared (instanced), not copied.
 //!
-//! Not read (yet): occlusion, alpha modes, texture transforms, the other material extensions
-//! (named in a note when a file uses them),
-//! skins, morph targets, animations, orthographic cameras, points and lines.
+//! Not read (yet): occlusion, alpha modes, the material extensions' other textures,
+//! iridescence and the rest (named in a note when a file uses them), skins, morph targets,
+//! animations, orthographic cameras, points and lines.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -85,6 +87,11 @@ pub struct PbrMaterial {
     pub emission: Vec3,
     /// sRGB-decoded, multiplying `emission`.
     pub emissive_texture: Option<usize>,
+    /// `KHR_materials_unlit`: it emits its base colour (`emission`) and reflects nothing.
+    pub unlit: bool,
+    /// A specular-glossiness material's texture, as two: its colour (sRGB) multiplying f0, and
+    /// its alpha (linear) multiplying the glossiness.
+    pub spec_gloss_texture: Option<(usize, usize)>,
     /// A tangent-space normal map (linear) and its scale.
     pub normal_texture: Option<(usize, f32)>,
     /// The material extensions' layers, when it has any.
@@ -106,6 +113,7 @@ impl PbrMaterial {
             && self.normal_texture.is_none()
             && (self.base_color_texture.is_none() || self.base_color == Vec3::ONE)
             && self.layers.is_none()
+            && !self.unlit
     }
 }
 
@@ -124,6 +132,8 @@ impl Default for PbrMaterial {
             layers: None,
             transmission_texture: None,
             emissive_texture: None,
+            unlit: false,
+            spec_gloss_texture: None,
         }
     }
 }
@@ -156,7 +166,8 @@ pub struct Gltf {
     pub primitives: Vec<Primitive>,
     pub parts: Vec<NodePrimitive>,
     pub materials: Vec<PbrMaterial>,
-    /// Images by texture use: `(image, srgb)` decoded to linear RGB.
+    /// Images by texture use: each image decoded to linear RGB from linear or sRGB values, or its
+    /// alpha channel alone.
     pub images: Vec<Arc<Image>>,
     /// Textures: an image of [`Gltf::images`] and the transform of its (u, v)
     /// ([`uv_transform`]); the materials' textures index these.
@@ -185,6 +196,14 @@ pub fn uv_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Affine2 {
     flip * gltf * flip
 }
 
+/// How an image is decoded for a texture: its colour linear or from sRGB, or its alpha.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Decode {
+    Linear,
+    Srgb,
+    Alpha,
+}
+
 /// The extensions read (the others a file uses are named in a note).
 const READ_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
@@ -195,6 +214,7 @@ const READ_EXTENSIONS: &[&str] = &[
     "KHR_materials_sheen",
     "KHR_materials_specular",
     "KHR_materials_transmission",
+    "KHR_materials_unlit",
     "KHR_materials_volume",
     "KHR_texture_transform",
 ];
@@ -244,16 +264,20 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
 
     // Images: decoded when a material first uses them, once per colour space.
     let mut images: Vec<Arc<Image>> = Vec::new();
-    let mut image_ids: HashMap<(usize, bool), usize> = HashMap::new();
-    let mut image_of = |texture: gltf::Texture, srgb: bool| -> Result<(usize, Arc<Image>), String> {
+    let mut image_ids: HashMap<(usize, Decode), usize> = HashMap::new();
+    let mut image_of = |texture: gltf::Texture, decode: Decode| -> Result<(usize, Arc<Image>), String> {
         let source = texture.source().index();
-        if let Some(&id) = image_ids.get(&(source, srgb)) {
+        if let Some(&id) = image_ids.get(&(source, decode)) {
             return Ok((id, images[id].clone()));
         }
-        let image = buffers.image(source, srgb).map_err(|e| format!("image {source}: {e}"))?;
-        let image = Arc::new(image);
+        let image = match decode {
+            Decode::Linear => buffers.image(source, false),
+            Decode::Srgb => buffers.image(source, true),
+            Decode::Alpha => buffers.image_alpha(source),
+        };
+        let image = Arc::new(image.map_err(|e| format!("image {source}: {e}"))?);
         images.push(image.clone());
-        image_ids.insert((source, srgb), images.len() - 1);
+        image_ids.insert((source, decode), images.len() - 1);
         Ok((images.len() - 1, image))
     };
 
@@ -262,10 +286,10 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     let mut texture_of = |texture: gltf::Texture,
                           transform: Option<gltf::texture::TextureTransform>,
                           tex_coord: u32,
-                          srgb: bool,
+                          decode: Decode,
                           notes: &mut Vec<String>|
      -> Result<(usize, Arc<Image>), String> {
-        let (image, pixels) = image_of(texture, srgb)?;
+        let (image, pixels) = image_of(texture, decode)?;
         let transform = match transform {
             None => None,
             Some(t) => {
@@ -309,33 +333,49 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         };
         let base_color_texture = color_texture
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes).map(|t| t.0)
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Srgb, &mut notes).map(|t| t.0)
             })
             .transpose()?;
         let (metallic, roughness, layers) = layers(&m, &name, &mut unread_parts)?;
+        // The specular-glossiness texture: the specular colour in RGB (sRGB), the glossiness in
+        // alpha (linear), read as two textures.
+        let spec_gloss_texture = match m.pbr_specular_glossiness().and_then(|sg| sg.specular_glossiness_texture()) {
+            Some(t) => {
+                let k = t.tex_coord();
+                let color = texture_of(t.texture(), t.texture_transform(), k, Decode::Srgb, &mut notes)?.0;
+                Some((color, texture_of(t.texture(), t.texture_transform(), k, Decode::Alpha, &mut notes)?.0))
+            }
+            None => None,
+        };
         let transmission_texture = m
             .transmission()
             .and_then(|t| t.transmission_texture())
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), false, &mut notes).map(|t| t.0)
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Linear, &mut notes).map(|t| t.0)
             })
             .transpose()?;
         let metallic_roughness_texture = pbr
             .metallic_roughness_texture()
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), false, &mut notes).map(|t| t.0)
+                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Linear, &mut notes).map(|t| t.0)
             })
             .transpose()?;
         // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
         let strength = m.emissive_strength().unwrap_or(1.0);
-        let emission = Vec3::from(m.emissive_factor()) * strength;
-        let emissive_texture = match m.emissive_texture() {
+        let mut emission = Vec3::from(m.emissive_factor()) * strength;
+        let mut emissive_texture = match m.emissive_texture() {
             // A texture under a black factor emits nothing: not read.
             Some(t) if emission.max_element() > 0.0 => {
-                Some(texture_of(t.texture(), t.texture_transform(), t.tex_coord(), true, &mut notes)?.0)
+                Some(texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Srgb, &mut notes)?.0)
             }
             _ => None,
         };
+        // `KHR_materials_unlit`: the base colour (and its texture) is what is seen, emitted by a
+        // surface that reflects nothing.
+        let unlit = m.unlit();
+        if unlit {
+            (emission, emissive_texture) = (Vec3::new(r, g, b), base_color_texture);
+        }
         let unit = |v: f32| v.is_finite() && (0.0..=1.0).contains(&v);
         if ![r, g, b, metallic, roughness].into_iter().all(unit) {
             return Err(format!("material `{name}`: a colour, metallic or roughness factor outside [0, 1]"));
@@ -360,7 +400,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             Some(t) if !t.scale().is_finite() => {
                 return Err(format!("material `{name}`: a normal map scale that is not finite"))
             }
-            Some(t) => Some((texture_of(t.texture(), None, 0, false, &mut notes)?.0, t.scale())),
+            Some(t) => Some((texture_of(t.texture(), None, 0, Decode::Linear, &mut notes)?.0, t.scale())),
             None => None,
         };
         materials.push(PbrMaterial {
@@ -375,6 +415,8 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             layers,
             transmission_texture,
             emissive_texture,
+            unlit,
+            spec_gloss_texture,
         });
     }
 
@@ -535,9 +577,6 @@ fn layers(
         (metallic, roughness) = (0.0, (1.0 - glossiness).clamp(0.0, 1.0));
         layers.f0 = specular.clamp(Vec3::ZERO, Vec3::ONE);
         any = true;
-        if sg.specular_glossiness_texture().is_some() {
-            unread.push("the specular-glossiness texture");
-        }
     }
     let ior = m.ior().unwrap_or(1.5);
     if !(ior.is_finite() && (1.0..=10.0).contains(&ior)) {
@@ -606,7 +645,9 @@ fn layers(
         }
     }
     if m.unlit() {
-        unread.push("unlit (rendered lit)");
+        unread.push(
+            "unlit as Blender shows it to the camera alone (it emits its base colour and reflects nothing)",
+        );
     }
     for what in unread {
         notes.push(format!("{what}\u{0}{name}"));
@@ -826,7 +867,9 @@ pub fn place(
     let texture = |i: usize| first_texture + i as u32;
     let default = PbrMaterial::default();
     for (k, m) in g.materials.iter().chain(std::iter::once(&default)).enumerate() {
-        out.materials.push(if m.is_lambertian() {
+        out.materials.push(if m.unlit {
+            Material::Diffuse { albedo: Vec3::ZERO }
+        } else if m.is_lambertian() {
             Material::Diffuse { albedo: m.base_color }
         } else if let Some(mut layers) = m.layers {
             // Absorption is per unit of the glTF's world: per unit of the scene, divided by the
@@ -848,11 +891,12 @@ pub fn place(
             }
         });
         let maps = Maps {
-            color: m.base_color_texture.map(texture),
+            color: m.base_color_texture.filter(|_| !m.unlit).map(texture),
             metal_rough: m.metallic_roughness_texture.map(texture),
             normal: m.normal_texture.map(|(t, scale)| (texture(t), scale)),
             transmission: m.transmission_texture.map(texture),
             emission: m.emissive_texture.map(texture),
+            spec_gloss: m.spec_gloss_texture.map(|(c, a)| (texture(c), texture(a))),
             ..Maps::default()
         };
         if maps != Maps::default() {
