@@ -6,7 +6,9 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
-use super::bsdf::{alpha, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr, Principled, SheenLobe};
+use super::bsdf::{
+    alpha, dielectric_f0, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr, Principled, SheenLobe,
+};
 use super::surface::{apply_height, apply_normal_map, Surface};
 use crate::math::Frame;
 use crate::scene::texture::Texture;
@@ -147,6 +149,25 @@ impl<'a> Shading<'a> {
                     }
                     None => (layers.f0, roughness),
                 };
+                let lm = &self.maps.layer;
+                // A texture's value at the point (1 without one).
+                let at = |t: Option<u32>| match t {
+                    Some(t) => {
+                        let texture = self.texture(t);
+                        texture.color(self.point(texture), self.s.uv)
+                    }
+                    None => Vec3::ONE,
+                };
+                let (f0, f90) = match (lm.specular, lm.specular_color) {
+                    (None, None) => (f0, layers.f90),
+                    (s, c) => {
+                        dielectric_f0(layers.ior, layers.specular * at(s).x, layers.specular_color * at(c))
+                    }
+                };
+                let coat = layers.clearcoat * at(lm.clearcoat).x;
+                let coat_roughness = layers.clearcoat_roughness * at(lm.clearcoat_roughness).y;
+                let sheen_color = layers.sheen_color * at(lm.sheen_color);
+                let sheen_roughness = layers.sheen_roughness * at(lm.sheen_roughness).x;
                 u.with(&Principled {
                     frame: Frame::new(n),
                     entering,
@@ -154,7 +175,7 @@ impl<'a> Shading<'a> {
                     metallic,
                     alpha: alpha(roughness),
                     f0,
-                    f90: layers.f90,
+                    f90,
                     transmission: match self.maps.transmission {
                         Some(t) => {
                             let texture = self.texture(t);
@@ -164,12 +185,12 @@ impl<'a> Shading<'a> {
                     },
                     ior: layers.ior,
                     thin: layers.thin,
-                    coat: layers.clearcoat,
-                    coat_alpha: alpha(layers.clearcoat_roughness),
-                    sheen: SheenLobe::new(layers.sheen_color, layers.sheen_roughness),
-                    sheen_roughness: layers.sheen_roughness,
+                    coat,
+                    coat_alpha: alpha(coat_roughness),
+                    sheen: SheenLobe::new(sheen_color, sheen_roughness),
+                    sheen_roughness,
                     rough: roughness >= l.diffuse_from,
-                    coat_rough: layers.clearcoat_roughness >= l.diffuse_from,
+                    coat_rough: coat_roughness >= l.diffuse_from,
                 })
             }
         }

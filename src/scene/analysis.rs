@@ -161,7 +161,8 @@ impl Analysis {
                 + maps.metal_rough.is_some() as usize
                 + maps.transmission.is_some() as usize
                 + maps.emission.is_some() as usize
-                + 2 * maps.spec_gloss.is_some() as usize;
+                + 2 * maps.spec_gloss.is_some() as usize
+                + maps.layer.count();
             a.bump_maps += maps.bump.is_some() as usize
                 + maps.normal.is_some() as usize
                 + maps.height.is_some() as usize;

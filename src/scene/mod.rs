@@ -183,6 +183,10 @@ pub struct Layers {
     pub clearcoat_roughness: f32,
     pub sheen_color: Vec3,
     pub sheen_roughness: f32,
+    /// `KHR_materials_specular`'s factor and colour, which `f0` and `f90` are made of (kept
+    /// for its textures, which multiply them).
+    pub specular: f32,
+    pub specular_color: Vec3,
 }
 
 impl Default for Layers {
@@ -199,6 +203,8 @@ impl Default for Layers {
             clearcoat_roughness: 0.0,
             sheen_color: Vec3::ZERO,
             sheen_roughness: 0.0,
+            specular: 1.0,
+            specular_color: Vec3::ONE,
         }
     }
 }
@@ -474,6 +480,37 @@ pub struct Maps {
     /// A specular-glossiness material's texture: its colour multiplying the dielectric's f0,
     /// and (the second texture, its alpha) the glossiness, 1 - roughness.
     pub spec_gloss: Option<(u32, u32)>,
+    /// The textures of the layered material's extensions.
+    pub layer: LayerMaps,
+}
+
+/// The textures of glTF's material extensions, each multiplying its factor: the clearcoat's
+/// (red) and its roughness's (green), the sheen colour's (sRGB) and its roughness's (alpha),
+/// the specular factor's (alpha) and the specular colour's (sRGB).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LayerMaps {
+    pub clearcoat: Option<u32>,
+    pub clearcoat_roughness: Option<u32>,
+    pub sheen_color: Option<u32>,
+    pub sheen_roughness: Option<u32>,
+    pub specular: Option<u32>,
+    pub specular_color: Option<u32>,
+}
+
+impl LayerMaps {
+    pub fn count(&self) -> usize {
+        [
+            self.clearcoat,
+            self.clearcoat_roughness,
+            self.sheen_color,
+            self.sheen_roughness,
+            self.specular,
+            self.specular_color,
+        ]
+        .iter()
+        .flatten()
+        .count()
+    }
 }
 
 impl Maps {

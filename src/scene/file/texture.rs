@@ -199,7 +199,8 @@ mod tests {
                 height: None,
                 transmission: None,
                 emission: None,
-                spec_gloss: None
+                spec_gloss: None,
+                layer: Default::default()
             }
         );
         assert_eq!(s.maps(7), Maps::default());

@@ -24,8 +24,8 @@ use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 use crate::scene::image::Image;
 use crate::scene::texture::Texture;
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Instance, Layered, Layers, Light, Maps, Material, Mesh, RenderSettings,
-    Scene, SceneError, Shape,
+    Camera, FilmSettings, Geometry, Instance, LayerMaps, Layered, Layers, Light, Maps, Material, Mesh,
+    RenderSettings, Scene, SceneError, Shape,
 };
 use data::Buffers;
 use gltf::mesh::{Mode, Semantic};
@@ -92,6 +92,8 @@ pub struct PbrMaterial {
     /// A specular-glossiness material's texture, as two: its colour (sRGB) multiplying f0, and
     /// its alpha (linear) multiplying the glossiness.
     pub spec_gloss_texture: Option<(usize, usize)>,
+    /// The extensions' textures (indices into [`Gltf::textures`]).
+    pub layer: LayerMaps,
     /// A tangent-space normal map (linear) and its scale.
     pub normal_texture: Option<(usize, f32)>,
     /// The material extensions' layers, when it has any.
@@ -134,6 +136,7 @@ impl Default for PbrMaterial {
             emissive_texture: None,
             unlit: false,
             spec_gloss_texture: None,
+            layer: LayerMaps::default(),
         }
     }
 }
@@ -194,6 +197,39 @@ pub fn uv_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Affine2 {
     let flip =
         Affine2::from_mat2_translation(glam::Mat2::from_diagonal(Vec2::new(1.0, -1.0)), Vec2::new(0.0, 1.0));
     flip * gltf * flip
+}
+
+/// `KHR_texture_transform` of a texture: offset (u, v), rotation, scale (u, v), and the
+/// texture coordinates it names, if any.
+#[derive(Clone, Copy, Debug)]
+struct Transform {
+    values: [f32; 5],
+    tex_coord: Option<u32>,
+}
+
+impl Transform {
+    /// The crate's reading of it.
+    fn of(t: Option<gltf::texture::TextureTransform>) -> Option<Transform> {
+        t.map(|t| Transform {
+            values: [t.offset()[0], t.offset()[1], t.rotation(), t.scale()[0], t.scale()[1]],
+            tex_coord: t.tex_coord(),
+        })
+    }
+
+    /// Its reading from the JSON of a texture info the crate does not know (an extension's).
+    fn of_json(info: &serde_json::Value) -> Option<Transform> {
+        let t = info.get("extensions")?.get("KHR_texture_transform")?;
+        let pair = |key: &str, default: [f32; 2]| -> [f32; 2] {
+            let a = t.get(key).and_then(|v| v.as_array());
+            let at =
+                |i: usize, d: f32| a.and_then(|a| a.get(i)).and_then(|v| v.as_f64()).map_or(d, |v| v as f32);
+            [at(0, default[0]), at(1, default[1])]
+        };
+        let ([ox, oy], [sx, sy]) = (pair("offset", [0.0, 0.0]), pair("scale", [1.0, 1.0]));
+        let rotation = t.get("rotation").and_then(|v| v.as_f64()).map_or(0.0, |v| v as f32);
+        let tex_coord = t.get("texCoord").and_then(|v| v.as_u64()).map(|k| k as u32);
+        Some(Transform { values: [ox, oy, rotation, sx, sy], tex_coord })
+    }
 }
 
 /// How an image is decoded for a texture: its colour linear or from sRGB, or its alpha.
@@ -284,26 +320,25 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     // Textures: an image and the transform of its (u, v), once per pair.
     let mut textures: Vec<(usize, Option<Affine2>)> = Vec::new();
     let mut texture_of = |texture: gltf::Texture,
-                          transform: Option<gltf::texture::TextureTransform>,
+                          transform: Option<Transform>,
                           tex_coord: u32,
                           decode: Decode,
                           notes: &mut Vec<String>|
      -> Result<(usize, Arc<Image>), String> {
         let (image, pixels) = image_of(texture, decode)?;
+        if tex_coord != 0 || transform.is_some_and(|t| t.tex_coord.is_some_and(|k| k != 0)) {
+            notes.push(
+                "a texture reads a second set of texture coordinates, not read: the first is used".into(),
+            );
+        }
         let transform = match transform {
             None => None,
             Some(t) => {
-                if t.tex_coord().is_some_and(|k| k != 0) || tex_coord != 0 {
-                    notes.push(
-                        "a texture reads a second set of texture coordinates, not read: the first is used"
-                            .into(),
-                    );
-                }
-                let values = [t.offset()[0], t.offset()[1], t.rotation(), t.scale()[0], t.scale()[1]];
-                if !values.iter().all(|v| v.is_finite()) {
+                if !t.values.iter().all(|v| v.is_finite()) {
                     return Err("a texture transform that is not finite".into());
                 }
-                Some(uv_transform(t.offset().into(), t.rotation(), t.scale().into()))
+                let [ox, oy, rotation, sx, sy] = t.values;
+                Some(uv_transform(Vec2::new(ox, oy), rotation, Vec2::new(sx, sy)))
             }
         };
         let key = (image, transform);
@@ -333,31 +368,105 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         };
         let base_color_texture = color_texture
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Srgb, &mut notes).map(|t| t.0)
+                texture_of(
+                    t.texture(),
+                    Transform::of(t.texture_transform()),
+                    t.tex_coord(),
+                    Decode::Srgb,
+                    &mut notes,
+                )
+                .map(|t| t.0)
             })
             .transpose()?;
         let (metallic, roughness, layers) = layers(&m, &name, &mut unread_parts)?;
         // The specular-glossiness texture: the specular colour in RGB (sRGB), the glossiness in
         // alpha (linear), read as two textures.
-        let spec_gloss_texture = match m.pbr_specular_glossiness().and_then(|sg| sg.specular_glossiness_texture()) {
-            Some(t) => {
-                let k = t.tex_coord();
-                let color = texture_of(t.texture(), t.texture_transform(), k, Decode::Srgb, &mut notes)?.0;
-                Some((color, texture_of(t.texture(), t.texture_transform(), k, Decode::Alpha, &mut notes)?.0))
+        let spec_gloss_texture =
+            match m.pbr_specular_glossiness().and_then(|sg| sg.specular_glossiness_texture()) {
+                Some(t) => {
+                    let k = t.tex_coord();
+                    let color = texture_of(
+                        t.texture(),
+                        Transform::of(t.texture_transform()),
+                        k,
+                        Decode::Srgb,
+                        &mut notes,
+                    )?
+                    .0;
+                    Some((
+                        color,
+                        texture_of(
+                            t.texture(),
+                            Transform::of(t.texture_transform()),
+                            k,
+                            Decode::Alpha,
+                            &mut notes,
+                        )?
+                        .0,
+                    ))
+                }
+                None => None,
+            };
+        // The extensions' textures: the crate reads the specular ones, the JSON the others.
+        let mut layer = LayerMaps::default();
+        if let Some(sp) = m.specular() {
+            for (t, decode, slot) in [
+                (sp.specular_texture(), Decode::Alpha, &mut layer.specular),
+                (sp.specular_color_texture(), Decode::Srgb, &mut layer.specular_color),
+            ] {
+                if let Some(t) = t {
+                    let tt = Transform::of(t.texture_transform());
+                    *slot = Some(texture_of(t.texture(), tt, t.tex_coord(), decode, &mut notes)?.0 as u32);
+                }
             }
-            None => None,
-        };
+        }
+        for (ext, key, decode, slot) in [
+            ("KHR_materials_clearcoat", "clearcoatTexture", Decode::Linear, &mut layer.clearcoat),
+            (
+                "KHR_materials_clearcoat",
+                "clearcoatRoughnessTexture",
+                Decode::Linear,
+                &mut layer.clearcoat_roughness,
+            ),
+            ("KHR_materials_sheen", "sheenColorTexture", Decode::Srgb, &mut layer.sheen_color),
+            ("KHR_materials_sheen", "sheenRoughnessTexture", Decode::Alpha, &mut layer.sheen_roughness),
+        ] {
+            let Some(info) = m.extension_value(ext).and_then(|e| e.get(key)) else { continue };
+            let index = info.get("index").and_then(|v| v.as_u64()).map(|i| i as usize);
+            let Some(texture) = index.and_then(|i| document.textures().nth(i)) else {
+                return Err(format!(
+                    "material `{name}`: `{key}` names no texture (it has {})",
+                    document.textures().len()
+                ));
+            };
+            let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+            *slot = Some(texture_of(texture, Transform::of_json(info), k, decode, &mut notes)?.0 as u32);
+        }
         let transmission_texture = m
             .transmission()
             .and_then(|t| t.transmission_texture())
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Linear, &mut notes).map(|t| t.0)
+                texture_of(
+                    t.texture(),
+                    Transform::of(t.texture_transform()),
+                    t.tex_coord(),
+                    Decode::Linear,
+                    &mut notes,
+                )
+                .map(|t| t.0)
             })
             .transpose()?;
         let metallic_roughness_texture = pbr
             .metallic_roughness_texture()
             .map(|t| {
-                texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Linear, &mut notes).map(|t| t.0)
+                texture_of(
+                    t.texture(),
+                    Transform::of(t.texture_transform()),
+                    t.tex_coord(),
+                    Decode::Linear,
+                    &mut notes,
+                )
+                .map(|t| t.0)
             })
             .transpose()?;
         // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
@@ -365,9 +474,16 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         let mut emission = Vec3::from(m.emissive_factor()) * strength;
         let mut emissive_texture = match m.emissive_texture() {
             // A texture under a black factor emits nothing: not read.
-            Some(t) if emission.max_element() > 0.0 => {
-                Some(texture_of(t.texture(), t.texture_transform(), t.tex_coord(), Decode::Srgb, &mut notes)?.0)
-            }
+            Some(t) if emission.max_element() > 0.0 => Some(
+                texture_of(
+                    t.texture(),
+                    Transform::of(t.texture_transform()),
+                    t.tex_coord(),
+                    Decode::Srgb,
+                    &mut notes,
+                )?
+                .0,
+            ),
             _ => None,
         };
         // `KHR_materials_unlit`: the base colour (and its texture) is what is seen, emitted by a
@@ -417,6 +533,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             emissive_texture,
             unlit,
             spec_gloss_texture,
+            layer,
         });
     }
 
@@ -592,10 +709,8 @@ fn layers(
             ));
         }
         (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, factor, tint);
+        (layers.specular, layers.specular_color) = (factor, tint);
         any = true;
-        if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
-            unread.push("specular textures");
-        }
     } else if m.pbr_specular_glossiness().is_none() && m.ior().is_some() {
         (layers.f0, layers.f90) = crate::render::bsdf::dielectric_f0(ior, 1.0, Vec3::ONE);
         any = true;
@@ -629,20 +744,14 @@ fn layers(
         layers.clearcoat = number(c, "clearcoatFactor", 0.0, 0.0..=1.0, name)?;
         layers.clearcoat_roughness = number(c, "clearcoatRoughnessFactor", 0.0, 0.0..=1.0, name)?;
         any |= layers.clearcoat > 0.0;
-        if ["clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"]
-            .iter()
-            .any(|k| c.get(k).is_some())
-        {
-            unread.push("clearcoat textures");
+        if c.get("clearcoatNormalTexture").is_some() {
+            unread.push("clearcoat normal maps");
         }
     }
     if let Some(sh) = m.extension_value("KHR_materials_sheen") {
         layers.sheen_color = color(sh, "sheenColorFactor", Vec3::ZERO, name)?;
         layers.sheen_roughness = number(sh, "sheenRoughnessFactor", 0.0, 0.0..=1.0, name)?;
         any |= layers.sheen_color.max_element() > 0.0;
-        if ["sheenColorTexture", "sheenRoughnessTexture"].iter().any(|k| sh.get(k).is_some()) {
-            unread.push("sheen textures");
-        }
     }
     if m.unlit() {
         unread.push(
@@ -897,6 +1006,18 @@ pub fn place(
             transmission: m.transmission_texture.map(texture),
             emission: m.emissive_texture.map(texture),
             spec_gloss: m.spec_gloss_texture.map(|(c, a)| (texture(c), texture(a))),
+            layer: {
+                let t = |i: Option<u32>| i.map(|i| texture(i as usize));
+                let l = &m.layer;
+                LayerMaps {
+                    clearcoat: t(l.clearcoat),
+                    clearcoat_roughness: t(l.clearcoat_roughness),
+                    sheen_color: t(l.sheen_color),
+                    sheen_roughness: t(l.sheen_roughness),
+                    specular: t(l.specular),
+                    specular_color: t(l.specular_color),
+                }
+            },
             ..Maps::default()
         };
         if maps != Maps::default() {
