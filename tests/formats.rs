@@ -695,3 +695,39 @@ fn an_emissive_texture_is_seen_and_sampled_as_a_texture() {
     assert!(mean.abs() < 4.0 * se, "textured minus uniform: {mean} +- {se}");
     assert!(b.mean().x > 0.01, "the floor is lit: {}", b.mean());
 }
+
+/// The extensions' textures become maps of the material (the specular-glossiness texture as
+/// its colour and its alpha, sheen from the extension's JSON), and an unlit material emits its
+/// base colour from a surface that reflects nothing.
+#[test]
+fn extension_textures_are_read_and_unlit_emits_its_colour() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut png = Vec::new();
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([200, 100, 50, 128]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    let mut doc = quads_of(json!([
+        {"name": "sg", "extensions": {"KHR_materials_pbrSpecularGlossiness": {"specularGlossinessTexture": {"index": 0}}}},
+        {"name": "cloth", "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1],
+            "sheenColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}}}},
+        {"name": "flat", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 1]}, "extensions": {"KHR_materials_unlit": {}}}
+    ]));
+    assert_eq!(doc.texture(&png), 0);
+    doc.json["extensionsUsed"] = json!([
+        "KHR_materials_pbrSpecularGlossiness",
+        "KHR_materials_sheen",
+        "KHR_materials_unlit",
+        "KHR_texture_transform"
+    ]);
+    std::fs::write(dir.path().join("t.glb"), doc.glb()).expect("write");
+    let s = scene::load(&dir.path().join("t.glb")).expect("loads");
+    let (sg, cloth, flat) = (s.maps(s.shapes[0].material), s.maps(s.shapes[1].material), &s.shapes[2]);
+    let (color, gloss) = sg.spec_gloss.expect("the specular-glossiness texture is read");
+    let pixel = |t: u32| s.textures[t as usize].color(DVec3::ZERO, glam::Vec2::splat(0.5));
+    assert!((pixel(gloss).x - 128.0 / 255.0).abs() < 1e-3, "alpha: {}", pixel(gloss));
+    assert!(pixel(color).x > pixel(color).y && pixel(color).y > pixel(color).z, "colour: {}", pixel(color));
+    assert!(cloth.layer.sheen_color.is_some(), "{cloth:?}");
+    assert_eq!(flat.emission, Vec3::new(0.2, 0.4, 0.6));
+    assert_eq!(s.materials[flat.material as usize], scene::Material::Diffuse { albedo: Vec3::ZERO });
+    assert!(s.notes.iter().all(|n| !n.contains("extensions not read")), "{:?}", s.notes);
+}
