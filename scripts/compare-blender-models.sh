@@ -7,7 +7,8 @@
 # region through the binary (`lightsplit compare --by-object`, inner pixels of each of
 # lightsplit's object IDs: scripts/compare-blender.py). Writes OUT_DIR/report.md (one row a
 # model: the worst region, the regions within 5%, the pixels within 25%) and each model's
-# side-by-side PNG. Comparison only: Blender is not a dependency.
+# side-by-side PNG, and OUT_DIR/gallery.png, a contact sheet of them (lightsplit left, Blender
+# right; docs/gallery.png is one). Comparison only: Blender is not a dependency.
 #
 #   scripts/compare-blender-models.sh MODELS_DIR [OUT_DIR] [SPP] [WIDTH HEIGHT]
 #
@@ -34,7 +35,7 @@ mkdir -p "$out"
 if [ ! -x "$venv/bin/python" ]; then
   python3.11 -m venv "$venv"
 fi
-"$venv/bin/python" -c "import bpy, OpenEXR, numpy" 2>/dev/null || "$venv/bin/pip" install -q bpy OpenEXR numpy
+"$venv/bin/python" -c "import bpy, OpenEXR, numpy, PIL" 2>/dev/null || "$venv/bin/pip" install -q bpy OpenEXR numpy pillow
 [ -n "${LIGHTSPLIT:-}" ] || cargo build --release -q
 
 report="$out/report.md"
@@ -80,4 +81,24 @@ layout = re.search(r"layout: ([\d.]+)%", text)
 print(f"| {sys.argv[2]} | {len(ratios)} | {within} | {worst[0]} ({worst[1]:.3f}) | {layout.group(1) if layout else '-'}% |")
 PY
 done
+# The contact sheet: each model's side-by-side (lightsplit | Blender), named, three a row.
+"$venv/bin/python" - "$out" "${names[@]}" <<'PY'
+import os, sys
+from PIL import Image, ImageDraw
+out, names = sys.argv[1], sys.argv[2:]
+tiles = [(n, Image.open(os.path.join(out, n, "side-by-side.png")).convert("RGB"))
+         for n in names if os.path.exists(os.path.join(out, n, "side-by-side.png"))]
+if tiles:
+    w, h = tiles[0][1].size
+    cols = 3
+    rows = (len(tiles) + cols - 1) // cols
+    sheet = Image.new("RGB", (cols * (w + 8), rows * (h + 22)), (40, 40, 40))
+    draw = ImageDraw.Draw(sheet)
+    for i, (name, tile) in enumerate(tiles):
+        x, y = (i % cols) * (w + 8), (i // cols) * (h + 22)
+        sheet.paste(tile.resize((w, h)), (x, y + 18))
+        draw.text((x + 4, y + 3), f"{name}: lightsplit | Blender Cycles", fill=(230, 230, 230))
+    sheet.save(os.path.join(out, "gallery.png"))
+    print(f"wrote {os.path.join(out, 'gallery.png')}")
+PY
 cat "$report"
