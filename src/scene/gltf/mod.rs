@@ -352,6 +352,20 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         Ok((at, pixels))
     };
 
+    // A texture the crate reads for a material: its image, transform and coordinates.
+    macro_rules! texture_info {
+        ($t:expr, $decode:expr) => {
+            texture_of(
+                $t.texture(),
+                Transform::of($t.texture_transform()),
+                $t.tex_coord(),
+                $decode,
+                &mut notes,
+            )
+            .map(|t| t.0)
+        };
+    }
+
     let mut materials = Vec::new();
     let mut unread_parts = Vec::new();
     for m in document.materials() {
@@ -366,18 +380,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             Some(sg) => sg.diffuse_texture(),
             None => pbr.base_color_texture(),
         };
-        let base_color_texture = color_texture
-            .map(|t| {
-                texture_of(
-                    t.texture(),
-                    Transform::of(t.texture_transform()),
-                    t.tex_coord(),
-                    Decode::Srgb,
-                    &mut notes,
-                )
-                .map(|t| t.0)
-            })
-            .transpose()?;
+        let base_color_texture = color_texture.map(|t| texture_info!(t, Decode::Srgb)).transpose()?;
         let (metallic, roughness, layers) = layers(&m, &name, &mut unread_parts)?;
         // The specular-glossiness texture: the specular colour in RGB (sRGB), the glossiness in
         // alpha (linear), read as two textures.
@@ -445,30 +448,10 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         let transmission_texture = m
             .transmission()
             .and_then(|t| t.transmission_texture())
-            .map(|t| {
-                texture_of(
-                    t.texture(),
-                    Transform::of(t.texture_transform()),
-                    t.tex_coord(),
-                    Decode::Linear,
-                    &mut notes,
-                )
-                .map(|t| t.0)
-            })
+            .map(|t| texture_info!(t, Decode::Linear))
             .transpose()?;
-        let metallic_roughness_texture = pbr
-            .metallic_roughness_texture()
-            .map(|t| {
-                texture_of(
-                    t.texture(),
-                    Transform::of(t.texture_transform()),
-                    t.tex_coord(),
-                    Decode::Linear,
-                    &mut notes,
-                )
-                .map(|t| t.0)
-            })
-            .transpose()?;
+        let metallic_roughness_texture =
+            pbr.metallic_roughness_texture().map(|t| texture_info!(t, Decode::Linear)).transpose()?;
         // `KHR_materials_emissive_strength` scales the factor (and the texture) past 1.
         let strength = m.emissive_strength().unwrap_or(1.0);
         let mut emission = Vec3::from(m.emissive_factor()) * strength;
