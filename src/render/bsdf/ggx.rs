@@ -129,9 +129,19 @@ impl SpecularAlbedo {
     /// E_avg). A white metal reflects all the light; a coloured one loses what its bounces
     /// absorb; a dielectric lobe (small f0) gains little.
     pub fn multiscatter(&self, f0: Vec3, cos: f32, alpha: f32) -> Vec3 {
+        let (a, b, e_avg) = self.lookup(cos, alpha);
+        self.compensation(f0, a + b, e_avg)
+    }
+
+    /// (A, B) and the average white albedo, at view cosine `cos` and alpha `alpha`.
+    pub fn lookup(&self, cos: f32, alpha: f32) -> (f32, f32, f32) {
         let (a, b) = self.at(cos, alpha);
-        let e = (a + b).clamp(1e-3, 1.0);
-        let e_avg = self.average(alpha).clamp(1e-3, 1.0);
+        (a, b, self.average(alpha))
+    }
+
+    /// [`SpecularAlbedo::multiscatter`] from the white albedo `e` and its average `e_avg`.
+    pub fn compensation(&self, f0: Vec3, e: f32, e_avg: f32) -> Vec3 {
+        let (e, e_avg) = (e.clamp(1e-3, 1.0), e_avg.clamp(1e-3, 1.0));
         let f_avg = f0 + (Vec3::ONE - f0) / 21.0;
         let f_ms = f_avg * e_avg / (Vec3::ONE - f_avg * (1.0 - e_avg));
         Vec3::ONE + f_ms * ((1.0 - e) / e)

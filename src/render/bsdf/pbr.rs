@@ -42,59 +42,51 @@ impl Pbr {
         }
     }
 
-    /// The factor restoring the GGX lobe's multiple scattering, seen from `wo` (local): the
-    /// albedo of the mix of the dielectric's and the metal's compensated lobes over that of
-    /// the single-scattering lobe of the mixed f0 (the compensation is not linear in f0, so a
-    /// part-metal is compensated as the mix of its two lobes, as Blender mixes them).
-    fn multiscatter(&self, wo: Vec3) -> Vec3 {
+    /// What the layers weigh seen from `wo` (local), from one lookup of the albedo table.
+    /// The GGX lobe's multiple scattering is restored as the mix of the dielectric's and the
+    /// metal's compensated lobes (the compensation is not linear in f0, so a part-metal is
+    /// compensated as the mix of its two lobes, as Blender mixes them), over the single
+    /// scattering lobe of the mixed f0. The base is the dielectric part's alone (`base` already
+    /// carries the 1 - metallic of the blend) and receives 1 - the dielectric lobe's albedo,
+    /// so what a part-metal's lobe reflects as a metal does not darken it: glTF's (and
+    /// Blender's) mix of a dielectric and a metal BSDF. The GGX lobe is sampled in proportion
+    /// to what it reflects against the base.
+    fn view(&self, wo: Vec3) -> View {
         let table = SpecularAlbedo::get();
-        let (cos, alpha, m) = (wo.z, self.lobes.alpha, self.metallic);
-        let (a, b) = table.at(cos, alpha);
+        let (a, b, e_avg) = table.lookup(wo.z, self.lobes.alpha);
         let albedo = |f0: Vec3| f0 * a + Vec3::splat(b);
+        let m = self.metallic;
         let dielectric = Vec3::splat(DIELECTRIC_F0);
-        let mixed = albedo(dielectric) * table.multiscatter(dielectric, cos, alpha) * (1.0 - m)
-            + albedo(self.metal) * table.multiscatter(self.metal, cos, alpha) * m;
-        mixed / albedo(self.lobes.specular).max(Vec3::splat(1e-6))
-    }
-
-    /// The GGX lobe's directional albedo seen from `wo` (local), multiple scattering included.
-    fn specular_albedo(&self, wo: Vec3) -> Vec3 {
-        let (a, b) = SpecularAlbedo::get().at(wo.z, self.lobes.alpha);
-        (self.lobes.specular * a + Vec3::splat(b)) * self.multiscatter(wo)
-    }
-
-    /// The base's weight seen from `wo` (local): 1 - the directional albedo of the dielectric's
-    /// GGX lobe (f0 0.04). The base is the dielectric part's alone (`base` already carries the
-    /// 1 - metallic of the blend), so what a part-metal's lobe reflects as a metal does not
-    /// darken it: glTF's (and Blender's) mix of a dielectric and a metal BSDF.
-    fn through(&self, wo: Vec3) -> Vec3 {
-        let table = SpecularAlbedo::get();
-        let f0 = Vec3::splat(DIELECTRIC_F0);
-        let (a, b) = table.at(wo.z, self.lobes.alpha);
-        let e = (f0 * a + Vec3::splat(b)) * table.multiscatter(f0, wo.z, self.lobes.alpha);
-        (Vec3::ONE - e).max(Vec3::ZERO)
-    }
-
-    /// The probability of sampling the GGX lobe from `wo` (local): in proportion to what each
-    /// reflects.
-    fn specular_probability(&self, wo: Vec3) -> f32 {
-        let spec = luminance(self.specular_albedo(wo));
-        let base = luminance(self.base * self.through(wo));
-        if base <= 0.0 {
+        let e_dielectric = albedo(dielectric) * table.compensation(dielectric, a + b, e_avg);
+        let spec =
+            e_dielectric * (1.0 - m) + albedo(self.metal) * table.compensation(self.metal, a + b, e_avg) * m;
+        let multiscatter = spec / albedo(self.lobes.specular).max(Vec3::splat(1e-6));
+        let through = (Vec3::ONE - e_dielectric).max(Vec3::ZERO);
+        let (spec, base) = (luminance(spec), luminance(self.base * through));
+        let p_spec = if base <= 0.0 {
             1.0
         } else if spec <= 0.0 {
             0.0
         } else {
             spec / (spec + base)
-        }
+        };
+        View { multiscatter, through, p_spec }
     }
 
-    fn eval_base(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+    fn eval_base(&self, view: &View, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Vec3::ZERO;
         }
-        self.base * self.through(wo) * FRAC_1_PI
+        self.base * view.through * FRAC_1_PI
     }
+}
+
+/// [`Pbr::view`]: the GGX lobe's multiple-scattering factor, the base's weight, and the
+/// probability of sampling the lobe.
+struct View {
+    multiscatter: Vec3,
+    through: Vec3,
+    p_spec: f32,
 }
 
 impl Bsdf for Pbr {
@@ -119,7 +111,8 @@ impl Bsdf for Pbr {
     fn sample(&self, wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
         let g = &self.lobes;
         let wo_l = self.frame.to_local(wo);
-        let p_spec = self.specular_probability(wo_l);
+        let view = self.view(wo_l);
+        let p_spec = view.p_spec;
         let (wi_l, specular) = if u.get_1d(Dim::Lobe) < p_spec {
             (g.sample_specular(wo_l, u.get_2d(Dim::Direction)), true)
         } else {
@@ -129,11 +122,11 @@ impl Bsdf for Pbr {
             return None;
         }
         let (weight, pdf, lobe) = if specular {
-            let weight = g.specular_weight(wo_l, wi_l) * self.multiscatter(wo_l) / p_spec;
+            let weight = g.specular_weight(wo_l, wi_l) * view.multiscatter / p_spec;
             (weight, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
         } else {
             let pdf = (1.0 - p_spec) * wi_l.z * FRAC_1_PI;
-            (self.eval_base(wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
+            (self.eval_base(&view, wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
         };
         Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe })
     }
@@ -141,9 +134,10 @@ impl Bsdf for Pbr {
     fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
         let g = &self.lobes;
         let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
-        let p_spec = self.specular_probability(wo_l);
-        let f = g.eval_specular(wo_l, wi_l) * self.multiscatter(wo_l);
+        let view = self.view(wo_l);
+        let p_spec = view.p_spec;
+        let f = g.eval_specular(wo_l, wi_l) * view.multiscatter;
         each(self.tag(), f, p_spec * g.pdf_specular(wo_l, wi_l));
-        each(Lobe::Diffuse, self.eval_base(wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
+        each(Lobe::Diffuse, self.eval_base(&view, wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
     }
 }
