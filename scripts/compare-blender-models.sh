@@ -52,7 +52,7 @@ for name in "${names[@]}"; do
   done
   [ "$name" = FlightHelmet ] && [ -n "${FLIGHT_HELMET:-}" ] && file=$FLIGHT_HELMET
   if [ -z "$file" ]; then
-    echo "| $name | not found under $models | | | |" >>"$report"
+    echo "| $name | not found in MODELS_DIR | | | |" >>"$report"
     continue
   fi
   dir="$out/$name"
