@@ -177,9 +177,7 @@ fn the_cornell_box_from_gltf_renders_as_from_obj() {
     let (a, b) = (render(&obj, 1), render(&gltf, 2));
     let d: Vec<f64> =
         a.pixels.iter().zip(&b.pixels).map(|(p, q)| (p.x + p.y + p.z - q.x - q.y - q.z) as f64).collect();
-    let n = d.len() as f64;
-    let mean = d.iter().sum::<f64>() / n;
-    let se = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let (mean, se) = crate::common::mean_and_standard_error_of(&d);
     assert!(mean.abs() < 4.0 * se, "mean difference {mean}, standard error {se}");
     let level = a.mean();
     assert!(level.min_element() > 0.05, "not black: {level}");
@@ -301,9 +299,7 @@ fn a_glb_renders_directly_and_says_what_it_assumed() {
     assert_eq!(image.get(0, 0), Vec3::ONE);
     let block: Vec<f64> =
         (12..20).flat_map(|x| (8..16).map(move |y| (x, y))).map(|(x, y)| image.get(x, y).x as f64).collect();
-    let n = block.len() as f64;
-    let mean = block.iter().sum::<f64>() / n;
-    let se = (block.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let (mean, se) = crate::common::mean_and_standard_error_of(&block);
     assert!((mean - 1.0).abs() < 4.0 * se + 0.005, "the quad reflects the sky: {mean} +- {se}");
 }
 
@@ -689,9 +685,7 @@ fn an_emissive_texture_is_seen_and_sampled_as_a_texture() {
     let above = "[camera]\nposition = [0, 0.6, 2.5]\nlook_at = [0, 0, 0]\nfov = 40\n";
     let (a, b) = (render("textured.glb", above, 64), render("uniform.glb", above, 64));
     let d: Vec<f64> = a.pixels.iter().zip(&b.pixels).map(|(p, q)| (p.x - q.x) as f64).collect();
-    let n = d.len() as f64;
-    let mean = d.iter().sum::<f64>() / n;
-    let se = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let (mean, se) = crate::common::mean_and_standard_error_of(&d);
     assert!(mean.abs() < 4.0 * se, "textured minus uniform: {mean} +- {se}");
     assert!(b.mean().x > 0.01, "the floor is lit: {}", b.mean());
 }

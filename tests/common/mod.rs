@@ -23,9 +23,15 @@ pub fn render_text(text: &str, spp: u32) -> RenderOutput {
 /// The mean of the red channel and its standard error from the spread of the pixels (each pixel
 /// an independent estimate of the same value).
 pub fn mean_and_standard_error(image: &lightsplit::film::Image) -> (f64, f64) {
-    let n = image.pixels.len() as f64;
-    let mean = image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n;
-    let var = image.pixels.iter().map(|p| (p.x as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let values: Vec<f64> = image.pixels.iter().map(|p| p.x as f64).collect();
+    mean_and_standard_error_of(&values)
+}
+
+/// The mean of `values` (independent estimates of the same value) and its standard error.
+pub fn mean_and_standard_error_of(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
 }
 

@@ -113,33 +113,20 @@ impl SpecularAlbedo {
         SpecularAlbedo::new(table)
     }
 
-    /// The directional albedo of a lobe with Schlick's Fresnel from `f0` (normal incidence) to
-    /// `f90` (grazing), single scattering: f0 A + f90 B.
-    pub fn single(&self, f0: Vec3, f90: Vec3, cos: f32, alpha: f32) -> Vec3 {
-        let (a, b) = self.at(cos, alpha);
-        f0 * a + f90 * b
-    }
-
-    /// The factor that restores the energy single-scattering GGX loses between its microfacets,
-    /// 1 + F_ms (1 - E) / E (Turquin 2019, "Practical multiple scattering compensation for
-    /// microfacet models"), E being the albedo of the lobe with a white Fresnel, and the
-    /// Fresnel of the light that bounces between facets F_ms = F_avg E_avg / (1 - F_avg
-    /// (1 - E_avg)) (Kulla & Conty 2017: each further bounce is reflected with the average
-    /// Fresnel F_avg = f0 + (1 - f0) / 21 of Schlick's, and escapes with the average albedo
-    /// E_avg). A white metal reflects all the light; a coloured one loses what its bounces
-    /// absorb; a dielectric lobe (small f0) gains little.
-    pub fn multiscatter(&self, f0: Vec3, cos: f32, alpha: f32) -> Vec3 {
-        let (a, b, e_avg) = self.lookup(cos, alpha);
-        self.compensation(f0, a + b, e_avg)
-    }
-
     /// (A, B) and the average white albedo, at view cosine `cos` and alpha `alpha`.
     pub fn lookup(&self, cos: f32, alpha: f32) -> (f32, f32, f32) {
         let (a, b) = self.at(cos, alpha);
         (a, b, self.average(alpha))
     }
 
-    /// [`SpecularAlbedo::multiscatter`] from the white albedo `e` and its average `e_avg`.
+    /// The factor that restores the energy single-scattering GGX loses between its microfacets,
+    /// 1 + F_ms (1 - e) / e (Turquin 2019, "Practical multiple scattering compensation for
+    /// microfacet models"), `e` being the albedo of the lobe with a white Fresnel (`e_avg` its hemispherical average), and the
+    /// Fresnel of the light that bounces between facets F_ms = F_avg E_avg / (1 - F_avg
+    /// (1 - E_avg)) (Kulla & Conty 2017: each further bounce is reflected with the average
+    /// Fresnel F_avg = f0 + (1 - f0) / 21 of Schlick's, and escapes with the average albedo
+    /// E_avg). A white metal reflects all the light; a coloured one loses what its bounces
+    /// absorb; a dielectric lobe (small f0) gains little.
     pub fn compensation(&self, f0: Vec3, e: f32, e_avg: f32) -> Vec3 {
         let (e, e_avg) = (e.clamp(1e-3, 1.0), e_avg.clamp(1e-3, 1.0));
         let f_avg = f0 + (Vec3::ONE - f0) / 21.0;

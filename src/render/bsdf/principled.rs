@@ -112,7 +112,13 @@ impl Principled {
     fn weights(&self, wo: Vec3) -> Weights {
         let table = SpecularAlbedo::get();
         let cos = wo.z;
-        let coat_albedo = self.coat * table.single(Vec3::splat(COAT_F0), Vec3::ONE, cos, self.coat_alpha).x;
+        let coat_albedo = match self.coat > 0.0 {
+            true => {
+                let (a, b) = table.at(cos, self.coat_alpha);
+                self.coat * (COAT_F0 * a + b)
+            }
+            false => 0.0,
+        };
         let below_coat = (1.0 - coat_albedo).max(0.0);
         let sheen_albedo = match self.sheen.color.max_element() > 0.0 {
             true => SheenAlbedo::get().at(cos, self.sheen_roughness),
@@ -120,13 +126,14 @@ impl Principled {
         };
         let sheen = self.sheen.color * below_coat;
         let below_sheen = below_coat * (1.0 - self.sheen.color.max_element() * sheen_albedo).max(0.0);
-        let f90 = Vec3::splat(self.f90);
-        let ms_dielectric = table.multiscatter(self.f0, cos, self.alpha);
-        let ms_metal = table.multiscatter(self.color, cos, self.alpha);
+        // One lookup of the specular table serves the dielectric's and the metal's lobes.
+        let (a, b, e_avg) = table.lookup(cos, self.alpha);
+        let ms_dielectric = table.compensation(self.f0, a + b, e_avg);
+        let ms_metal = table.compensation(self.color, a + b, e_avg);
         let spec_dielectric = ms_dielectric * ((1.0 - self.metallic) * below_sheen);
         let spec_metal = ms_metal * (self.metallic * below_sheen);
-        let e_dielectric = table.single(self.f0, f90, cos, self.alpha) * ms_dielectric;
-        let e_metal = table.single(self.color, Vec3::ONE, cos, self.alpha) * ms_metal;
+        let e_dielectric = (self.f0 * a + Vec3::splat(self.f90 * b)) * ms_dielectric;
+        let e_metal = (self.color * a + Vec3::splat(b)) * ms_metal;
         let below = (Vec3::ONE - e_dielectric).max(Vec3::ZERO) * ((1.0 - self.metallic) * below_sheen);
         let diffuse = below * self.color * (1.0 - self.transmission);
         let through = below * self.color * self.transmission;
