@@ -17,6 +17,8 @@
 # of the repository DRx3D/glTF-Sample-Assets-OLD; $FLIGHT_HELMET may name FlightHelmet.gltf
 # (bevyengine/bevy's assets/models/FlightHelmet). The files are never committed here.
 # Defaults: /tmp/lightsplit-blender-models, 128 spp in Cycles (256 in lightsplit), 320x240.
+# $MODELS, a list of names, replaces issue 36's list (for example the texture tests:
+# MODELS="TextureSettingsTest VertexColorTest MultiUVTest NormalTangentMirrorTest").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 models=${1:?usage: scripts/compare-blender-models.sh MODELS_DIR [OUT_DIR] [SPP] [WIDTH HEIGHT]}
@@ -26,10 +28,12 @@ width=${4:-320}
 height=${5:-240}
 venv=${LIGHTSPLIT_PEERS_VENV:-$HOME/.cache/lightsplit/peers-venv}
 binary=${LIGHTSPLIT:-target/release/lightsplit}
-names=(DamagedHelmet FlightHelmet ToyCar SheenChair SheenCloth ClearCoatTest ClearCoatCarPaint SpecularTest
+default_names=(DamagedHelmet FlightHelmet ToyCar SheenChair SheenCloth ClearCoatTest ClearCoatCarPaint SpecularTest
   TransmissionTest TransmissionRoughnessTest AttenuationTest GlassVaseFlowers GlassHurricaneCandleHolder
   EmissiveStrengthTest StainedGlassLamp TextureTransformTest TextureTransformMultiTest UnlitTest
   SpecGlossVsMetalRough IridescenceLamp MetalRoughSpheresNoTextures)
+# shellcheck disable=SC2206
+names=(${MODELS:-${default_names[@]}})
 
 mkdir -p "$out"
 if [ ! -x "$venv/bin/python" ]; then

@@ -725,3 +725,109 @@ fn extension_textures_are_read_and_unlit_emits_its_colour() {
     assert_eq!(s.materials[flat.material as usize], scene::Material::Diffuse { albedo: Vec3::ZERO });
     assert!(s.notes.iter().all(|n| !n.contains("extensions not read")), "{:?}", s.notes);
 }
+
+/// A texture's sampler (wrap modes and magnification filter) and its texture coordinates set
+/// are read: the quad's emissive texture, black on its left half and white on its right, is
+/// seen white where a second set of coordinates maps the quad into the right half, black
+/// through the first set, and the sampler's modes come through.
+#[test]
+fn textures_read_their_sampler_and_second_coordinates() {
+    use lightsplit::scene::texture::{Sampling, Wrap};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut png = Vec::new();
+    image::RgbImage::from_fn(4, 1, |x, _| image::Rgb(if x < 2 { [0, 0, 0] } else { [255, 255, 255] }))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    let write = |name: &str, set: u32| {
+        let mut doc = quads_of(json!([{"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1]},
+            "emissiveFactor": [1, 1, 1]}]));
+        let texture = doc.texture(&png);
+        doc.json["samplers"] = json!([{"wrapS": 33071, "wrapT": 33648, "magFilter": 9728}]);
+        doc.json["textures"][texture]["sampler"] = json!(0);
+        doc.json["materials"][0]["emissiveTexture"] = json!({"index": texture, "texCoord": set});
+        // TEXCOORD_0 in the left (black) half, TEXCOORD_1 in the right (white) one.
+        let t0 = doc.floats(&[0.05, 0.9, 0.45, 0.9, 0.45, 0.1, 0.05, 0.1], "VEC2");
+        let t1 = doc.floats(&[0.55, 0.9, 0.95, 0.9, 0.95, 0.1, 0.55, 0.1], "VEC2");
+        let attributes = &mut doc.json["meshes"][0]["primitives"][0]["attributes"];
+        attributes["TEXCOORD_0"] = json!(t0);
+        attributes["TEXCOORD_1"] = json!(t1);
+        std::fs::write(dir.path().join(name), doc.glb()).expect("write");
+        dir.path().join(name)
+    };
+    let (first, second) = (write("first.glb", 0), write("second.glb", 1));
+    let g = scene::gltf::load(&second).expect("load");
+    let sampling = Sampling { wrap: [Wrap::Clamp, Wrap::Mirror], nearest: true, set: 1 };
+    assert_eq!(g.textures.iter().map(|t| t.2).collect::<Vec<_>>(), vec![sampling]);
+    let seen = |path: &Path| {
+        let text = format!(
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 8\n[film]\nwidth = 8\nheight = 8\n\
+             [[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
+            path.display()
+        );
+        crate::common::render_text(&text, 4).film.raw.mean().x
+    };
+    let (black, white) = (seen(&first), seen(&second));
+    assert!(black < 1e-6 && (white - 1.0).abs() < 1e-4, "first set {black}, second set {white}");
+}
+
+/// Vertex colours multiply the base colour, and a mesh's tangents give the normal map its
+/// frame, the bitangent's sign from their w: a quad facing +z under a directional light 40
+/// degrees toward +y, its normal map tilting 45 degrees along the map's y, is lit by the cosine
+/// of 5 degrees with the bitangent along +y (as the texture coordinates also say), of 85
+/// degrees with it turned by w = -1, and of 63 degrees with the tangent along +y (the
+/// bitangent along -x).
+#[test]
+fn vertex_colours_and_tangents_are_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let render = |tangent: Option<[f32; 4]>, color: Option<[f32; 3]>| -> Vec3 {
+        let mut doc = GltfDoc::quad();
+        doc.node(json!({"mesh": 0}), true);
+        let (s, c) = (-20f64).to_radians().sin_cos();
+        doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+        doc.json["extensions"] =
+            json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 683.0}]}});
+        doc.node(
+            json!({"rotation": [s, 0, 0, c], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+            true,
+        );
+        let m = Vec3::new(0.0, 45f32.to_radians().sin(), 45f32.to_radians().cos());
+        let byte = |x: f32| ((x + 1.0) * 0.5 * 255.0).round() as u8;
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(2, 2, image::Rgb([byte(m.x), byte(m.y), byte(m.z)]))
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("png");
+        let normal = doc.texture(&png);
+        doc.json["materials"] = json!([{"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "normalTexture": {"index": normal}}]);
+        doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+        if let Some(t) = tangent {
+            let a = doc.floats(&t.repeat(4), "VEC4");
+            doc.json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(a);
+        }
+        if let Some(c) = color {
+            let a = doc.floats(&c.repeat(4), "VEC3");
+            doc.json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(a);
+        }
+        std::fs::write(dir.path().join("t.glb"), doc.glb()).expect("write");
+        let text = format!(
+            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 10\n[film]\nwidth = 4\nheight = 4\n\
+             [[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
+            dir.path().join("t.glb").display()
+        );
+        crate::common::render_text(&text, 64).film.raw.mean()
+    };
+    let none = render(None, None).x;
+    let along = render(Some([1.0, 0.0, 0.0, 1.0]), None).x;
+    let flipped = render(Some([1.0, 0.0, 0.0, -1.0]), None).x;
+    let turned = render(Some([0.0, 1.0, 0.0, 1.0]), None).x;
+    let cos = |deg: f32| deg.to_radians().cos();
+    // The diffuse base dominates: brightness follows the cosine within the specular layer's
+    // share and the map's 8-bit rounding.
+    assert!((along / none - 1.0).abs() < 0.02, "tangent along u: {along} against {none}");
+    assert!((flipped / none - cos(85.0) / cos(5.0)).abs() < 0.05, "w = -1: {}", flipped / none);
+    let tilt = (45f32.to_radians().cos() * 40f32.to_radians().cos()).acos().to_degrees();
+    assert!((turned / none - cos(tilt) / cos(5.0)).abs() < 0.05, "turned: {}", turned / none);
+    let red = render(None, Some([1.0, 0.0, 0.0]));
+    // Green and blue are the specular layer's alone (4% at normal incidence).
+    assert!(red.y < 0.1 * red.x && red.z < 0.1 * red.x, "a red vertex colour: {red}");
+}

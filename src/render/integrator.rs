@@ -411,7 +411,8 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             _ => 1.0,
         };
         let source = light.is_some_and(|i| lights.diffuse_source[i as usize]);
-        let emission = if F & TEXTURES != 0 { self.scene.emission_at(shape, s.uv) } else { emission };
+        let emission =
+            if F & TEXTURES != 0 { self.scene.emission_at(shape, [s.uv, s.uv1]) } else { emission };
         out.add::<F>(path.beta * emission * w, path.class.component(source));
     }
 

@@ -52,6 +52,23 @@ impl<'a> Shading<'a> {
         &self.scene.textures[t as usize]
     }
 
+    /// The texture coordinates texture `t` reads.
+    #[inline(always)]
+    fn uv(&self, t: &Texture) -> Vec2 {
+        if t.set() == 1 {
+            self.s.uv1
+        } else {
+            self.s.uv
+        }
+    }
+
+    /// Texture `t`'s colour here.
+    #[inline(always)]
+    fn read(&self, t: u32) -> Vec3 {
+        let texture = self.texture(t);
+        texture.color(self.point(texture), self.uv(texture))
+    }
+
     /// The shading normal turned to the side of `ng` (the geometric normal, already on the side
     /// the path came from: surfaces are two-sided), bent by the material's maps. A bent normal
     /// that would fall below the surface is left unbent.
@@ -75,24 +92,22 @@ impl<'a> Shading<'a> {
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         if let Some((t, scale)) = self.maps.normal {
-            let texture = self.texture(t);
-            let c = texture.color(self.point(texture), s.uv) * 2.0 - Vec3::ONE;
+            let c = self.read(t) * 2.0 - Vec3::ONE;
             let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         ns
     }
 
-    /// The material's colour: its texture's where it has one, else `constant`.
+    /// The material's colour: its texture's where it has one, else `constant`; times the
+    /// vertex colour.
     #[inline(always)]
     fn color(&self, constant: Vec3) -> Vec3 {
-        match self.maps.color {
-            Some(t) => {
-                let texture = self.texture(t);
-                texture.color(self.point(texture), self.s.uv)
-            }
+        let c = match self.maps.color {
+            Some(t) => self.read(t),
             None => constant,
-        }
+        };
+        c * self.s.color
     }
 
     /// A metallic-roughness material's factors, times its texture's blue and green.
@@ -100,8 +115,7 @@ impl<'a> Shading<'a> {
     fn metal_rough(&self, metallic: f32, roughness: f32) -> (f32, f32) {
         match self.maps.metal_rough {
             Some(t) => {
-                let texture = self.texture(t);
-                let c = texture.color(self.point(texture), self.s.uv);
+                let c = self.read(t);
                 (metallic * c.z, roughness * c.y)
             }
             None => (metallic, roughness),
@@ -143,21 +157,14 @@ impl<'a> Shading<'a> {
                 let layers = &l.layers;
                 let (f0, roughness) = match self.maps.spec_gloss {
                     Some((color, gloss)) => {
-                        let (c, g) = (self.texture(color), self.texture(gloss));
-                        let glossiness = (1.0 - roughness) * g.color(self.point(g), self.s.uv).x;
-                        ((layers.f0 * c.color(self.point(c), self.s.uv)).min(Vec3::ONE), 1.0 - glossiness)
+                        let glossiness = (1.0 - roughness) * self.read(gloss).x;
+                        ((layers.f0 * self.read(color)).min(Vec3::ONE), 1.0 - glossiness)
                     }
                     None => (layers.f0, roughness),
                 };
                 let lm = &self.maps.layer;
                 // A texture's value at the point (1 without one).
-                let at = |t: Option<u32>| match t {
-                    Some(t) => {
-                        let texture = self.texture(t);
-                        texture.color(self.point(texture), self.s.uv)
-                    }
-                    None => Vec3::ONE,
-                };
+                let at = |t: Option<u32>| t.map_or(Vec3::ONE, |t| self.read(t));
                 let (f0, f90) = match (lm.specular, lm.specular_color) {
                     (None, None) => (f0, layers.f90),
                     (s, c) => {
@@ -176,13 +183,7 @@ impl<'a> Shading<'a> {
                     alpha: alpha(roughness),
                     f0,
                     f90,
-                    transmission: match self.maps.transmission {
-                        Some(t) => {
-                            let texture = self.texture(t);
-                            layers.transmission * texture.color(self.point(texture), self.s.uv).x
-                        }
-                        None => layers.transmission,
-                    },
+                    transmission: layers.transmission * at(self.maps.transmission).x,
                     ior: layers.ior,
                     thin: layers.thin,
                     coat,

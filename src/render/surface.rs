@@ -20,10 +20,15 @@ pub struct Surface {
     /// The mesh's texture coordinates interpolated, else the barycentrics; on a sphere,
     /// longitude and latitude over [0, 1] (v = 1 at the +y pole).
     pub uv: Vec2,
+    /// The second set of texture coordinates (a glTF's `TEXCOORD_1`), else `uv`.
+    pub uv1: Vec2,
+    /// The vertex colour (a glTF's `COLOR_0`), else white.
+    pub color: Vec3,
     /// The largest absolute coordinate `p` was computed from, for [`offset_ray_origin`].
     pub magnitude: f32,
-    /// dp/du and dp/dv of the triangle's texture coordinates, only where the material has a
-    /// normal map (zero elsewhere).
+    /// dp/du and dp/dv of the triangle's texture coordinates (those its normal map reads), only
+    /// where the material has a normal or height map (zero elsewhere); with a mesh's tangents,
+    /// the tangent and the bitangent (`cross(ns, tangent) * w`) instead.
     pub dpdu: Vec3,
     pub dpdv: Vec3,
     /// The hit's primitive and barycentrics, for [`Scene::solid_point`].
@@ -160,6 +165,8 @@ fn surface_from(
                 ng: n,
                 ns: n,
                 uv,
+                uv1: uv,
+                color: Vec3::ONE,
                 magnitude: sphere_magnitude(*center, *radius),
                 dpdu: Vec3::ZERO,
                 dpdv: Vec3::ZERO,
@@ -195,18 +202,41 @@ fn surface_from(
                 None => Vec2::new(u, v),
             };
             let shape = &scene.shapes[hit.shape as usize];
-            let (dpdu, dpdv) = match &mesh.uvs {
-                Some(uvs)
-                    if {
-                        let maps = scene.maps(shape.material);
-                        maps.normal.is_some() || maps.height.is_some()
-                    } =>
-                {
-                    uv_derivatives([a, b, c], [uvs[ia], uvs[ib], uvs[ic]])
-                }
-                _ => (Vec3::ZERO, Vec3::ZERO),
+            let (mut uv1, mut color) = (uv, Vec3::ONE);
+            let mut tangents = None;
+            if let Some(at) = &mesh.attributes {
+                uv1 = mesh.uv(1, hit.prim, (u, v)).unwrap_or(uv);
+                color = at.colors.as_deref().map_or(color, |c| mesh.interpolate(c, hit.prim, (u, v)));
+                tangents = at.tangents.as_deref();
+            }
+            let bumped = || {
+                let maps = scene.maps(shape.material);
+                (maps.normal.is_some() || maps.height.is_some()).then_some(maps)
             };
-            Surface { p, ng, ns, uv, magnitude, dpdu, dpdv, prim: hit.prim, bary: (u, v) }
+            let (dpdu, dpdv) = match (bumped(), tangents) {
+                (None, _) => (Vec3::ZERO, Vec3::ZERO),
+                (Some(_), Some(tangents)) => {
+                    let t = mesh.interpolate(tangents, hit.prim, (u, v));
+                    let dir = match &mesh.instance {
+                        None => t.truncate(),
+                        Some(i) => i.to_world.transform_vector3(t.truncate()),
+                    };
+                    (dir, ns.cross(dir) * if t.w < 0.0 { -1.0 } else { 1.0 })
+                }
+                (Some(maps), None) => {
+                    let set = maps.normal.map_or(0, |(t, _)| scene.textures[t as usize].set());
+                    let uvs = if set == 1 {
+                        mesh.attributes.as_ref().and_then(|a| a.uv1.as_deref())
+                    } else {
+                        mesh.uvs.as_deref()
+                    };
+                    match uvs {
+                        Some(uvs) => uv_derivatives([a, b, c], [uvs[ia], uvs[ib], uvs[ic]]),
+                        None => (Vec3::ZERO, Vec3::ZERO),
+                    }
+                }
+            };
+            Surface { p, ng, ns, uv, uv1, color, magnitude, dpdu, dpdv, prim: hit.prim, bary: (u, v) }
         }
     }
 }

@@ -219,6 +219,8 @@ pub struct Mesh {
     pub normals: Option<Arc<[Vec3]>>,
     /// Per-vertex texture coordinates (quads have them; OBJ files may).
     pub uvs: Option<Arc<[Vec2]>>,
+    /// A glTF mesh's other vertex attributes, when it has any.
+    pub attributes: Option<Box<Attributes>>,
     /// For a mesh shared by several shapes (a glTF mesh used by several nodes): the vertices
     /// above are in the mesh's own coordinates, and this places them in the scene. The
     /// accelerators trace the mesh once, in its own coordinates (Embree instances, the BVH's
@@ -228,6 +230,19 @@ pub struct Mesh {
     /// where the mesh's material reads a solid texture: [`Scene::solid_point`] interpolates them,
     /// so a plane that lies on a checker's cell boundary reads the same cell in every sample.
     pub world: Option<Arc<[DVec3]>>,
+}
+
+/// A mesh's vertex attributes beyond positions, normals and the first texture coordinates (a
+/// glTF's), each one a vertex when present.
+#[derive(Clone, Debug, Default)]
+pub struct Attributes {
+    /// A second set of texture coordinates (`TEXCOORD_1`, v up), for textures that name it.
+    pub uv1: Option<Arc<[Vec2]>>,
+    /// Vertex colours (`COLOR_0`, linear RGB), multiplying the base colour.
+    pub colors: Option<Arc<[Vec3]>>,
+    /// Tangents (`TANGENT`, in the mesh's coordinates) and, in w, the sign of the bitangent
+    /// (`cross(normal, tangent) * w`): the frame of the normal map.
+    pub tangents: Option<Arc<[glam::Vec4]>>,
 }
 
 /// Where a shared mesh is placed: an affine map from its own coordinates into the scene's that
@@ -288,7 +303,28 @@ impl Mesh {
         normals: Option<Arc<[Vec3]>>,
         uvs: Option<Arc<[Vec2]>>,
     ) -> Mesh {
-        Mesh { positions, indices, normals, uvs, instance: None, world: None }
+        Mesh { positions, indices, normals, uvs, attributes: None, instance: None, world: None }
+    }
+
+    /// Per-vertex `values` interpolated at barycentrics `(u, v)` of triangle `prim`.
+    #[inline(always)]
+    pub fn interpolate<T>(&self, values: &[T], prim: u32, (u, v): (f32, f32)) -> T
+    where
+        T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let [a, b, c] = self.indices[prim as usize].map(|i| values[i as usize]);
+        a * (1.0 - u - v) + b * u + c * v
+    }
+
+    /// Texture coordinates `set` (0 or 1) at barycentrics `bary` of triangle `prim`, when the
+    /// mesh has them.
+    #[inline]
+    pub fn uv(&self, set: u8, prim: u32, bary: (f32, f32)) -> Option<Vec2> {
+        let uvs = match set {
+            0 => self.uvs.as_deref(),
+            _ => self.attributes.as_ref().and_then(|a| a.uv1.as_deref()),
+        };
+        uvs.map(|t| self.interpolate(t, prim, bary))
     }
 
     /// The three corners of triangle `prim`, placed in the scene.
@@ -524,12 +560,12 @@ impl Maps {
 }
 
 impl Scene {
-    /// What shape `shape` emits at texture coordinates `uv`: its emission, times its
-    /// material's emissive texture there.
+    /// What shape `shape` emits at texture coordinates `uvs` (the first set and the second):
+    /// its emission, times its material's emissive texture there.
     #[inline(always)]
-    pub fn emission_at(&self, shape: &Shape, uv: Vec2) -> Vec3 {
-        match self.maps(shape.material).emission {
-            Some(t) => shape.emission * self.textures[t as usize].color(DVec3::ZERO, uv),
+    pub fn emission_at(&self, shape: &Shape, uvs: [Vec2; 2]) -> Vec3 {
+        match self.maps(shape.material).emission.map(|t| &self.textures[t as usize]) {
+            Some(t) => shape.emission * t.color(DVec3::ZERO, uvs[t.set() as usize]),
             None => shape.emission,
         }
     }

@@ -116,6 +116,7 @@ pub fn teapot(n: u32) -> Mesh {
         indices: indices.into(),
         normals: Some(normals.into()),
         uvs: None,
+        attributes: None,
         instance: None,
         world: None,
     }

@@ -25,6 +25,28 @@ pub enum Pattern {
     Marble,
 }
 
+/// How an image repeats outside [0, 1] along one of its axes (glTF's sampler wrap modes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Wrap {
+    #[default]
+    Repeat,
+    /// The edge texels extend outwards.
+    Clamp,
+    /// Every other repeat is mirrored.
+    Mirror,
+}
+
+/// How an image is read: its wrap modes along u and v, nearest or bilinear lookup, and which
+/// set of the mesh's texture coordinates it reads (0, or a glTF's `TEXCOORD_1`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Sampling {
+    pub wrap: [Wrap; 2],
+    /// The texel the point falls in, not a bilinear blend of four (glTF's `NEAREST`).
+    pub nearest: bool,
+    /// The set of texture coordinates: 0 or 1.
+    pub set: u8,
+}
+
 /// A texture.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
@@ -46,11 +68,13 @@ pub enum Texture {
     },
     /// An image (linear RGB, top row first) over the unit square of (u, v), repeated `repeat`
     /// times in each direction; v = 0 is the image's bottom row. `transform`, when there is
-    /// one, maps (u, v) first (a glTF texture's `KHR_texture_transform`, in these coordinates).
+    /// one, maps (u, v) first (a glTF texture's `KHR_texture_transform`, in these coordinates);
+    /// `sampling` says how it is looked up.
     Image {
         image: Arc<Image>,
         repeat: Vec2,
         transform: Option<glam::Affine2>,
+        sampling: Sampling,
     },
 }
 
@@ -70,7 +94,7 @@ impl Texture {
     /// Half the size of a texel in texture coordinates (an image's; 1 for anything else).
     pub fn texel(&self) -> f32 {
         match self {
-            Texture::Image { image, repeat, transform } => {
+            Texture::Image { image, repeat, transform, .. } => {
                 // How much the transform stretches (u, v) at most.
                 let stretch =
                     transform.map_or(1.0, |t| t.matrix2.x_axis.length().max(t.matrix2.y_axis.length()));
@@ -113,9 +137,18 @@ impl Texture {
         match self {
             Texture::Constant(c) => *c,
             Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. } => a.lerp(*b, self.scalar(p, uv)),
-            Texture::Image { image, repeat, transform } => {
-                bilinear(image, transform.map_or(uv, |t| t.transform_point2(uv)) * *repeat)
+            Texture::Image { image, repeat, transform, sampling } => {
+                lookup(image, transform.map_or(uv, |t| t.transform_point2(uv)) * *repeat, sampling)
             }
+        }
+    }
+
+    /// The set of the mesh's texture coordinates it reads (0 but for an image that says 1).
+    #[inline(always)]
+    pub fn set(&self) -> u8 {
+        match self {
+            Texture::Image { sampling, .. } => sampling.set,
+            _ => 0,
         }
     }
 
@@ -157,22 +190,54 @@ impl Texture {
     }
 }
 
-/// Bilinear lookup with wrap-around; v = 0 at the bottom row.
-fn bilinear(image: &Image, uv: Vec2) -> Vec3 {
+/// Where coordinate `x` (in texels, of `n` of them) falls under `wrap`, kept to a few periods
+/// of the image first so that it converts to an integer exactly.
+fn wrapped(x: f32, n: i64, wrap: Wrap) -> f32 {
+    let n = n as f32;
+    match wrap {
+        Wrap::Repeat => x.rem_euclid(n),
+        Wrap::Mirror => x.rem_euclid(2.0 * n),
+        Wrap::Clamp => x.clamp(-1.0, n + 1.0),
+    }
+}
+
+/// Texel `i` of a row or column of `n` under `wrap`.
+fn texel_index(i: i64, n: i64, wrap: Wrap) -> i64 {
+    match wrap {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::Clamp => i.clamp(0, n - 1),
+        Wrap::Mirror => {
+            let k = i.rem_euclid(2 * n);
+            if k < n {
+                k
+            } else {
+                2 * n - 1 - k
+            }
+        }
+    }
+}
+
+/// The image at `uv` (v = 0 at the bottom row), bilinear or nearest, wrapped by `sampling`.
+fn lookup(image: &Image, uv: Vec2, sampling: &Sampling) -> Vec3 {
     let (w, h) = (image.width as i64, image.height as i64);
-    if w == 0 || h == 0 {
+    if w == 0 || h == 0 || !uv.is_finite() {
         return Vec3::ZERO;
     }
-    let x = uv.x.rem_euclid(1.0) * w as f32 - 0.5;
-    let y = (1.0 - uv.y.rem_euclid(1.0)) * h as f32 - 0.5;
+    let [wu, wv] = sampling.wrap;
+    // The image's rows run down: row coordinate (1 - v) h. Wrapping in it is wrapping in glTF's
+    // t = 1 - v, whose mirror and clamp are glTF's.
+    let x = wrapped(uv.x * w as f32, w, wu);
+    let y = wrapped((1.0 - uv.y) * h as f32, h, wv);
+    let at = |i: i64, j: i64| image.pixels[(texel_index(j, h, wv) * w + texel_index(i, w, wu)) as usize];
+    if sampling.nearest {
+        return at(x.floor() as i64, y.floor() as i64);
+    }
+    let (x, y) = (x - 0.5, y - 0.5);
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let at = |i: f32, j: f32| {
-        let (i, j) = ((i as i64).rem_euclid(w), (j as i64).rem_euclid(h));
-        image.pixels[(j * w + i) as usize]
-    };
-    (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy)
-        + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
+    let (i, j) = (x0 as i64, y0 as i64);
+    (at(i, j) * (1.0 - fx) + at(i + 1, j) * fx) * (1.0 - fy)
+        + (at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx) * fy
 }
 
 #[cfg(test)]
@@ -227,10 +292,50 @@ mod tests {
         let mut img = Image::new(2, 2);
         img.set(0, 0, Vec3::new(1.0, 0.0, 0.0)); // top left
         img.set(0, 1, Vec3::new(0.0, 1.0, 0.0)); // bottom left
-        let t = Texture::Image { image: Arc::new(img), repeat: Vec2::ONE, transform: None };
+        let t = Texture::Image {
+            image: Arc::new(img),
+            repeat: Vec2::ONE,
+            transform: None,
+            sampling: Sampling::default(),
+        };
         // Pixel centres: (0.25, 0.75) is the top-left pixel, (0.25, 0.25) the bottom-left.
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.75)), Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.25)), Vec3::new(0.0, 1.0, 0.0));
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(1.25, -0.75)), Vec3::new(0.0, 1.0, 0.0));
+    }
+
+    #[test]
+    fn wrap_modes_and_nearest_lookup_follow_gltf() {
+        // A row of three texels, 0, 1 and 2 (left to right), one row high.
+        let mut img = Image::new(3, 1);
+        for i in 0..3 {
+            img.set(i, 0, Vec3::splat(i as f32));
+        }
+        let image = Arc::new(img);
+        let at = |wrap: Wrap, nearest: bool, u: f32| {
+            let sampling = Sampling { wrap: [wrap, wrap], nearest, set: 0 };
+            lookup(&image, Vec2::new(u, 0.5), &sampling).x
+        };
+        // Texel centres at u = 1/6, 1/2, 5/6; one past the right edge, at u = 7/6:
+        let past = 7.0 / 6.0;
+        assert_eq!(at(Wrap::Repeat, true, past), 0.0);
+        assert_eq!(at(Wrap::Clamp, true, past), 2.0);
+        assert_eq!(at(Wrap::Mirror, true, past), 2.0);
+        // Two past: repeat is texel 1, mirror texel 1, clamp still the edge.
+        let two = 1.5;
+        assert_eq!(at(Wrap::Repeat, true, two), 1.0);
+        assert_eq!(at(Wrap::Mirror, true, two), 1.0);
+        assert_eq!(at(Wrap::Clamp, true, -5.0), 0.0);
+        // Mirrored, u in [1, 2] reads the image backwards: 5/6 past 1 is the first texel.
+        assert_eq!(at(Wrap::Mirror, true, 1.0 + 5.0 / 6.0), 0.0);
+        // Bilinear halfway between texel 0 and 1, and at the right edge: repeat blends the last
+        // texel with the first, clamp and mirror hold the edge's value.
+        assert!((at(Wrap::Repeat, false, 1.0 / 3.0) - 0.5).abs() < 1e-5);
+        assert!((at(Wrap::Repeat, false, 1.0) - 1.0).abs() < 1e-5);
+        assert!((at(Wrap::Clamp, false, 1.0) - 2.0).abs() < 1e-5);
+        assert!((at(Wrap::Mirror, false, 1.0) - 2.0).abs() < 1e-5);
+        // Nearest does not blend: just right of the centre of texel 0, still 0.
+        assert_eq!(at(Wrap::Repeat, true, 0.3), 0.0);
+        assert!(at(Wrap::Repeat, false, 0.3) > 0.0);
     }
 }

@@ -108,11 +108,16 @@ impl GltfDoc {
         views.len() - 1
     }
 
-    /// An accessor of floats, `kind` VEC2 or VEC3 (min and max given for positions).
+    /// An accessor of floats, `kind` VEC2, VEC3 or VEC4 (min and max given for VEC3, as
+    /// positions need).
     pub fn floats(&mut self, v: &[f32], kind: &str) -> usize {
         let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
         let view = self.view(&bytes);
-        let width = if kind == "VEC2" { 2 } else { 3 };
+        let width = match kind {
+            "VEC2" => 2,
+            "VEC4" => 4,
+            _ => 3,
+        };
         let mut a = serde_json::json!({"bufferView": view, "componentType": 5126, "count": v.len() / width, "type": kind});
         if kind == "VEC3" {
             let at = |k: usize| v.iter().skip(k).step_by(3).copied();

@@ -42,6 +42,7 @@ pub(super) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
         indices: indices.into(),
         normals: None,
         uvs: None,
+        attributes: None,
         instance: None,
         world: None,
     })

@@ -160,13 +160,15 @@ impl Emitter {
                 // u.x picks the triangle, then, rescaled, the point within it.
                 let (t, _, ux) = triangles.sample_reuse(u.x);
                 let (q, n, magnitude, bary) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
-                let radiance = match &mesh.uvs {
-                    Some(uvs) if scene.maps(scene.shapes[*shape as usize].material).emission.is_some() => {
-                        let [ia, ib, ic] = mesh.indices[t].map(|i| i as usize);
-                        let uv = uvs[ia] * (1.0 - bary.x - bary.y) + uvs[ib] * bary.x + uvs[ic] * bary.y;
-                        scene.emission_at(&scene.shapes[*shape as usize], uv)
+                let shape = &scene.shapes[*shape as usize];
+                let radiance = match scene.maps(shape.material).emission {
+                    Some(texture) => {
+                        match mesh.uv(scene.textures[texture as usize].set(), t as u32, bary.into()) {
+                            Some(uv) => scene.emission_at(shape, [uv, uv]),
+                            None => *emission,
+                        }
                     }
-                    _ => *emission,
+                    None => *emission,
                 };
                 area_sample(p, q, n, magnitude, radiance, select / area, light)
             }

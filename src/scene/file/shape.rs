@@ -352,6 +352,7 @@ pub(super) fn add(
                                     image,
                                     repeat: Vec2::ONE,
                                     transform: None,
+                                    sampling: Default::default(),
                                 });
                                 out.libraries.push(t.clone());
                                 let k = out.textures_before + out.textures.len() as u32 - 1;
@@ -390,6 +391,7 @@ pub(super) fn add(
                         indices: part.indices.into(),
                         normals,
                         uvs: part.uvs.map(Into::into),
+                        attributes: None,
                         instance: None,
                         world,
                     }),
@@ -482,7 +484,15 @@ pub(super) fn add(
 }
 
 fn mesh((positions, world): (Arc<[Vec3A]>, Option<Arc<[DVec3]>>), indices: &[[u32; 3]]) -> Mesh {
-    Mesh { positions, indices: indices.into(), normals: None, uvs: None, instance: None, world }
+    Mesh {
+        positions,
+        indices: indices.into(),
+        normals: None,
+        uvs: None,
+        attributes: None,
+        instance: None,
+        world,
+    }
 }
 
 /// An axis-aligned box as 12 triangles wound counter-clockwise seen from outside.

@@ -1,6 +1,7 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), its JSON parsed by the `gltf`
 //! crate and its bytes read by [`data`]: the default scene's node hierarchy with its transforms,
-//! triangle meshes with indices, normals and texture coordinates, the metallic-roughness
+//! triangle meshes with indices, normals, two sets of texture coordinates, vertex colours and
+//! tangents, textures through their samplers (wrap modes, nearest or bilinear), the metallic-roughness
 //! materials with their textures and emission (its texture a texture), the material extensions
 //! of one layered BSDF (specular, ior, transmission, volume, clearcoat, sheen;
 //! specular-glossiness converted: [`layers`]), the first camera, `KHR_lights_punctual` lights,
@@ -9,8 +10,7 @@
 //! comes out in that world. [`crate::scene::file`] and [`scene`] place it in a scene, where a
 //! mesh that several nodes use is shared (instanced), not copied.
 //!
-//! Not read (yet): occlusion, alpha modes, the material extensions' other textures,
-//! iridescence and the rest (named in a note when a file uses them), skins, morph targets,
+//! Not read (yet): occlusion, alpha modes, the thickness texture, mipmaps, iridescence and the rest (named in a note when a file uses them), skins, morph targets,
 //! animations, orthographic cameras, points and lines.
 
 use std::collections::HashMap;
@@ -22,10 +22,10 @@ mod data;
 use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 
 use crate::scene::image::Image;
-use crate::scene::texture::Texture;
+use crate::scene::texture::{Sampling, Texture, Wrap};
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Instance, LayerMaps, Layered, Layers, Light, Maps, Material, Mesh,
-    RenderSettings, Scene, SceneError, Shape,
+    Attributes, Camera, FilmSettings, Geometry, Instance, LayerMaps, Layered, Layers, Light, Maps, Material,
+    Mesh, RenderSettings, Scene, SceneError, Shape,
 };
 use data::Buffers;
 use gltf::mesh::{Mode, Semantic};
@@ -45,6 +45,8 @@ pub struct Primitive {
     pub normals: Option<Arc<[Vec3]>>,
     /// Texture coordinates with v up (glTF's v runs down the image; it is flipped here).
     pub uvs: Option<Arc<[Vec2]>>,
+    /// The second texture coordinates, vertex colours and tangents, when it has any.
+    pub attributes: Option<Box<Attributes>>,
     /// Index into [`Gltf::materials`]; `None` is glTF's default material.
     pub material: Option<usize>,
     /// How many nodes place it.
@@ -172,9 +174,9 @@ pub struct Gltf {
     /// Images by texture use: each image decoded to linear RGB from linear or sRGB values, or its
     /// alpha channel alone.
     pub images: Vec<Arc<Image>>,
-    /// Textures: an image of [`Gltf::images`] and the transform of its (u, v)
-    /// ([`uv_transform`]); the materials' textures index these.
-    pub textures: Vec<(usize, Option<Affine2>)>,
+    /// Textures: an image of [`Gltf::images`], the transform of its (u, v) ([`uv_transform`])
+    /// and its sampler; the materials' textures index these.
+    pub textures: Vec<(usize, Option<Affine2>, Sampling)>,
     pub camera: Option<GltfCamera>,
     pub lights: Vec<PunctualLight>,
     /// The external files it read (buffers, images), besides itself.
@@ -238,6 +240,27 @@ enum Decode {
     Linear,
     Srgb,
     Alpha,
+}
+
+/// How a texture's sampler reads it, with texture coordinates `set`: its wrap modes, and nearest
+/// lookup when its magnification filter says so (the minification filter is not read: a lookup
+/// is one texel or four, with no mipmap). A set past 1 is noted, and the first set read.
+fn sampling(texture: &gltf::Texture, set: u32, notes: &mut Vec<String>) -> Sampling {
+    use gltf::texture::{MagFilter, WrappingMode};
+    let wrap = |w: WrappingMode| match w {
+        WrappingMode::ClampToEdge => Wrap::Clamp,
+        WrappingMode::MirroredRepeat => Wrap::Mirror,
+        WrappingMode::Repeat => Wrap::Repeat,
+    };
+    let sampler = texture.sampler();
+    if set > 1 {
+        notes.push(format!("a texture reads TEXCOORD_{set}, not read: TEXCOORD_0 is used"));
+    }
+    Sampling {
+        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+        nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
+        set: (set == 1) as u8,
+    }
 }
 
 /// The extensions read (the others a file uses are named in a note).
@@ -318,19 +341,15 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     };
 
     // Textures: an image and the transform of its (u, v), once per pair.
-    let mut textures: Vec<(usize, Option<Affine2>)> = Vec::new();
+    let mut textures: Vec<(usize, Option<Affine2>, Sampling)> = Vec::new();
     let mut texture_of = |texture: gltf::Texture,
                           transform: Option<Transform>,
                           tex_coord: u32,
                           decode: Decode,
                           notes: &mut Vec<String>|
      -> Result<(usize, Arc<Image>), String> {
+        let sampling = sampling(&texture, transform.and_then(|t| t.tex_coord).unwrap_or(tex_coord), notes);
         let (image, pixels) = image_of(texture, decode)?;
-        if tex_coord != 0 || transform.is_some_and(|t| t.tex_coord.is_some_and(|k| k != 0)) {
-            notes.push(
-                "a texture reads a second set of texture coordinates, not read: the first is used".into(),
-            );
-        }
         let transform = match transform {
             None => None,
             Some(t) => {
@@ -341,7 +360,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
                 Some(uv_transform(Vec2::new(ox, oy), rotation, Vec2::new(sx, sy)))
             }
         };
-        let key = (image, transform);
+        let key = (image, transform, sampling);
         let at = match textures.iter().position(|k| *k == key) {
             Some(at) => at,
             None => {
@@ -490,16 +509,19 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             ));
         }
         let normal_texture = match m.normal_texture() {
-            Some(t) if t.tex_coord() != 0 => {
-                notes.push(format!(
-                    "material `{name}`: its normal map's second texture coordinates are not read"
-                ));
-                None
-            }
             Some(t) if !t.scale().is_finite() => {
                 return Err(format!("material `{name}`: a normal map scale that is not finite"))
             }
-            Some(t) => Some((texture_of(t.texture(), None, 0, Decode::Linear, &mut notes)?.0, t.scale())),
+            Some(t) => {
+                // The crate keeps a normal texture's extensions as JSON.
+                let json =
+                    m.index().and_then(|i| root.materials.get(i)).and_then(|j| j.normal_texture.as_ref());
+                let transform = json
+                    .and_then(|n| n.extensions.as_ref())
+                    .and_then(|e| Transform::of_json(&serde_json::json!({ "extensions": e.others })));
+                (texture_of(t.texture(), transform, t.tex_coord(), Decode::Linear, &mut notes)?.0, t.scale())
+                    .into()
+            }
             None => None,
         };
         materials.push(PbrMaterial {
@@ -889,6 +911,43 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
             }
             None => None,
         };
+        let uv1 = match attribute(Semantic::TexCoords(1)) {
+            Some(a) => {
+                let t = floats(a, "TEXCOORD_1", Type::Vec2, &[C::F32, C::U8, C::U16])?;
+                if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
+                    return Err(format!("{here}: its TEXCOORD_1 are not one finite pair a vertex"));
+                }
+                Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect())
+            }
+            None => None,
+        };
+        // Vertex colours: RGB or RGBA (the alpha is not read), floats or normalized integers.
+        let colors = match primitive.get(&Semantic::Colors(0)) {
+            Some(a) => {
+                let dims = if a.dimensions() == Type::Vec3 { Type::Vec3 } else { Type::Vec4 };
+                let c = floats(a.index(), "COLOR_0", dims, &[C::F32, C::U8, C::U16])?;
+                let k = dims.multiplicity();
+                if c.len() != k * n || c.iter().any(|x| !x.is_finite() || *x < 0.0) {
+                    return Err(format!(
+                        "{here}: its COLOR_0 are not one finite, non-negative colour a vertex"
+                    ));
+                }
+                Some(c.chunks_exact(k).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+            }
+            None => None,
+        };
+        let tangents = match attribute(Semantic::Tangents) {
+            Some(a) => {
+                let t = floats(a, "TANGENT", Type::Vec4, &[C::F32])?;
+                if t.len() != 4 * n || t.iter().any(|x| !x.is_finite()) {
+                    return Err(format!("{here}: its tangents are not one finite vector a vertex"));
+                }
+                Some(t.chunks_exact(4).map(|t| glam::Vec4::new(t[0], t[1], t[2], t[3])).collect())
+            }
+            None => None,
+        };
+        let attributes = (uv1.is_some() || colors.is_some() || tangents.is_some())
+            .then(|| Box::new(Attributes { uv1, colors, tangents }));
         let material = primitive.material().index();
         if material.is_some_and(|m| m >= out.materials.len()) {
             return Err(format!("{here}: no material {}", material.unwrap_or(0)));
@@ -899,6 +958,7 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
             indices: indices.into(),
             normals,
             uvs,
+            attributes,
             material,
             uses: 0,
         });
@@ -953,7 +1013,12 @@ pub fn place(
     let textures = g
         .textures
         .iter()
-        .map(|&(i, transform)| Texture::Image { image: g.images[i].clone(), repeat: Vec2::ONE, transform })
+        .map(|&(i, transform, sampling)| Texture::Image {
+            image: g.images[i].clone(),
+            repeat: Vec2::ONE,
+            transform,
+            sampling,
+        })
         .collect();
     let mut out = Placed { textures, ..Placed::default() };
     let texture = |i: usize| first_texture + i as u32;
@@ -1055,6 +1120,7 @@ fn part_mesh(primitive: &Primitive, part: &NodePrimitive, at: &Placement) -> Mes
                 indices: primitive.indices.clone(),
                 normals: primitive.normals.clone(),
                 uvs: primitive.uvs.clone(),
+                attributes: primitive.attributes.clone(),
                 instance: Some(Box::new(instance)),
                 world: None,
             };
@@ -1076,6 +1142,19 @@ fn part_mesh(primitive: &Primitive, part: &NodePrimitive, at: &Placement) -> Mes
             ns.iter().map(|&n| (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3()).collect()
         }),
         uvs: primitive.uvs.clone(),
+        // Tangents turn with the linear map; a mirror turns the bitangent's sign too.
+        attributes: primitive.attributes.as_ref().map(|a| {
+            let linear = linear.as_mat3();
+            let sign = if linear.determinant() < 0.0 { -1.0 } else { 1.0 };
+            Box::new(Attributes {
+                tangents: a.tangents.as_ref().map(|ts| {
+                    ts.iter()
+                        .map(|t| (linear * t.truncate()).normalize_or_zero().extend(t.w * sign))
+                        .collect()
+                }),
+                ..(**a).clone()
+            })
+        }),
         instance: None,
         world: None,
     }
