@@ -691,7 +691,8 @@ fn an_emissive_texture_is_seen_and_sampled_as_a_texture() {
 }
 
 /// The extensions' textures become maps of the material (the specular-glossiness texture as
-/// its colour and its alpha, sheen from the extension's JSON), and an unlit material emits its
+/// its colour and its alpha, sheen and the clearcoat's normal map from the extensions' JSON),
+/// and an unlit material emits its
 /// base colour from a surface that reflects nothing.
 #[test]
 fn extension_textures_are_read_and_unlit_emits_its_colour() {
@@ -704,10 +705,13 @@ fn extension_textures_are_read_and_unlit_emits_its_colour() {
         {"name": "sg", "extensions": {"KHR_materials_pbrSpecularGlossiness": {"specularGlossinessTexture": {"index": 0}}}},
         {"name": "cloth", "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1],
             "sheenColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}}}},
-        {"name": "flat", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 1]}, "extensions": {"KHR_materials_unlit": {}}}
+        {"name": "flat", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 1]}, "extensions": {"KHR_materials_unlit": {}}},
+        {"name": "coat", "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1,
+            "clearcoatNormalTexture": {"index": 0, "scale": 0.5}}}}
     ]));
     assert_eq!(doc.texture(&png), 0);
     doc.json["extensionsUsed"] = json!([
+        "KHR_materials_clearcoat",
         "KHR_materials_pbrSpecularGlossiness",
         "KHR_materials_sheen",
         "KHR_materials_unlit",
@@ -721,6 +725,9 @@ fn extension_textures_are_read_and_unlit_emits_its_colour() {
     assert!((pixel(gloss).x - 128.0 / 255.0).abs() < 1e-3, "alpha: {}", pixel(gloss));
     assert!(pixel(color).x > pixel(color).y && pixel(color).y > pixel(color).z, "colour: {}", pixel(color));
     assert!(cloth.layer.sheen_color.is_some(), "{cloth:?}");
+    let coat = s.maps(s.shapes[3].material).layer.clearcoat_normal.expect("the clearcoat's normal map");
+    assert_eq!(coat.1, 0.5);
+    assert!(pixel(coat.0).x > 0.7, "read linear: {}", pixel(coat.0));
     assert_eq!(flat.emission, Vec3::new(0.2, 0.4, 0.6));
     assert_eq!(s.materials[flat.material as usize], scene::Material::Diffuse { albedo: Vec3::ZERO });
     assert!(s.notes.iter().all(|n| !n.contains("extensions not read")), "{:?}", s.notes);

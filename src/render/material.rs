@@ -91,12 +91,23 @@ impl<'a> Shading<'a> {
             let bent = apply_height(ns, s.dpdu, s.dpdv, dhdu, dhdv);
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
-        if let Some((t, scale)) = self.maps.normal {
-            let c = self.read(t) * 2.0 - Vec3::ONE;
-            let bent = apply_normal_map(ns, s.dpdu, s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
-            ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
+        if let Some(map) = self.maps.normal {
+            ns = self.normal_mapped(ns, ng, map);
         }
         ns
+    }
+
+    /// `ns` bent by normal map `(t, scale)`, unless the bent normal falls below the surface
+    /// whose normal is `ng`.
+    #[inline(always)]
+    fn normal_mapped(&self, ns: Vec3, ng: Vec3, (t, scale): (u32, f32)) -> Vec3 {
+        let c = self.read(t) * 2.0 - Vec3::ONE;
+        let bent = apply_normal_map(ns, self.s.dpdu, self.s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
+        if bent.dot(ng) > 1e-3 {
+            bent
+        } else {
+            ns
+        }
     }
 
     /// The material's colour: its texture's where it has one, else `constant`; times the
@@ -175,8 +186,15 @@ impl<'a> Shading<'a> {
                 let coat_roughness = layers.clearcoat_roughness * at(lm.clearcoat_roughness).y;
                 let sheen_color = layers.sheen_color * at(lm.sheen_color);
                 let sheen_roughness = layers.sheen_roughness * at(lm.sheen_roughness).x;
+                // The clearcoat's own normal map bends the interpolated normal (on the side of
+                // `n`), not the base's.
+                let coat_frame = lm.clearcoat_normal.filter(|_| coat > 0.0).map(|map| {
+                    let ns = if self.s.ns.dot(n) >= 0.0 { self.s.ns } else { -self.s.ns };
+                    Frame::new(self.normal_mapped(ns, n, map))
+                });
                 u.with(&Principled {
                     frame: Frame::new(n),
+                    coat_frame,
                     entering,
                     color: l.base_color * self.color(Vec3::ONE),
                     metallic,

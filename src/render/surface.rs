@@ -211,7 +211,8 @@ fn surface_from(
             }
             let bumped = || {
                 let maps = scene.maps(shape.material);
-                (maps.normal.is_some() || maps.height.is_some()).then_some(maps)
+                (maps.normal.is_some() || maps.height.is_some() || maps.layer.clearcoat_normal.is_some())
+                    .then_some(maps)
             };
             let (dpdu, dpdv) = match (bumped(), tangents) {
                 (None, _) => (Vec3::ZERO, Vec3::ZERO),
@@ -224,7 +225,8 @@ fn surface_from(
                     (dir, ns.cross(dir) * if t.w < 0.0 { -1.0 } else { 1.0 })
                 }
                 (Some(maps), None) => {
-                    let set = maps.normal.map_or(0, |(t, _)| scene.textures[t as usize].set());
+                    let normal = maps.normal.or(maps.layer.clearcoat_normal);
+                    let set = normal.map_or(0, |(t, _)| scene.textures[t as usize].set());
                     let uvs = if set == 1 {
                         mesh.attributes.as_ref().and_then(|a| a.uv1.as_deref())
                     } else {

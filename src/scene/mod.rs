@@ -531,6 +531,8 @@ pub struct LayerMaps {
     pub sheen_roughness: Option<u32>,
     pub specular: Option<u32>,
     pub specular_color: Option<u32>,
+    /// The clearcoat's own tangent-space normal map and its scale (as [`Maps::normal`]).
+    pub clearcoat_normal: Option<(u32, f32)>,
 }
 
 impl LayerMaps {
@@ -542,6 +544,7 @@ impl LayerMaps {
             self.sheen_roughness,
             self.specular,
             self.specular_color,
+            self.clearcoat_normal.map(|(t, _)| t),
         ]
         .iter()
         .flatten()

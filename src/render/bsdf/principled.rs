@@ -46,6 +46,8 @@ pub fn dielectric_f0(ior: f32, specular: f32, color: Vec3) -> (Vec3, f32) {
 #[derive(Clone, Copy, Debug)]
 pub struct Principled {
     pub frame: Frame,
+    /// The clearcoat's own frame, when its normal map bends it away from `frame`'s.
+    pub coat_frame: Option<Frame>,
     /// Whether the path arrived from outside (the side the geometric normal points to).
     pub entering: bool,
     /// The base colour: the Lambertian base's albedo, a metal's f0, transmission's tint.
@@ -112,9 +114,15 @@ impl Principled {
     fn weights(&self, wo: Vec3) -> Weights {
         let table = SpecularAlbedo::get();
         let cos = wo.z;
-        let coat_albedo = match self.coat > 0.0 {
+        // A coat bent by its own normal map reflects by its own cosine (nothing when the view
+        // is below its horizon).
+        let coat_cos = match self.coat_frame {
+            None => cos,
+            Some(coat) => coat.to_local(self.frame.to_world(wo)).z,
+        };
+        let coat_albedo = match self.coat > 0.0 && coat_cos > 0.0 {
             true => {
-                let (a, b) = table.at(cos, self.coat_alpha);
+                let (a, b) = table.at(coat_cos, self.coat_alpha);
                 self.coat * (COAT_F0 * a + b)
             }
             false => 0.0,
@@ -184,7 +192,20 @@ impl Principled {
         match which {
             Which::Coat => {
                 let g = self.coat_lobe();
-                (g.eval_specular(wo, wi) * self.coat, p * g.pdf_specular(wo, wi))
+                match self.coat_frame {
+                    None => (g.eval_specular(wo, wi) * self.coat, p * g.pdf_specular(wo, wi)),
+                    Some(coat) => {
+                        // In the coat's frame, its cosine in place of the shading normal's
+                        // (which the caller multiplies by): a density is the same in any frame.
+                        let to = |v: Vec3| coat.to_local(self.frame.to_world(v));
+                        let (cwo, cwi) = (to(wo), to(wi));
+                        if cwo.z <= 0.0 || cwi.z <= 0.0 {
+                            return (Vec3::ZERO, 0.0);
+                        }
+                        let f = g.eval_specular(cwo, cwi) * (self.coat * cwi.z / wi.z.max(1e-6));
+                        (f, p * g.pdf_specular(cwo, cwi))
+                    }
+                }
             }
             Which::Sheen => (w.sheen * self.sheen.value(wo, wi), p * self.sheen.pdf(wi)),
             Which::Specular => {
@@ -331,7 +352,16 @@ impl Bsdf for Principled {
             return None;
         }
         let wi = match which {
-            Which::Coat => self.coat_lobe().sample_specular(wo_l, u2),
+            Which::Coat => match self.coat_frame {
+                None => self.coat_lobe().sample_specular(wo_l, u2),
+                Some(coat) => {
+                    let cwo = coat.to_local(wo);
+                    if cwo.z <= 0.0 {
+                        return None;
+                    }
+                    self.frame.to_local(coat.to_world(self.coat_lobe().sample_specular(cwo, u2)))
+                }
+            },
             Which::Specular => self.spec_lobe().sample_specular(wo_l, u2),
             Which::Sheen | Which::Diffuse => cosine_hemisphere(u2),
             Which::Transmission => {

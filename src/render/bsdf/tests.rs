@@ -291,6 +291,7 @@ fn principled() -> Principled {
     let (f0, f90) = dielectric_f0(1.5, 1.0, Vec3::ONE);
     Principled {
         frame: Frame::new(Vec3::Z),
+        coat_frame: None,
         entering: true,
         color: Vec3::ONE,
         metallic: 0.0,
@@ -318,6 +319,15 @@ fn layered_cases() -> Vec<(&'static str, Principled)> {
         ("half metal", Principled { metallic: 0.5, alpha: alpha(0.3), ..p }),
         ("clearcoat", Principled { coat: 1.0, coat_alpha: alpha(0.3), ..p }),
         ("rough clearcoat", Principled { coat: 0.7, coat_alpha: alpha(0.6), ..p }),
+        (
+            "bent clearcoat",
+            Principled {
+                coat: 1.0,
+                coat_alpha: alpha(0.3),
+                coat_frame: Some(Frame::new(Vec3::new(0.3, 0.1, 1.0).normalize())),
+                ..p
+            },
+        ),
         ("sheen", Principled { sheen: SheenLobe::new(Vec3::ONE, 0.4), sheen_roughness: 0.4, ..p }),
         ("smooth sheen", Principled { sheen: SheenLobe::new(Vec3::ONE, 0.0), sheen_roughness: 0.0, ..p }),
         ("specular colour", Principled { f0: Vec3::new(0.2, 0.04, 0.01), f90: 0.6, ..p }),
@@ -373,6 +383,16 @@ fn white_layered_materials_keep_all_the_light() {
         for theta in [0.0, 30.0, 60.0, 75.0, 85.0] {
             let (albedo, error) = albedo_of(&b, wo(theta), 100_000);
             let tolerance = 4.0 * error + 0.005;
+            if b.coat_frame.is_some() {
+                // A coat bent by its normal map reflects some light below the shading
+                // normal's horizon, which is lost: it may keep less, never more (here at least
+                // 97%, the coat reflecting 4% to 30% of the light).
+                assert!(
+                    albedo < 1.0 + tolerance && albedo > 0.97,
+                    "{name} at {theta} degrees: albedo {albedo} +- {error}"
+                );
+                continue;
+            }
             assert!(
                 (albedo - 1.0).abs() < tolerance,
                 "{name} at {theta} degrees: albedo {albedo} +- {error}"

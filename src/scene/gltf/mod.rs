@@ -464,6 +464,22 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
             *slot = Some(texture_of(texture, Transform::of_json(info), k, decode, &mut notes)?.0 as u32);
         }
+        // The clearcoat's normal map, with its scale.
+        if let Some(info) =
+            m.extension_value("KHR_materials_clearcoat").and_then(|e| e.get("clearcoatNormalTexture"))
+        {
+            let index = info.get("index").and_then(|v| v.as_u64()).map(|i| i as usize);
+            let Some(texture) = index.and_then(|i| document.textures().nth(i)) else {
+                return Err(format!("material `{name}`: `clearcoatNormalTexture` names no texture"));
+            };
+            let scale = info.get("scale").and_then(|v| v.as_f64()).unwrap_or(1.0) as f32;
+            if !scale.is_finite() {
+                return Err(format!("material `{name}`: a clearcoat normal map scale that is not finite"));
+            }
+            let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+            let t = texture_of(texture, Transform::of_json(info), k, Decode::Linear, &mut notes)?.0 as u32;
+            layer.clearcoat_normal = Some((t, scale));
+        }
         let transmission_texture = m
             .transmission()
             .and_then(|t| t.transmission_texture())
@@ -749,9 +765,6 @@ fn layers(
         layers.clearcoat = number(c, "clearcoatFactor", 0.0, 0.0..=1.0, name)?;
         layers.clearcoat_roughness = number(c, "clearcoatRoughnessFactor", 0.0, 0.0..=1.0, name)?;
         any |= layers.clearcoat > 0.0;
-        if c.get("clearcoatNormalTexture").is_some() {
-            unread.push("clearcoat normal maps");
-        }
     }
     if let Some(sh) = m.extension_value("KHR_materials_sheen") {
         layers.sheen_color = color(sh, "sheenColorFactor", Vec3::ZERO, name)?;
@@ -1064,6 +1077,7 @@ pub fn place(
                     sheen_roughness: t(l.sheen_roughness),
                     specular: t(l.specular),
                     specular_color: t(l.specular_color),
+                    clearcoat_normal: l.clearcoat_normal.map(|(i, scale)| (texture(i as usize), scale)),
                 }
             },
             ..Maps::default()
