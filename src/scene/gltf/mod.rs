@@ -914,26 +914,16 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
             }
             None => None,
         };
-        let uvs = match attribute(Semantic::TexCoords(0)) {
-            Some(a) => {
-                let t = floats(a, "TEXCOORD_0", Type::Vec2, &[C::F32, C::U8, C::U16])?;
-                if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
-                    return Err(format!("{here}: its texture coordinates are not one finite pair a vertex"));
-                }
-                Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect())
+        // Texture coordinates, v flipped up.
+        let read_uvs = |set: u32| -> Result<Option<Arc<[Vec2]>>, String> {
+            let Some(a) = attribute(Semantic::TexCoords(set)) else { return Ok(None) };
+            let t = floats(a, &format!("TEXCOORD_{set}"), Type::Vec2, &[C::F32, C::U8, C::U16])?;
+            if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
+                return Err(format!("{here}: its TEXCOORD_{set} are not one finite pair a vertex"));
             }
-            None => None,
+            Ok(Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect()))
         };
-        let uv1 = match attribute(Semantic::TexCoords(1)) {
-            Some(a) => {
-                let t = floats(a, "TEXCOORD_1", Type::Vec2, &[C::F32, C::U8, C::U16])?;
-                if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
-                    return Err(format!("{here}: its TEXCOORD_1 are not one finite pair a vertex"));
-                }
-                Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect())
-            }
-            None => None,
-        };
+        let (uvs, uv1) = (read_uvs(0)?, read_uvs(1)?);
         // Vertex colours: RGB or RGBA (the alpha is not read), floats or normalized integers.
         let colors = match primitive.get(&Semantic::Colors(0)) {
             Some(a) => {
