@@ -132,6 +132,7 @@ pub fn sphere_magnitude(center: Vec3, radius: f32) -> f32 {
 }
 
 /// Rec. 709 luminance of a linear RGB value.
+#[inline(always)]
 pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }

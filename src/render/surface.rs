@@ -214,7 +214,9 @@ fn surface_from(
                 (maps.normal.is_some() || maps.height.is_some() || maps.layer.clearcoat_normal.is_some())
                     .then_some(maps)
             };
-            let (dpdu, dpdv) = match (bumped(), tangents) {
+            // (The maps are looked up only for a mesh that could carry a frame.)
+            let frame = mesh.uvs.is_some() || tangents.is_some();
+            let (dpdu, dpdv) = match (frame.then(bumped).flatten(), tangents) {
                 (None, _) => (Vec3::ZERO, Vec3::ZERO),
                 (Some(_), Some(tangents)) => {
                     let t = mesh.interpolate(tangents, hit.prim, (u, v));
