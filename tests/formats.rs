@@ -511,6 +511,16 @@ fn an_obj_bump_map_tilts_the_floor_toward_its_slope() {
     assert!((east / flat_east - cos(45.0 + 8.53) / cos(45.0)).abs() < 0.03, "{}", east / flat_east);
 }
 
+/// A PNG of 4 x 1 texels, black on its left half and white on its right: two texels a half,
+/// so bilinear lookups inside each half are exact.
+fn half_black_png() -> Vec<u8> {
+    let mut png = Vec::new();
+    image::RgbImage::from_fn(4, 1, |x, _| image::Rgb(if x < 2 { [0, 0, 0] } else { [255, 255, 255] }))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    png
+}
+
 /// A quad document with one mesh (and one node) per material of `materials`, in order.
 fn quads_of(materials: serde_json::Value) -> GltfDoc {
     let mut doc = GltfDoc::quad();
@@ -641,11 +651,7 @@ fn layered_materials_keep_the_components_summing_to_the_beauty() {
 #[test]
 fn an_emissive_texture_is_seen_and_sampled_as_a_texture() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut png = Vec::new();
-    // Two texels a half, so bilinear lookups inside each half are exact.
-    image::RgbImage::from_fn(4, 1, |x, _| image::Rgb(if x < 2 { [0, 0, 0] } else { [255, 255, 255] }))
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .expect("png");
+    let png = half_black_png();
     let write = |name: &str, textured: bool| {
         let mut doc = quads_of(json!([
             {"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1]}, "emissiveFactor": [1, 1, 1]},
@@ -741,10 +747,7 @@ fn extension_textures_are_read_and_unlit_emits_its_colour() {
 fn textures_read_their_sampler_and_second_coordinates() {
     use lightsplit::scene::texture::{Sampling, Wrap};
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut png = Vec::new();
-    image::RgbImage::from_fn(4, 1, |x, _| image::Rgb(if x < 2 { [0, 0, 0] } else { [255, 255, 255] }))
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .expect("png");
+    let png = half_black_png();
     let write = |name: &str, set: u32| {
         let mut doc = quads_of(json!([{"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1]},
             "emissiveFactor": [1, 1, 1]}]));

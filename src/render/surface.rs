@@ -197,10 +197,7 @@ fn surface_from(
                 }
                 None => ng,
             };
-            let uv = match &mesh.uvs {
-                Some(uvs) => uvs[ia] * (1.0 - u - v) + uvs[ib] * u + uvs[ic] * v,
-                None => Vec2::new(u, v),
-            };
+            let uv = mesh.uv(0, hit.prim, (u, v)).unwrap_or(Vec2::new(u, v));
             let shape = &scene.shapes[hit.shape as usize];
             let (mut uv1, mut color) = (uv, Vec3::ONE);
             let mut tangents = None;
@@ -215,7 +212,7 @@ fn surface_from(
                     .then_some(maps)
             };
             // (The maps are looked up only for a mesh that could carry a frame.)
-            let frame = mesh.uvs.is_some() || tangents.is_some();
+            let frame = mesh.uvs.is_some() || mesh.attributes.is_some();
             let (dpdu, dpdv) = match (frame.then(bumped).flatten(), tangents) {
                 (None, _) => (Vec3::ZERO, Vec3::ZERO),
                 (Some(_), Some(tangents)) => {
@@ -229,12 +226,7 @@ fn surface_from(
                 (Some(maps), None) => {
                     let normal = maps.normal.or(maps.layer.clearcoat_normal);
                     let set = normal.map_or(0, |(t, _)| scene.textures[t as usize].set());
-                    let uvs = if set == 1 {
-                        mesh.attributes.as_ref().and_then(|a| a.uv1.as_deref())
-                    } else {
-                        mesh.uvs.as_deref()
-                    };
-                    match uvs {
+                    match mesh.uvs(set) {
                         Some(uvs) => uv_derivatives([a, b, c], [uvs[ia], uvs[ib], uvs[ic]]),
                         None => (Vec3::ZERO, Vec3::ZERO),
                     }

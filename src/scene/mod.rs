@@ -316,15 +316,20 @@ impl Mesh {
         a * (1.0 - u - v) + b * u + c * v
     }
 
+    /// The texture coordinates of set `set` (0 or 1), when the mesh has them.
+    #[inline]
+    pub fn uvs(&self, set: u8) -> Option<&[Vec2]> {
+        match set {
+            0 => self.uvs.as_deref(),
+            _ => self.attributes.as_ref().and_then(|a| a.uv1.as_deref()),
+        }
+    }
+
     /// Texture coordinates `set` (0 or 1) at barycentrics `bary` of triangle `prim`, when the
     /// mesh has them.
     #[inline]
     pub fn uv(&self, set: u8, prim: u32, bary: (f32, f32)) -> Option<Vec2> {
-        let uvs = match set {
-            0 => self.uvs.as_deref(),
-            _ => self.attributes.as_ref().and_then(|a| a.uv1.as_deref()),
-        };
-        uvs.map(|t| self.interpolate(t, prim, bary))
+        self.uvs(set).map(|t| self.interpolate(t, prim, bary))
     }
 
     /// The three corners of triangle `prim`, placed in the scene.

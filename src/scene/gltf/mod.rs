@@ -1,8 +1,8 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`), its JSON parsed by the `gltf`
 //! crate and its bytes read by [`data`]: the default scene's node hierarchy with its transforms,
 //! triangle meshes with indices, normals, two sets of texture coordinates, vertex colours and
-//! tangents, textures through their samplers (wrap modes, nearest or bilinear), the metallic-roughness
-//! materials with their textures and emission (its texture a texture), the material extensions
+//! tangents, textures through their samplers (wrap modes, nearest or bilinear), the
+//! metallic-roughness materials with their textures and emission (its texture a texture), the material extensions
 //! of one layered BSDF (specular, ior, transmission, volume, clearcoat, sheen;
 //! specular-glossiness converted: [`layers`]), the first camera, `KHR_lights_punctual` lights,
 //! `KHR_materials_emissive_strength` and `KHR_texture_transform`. Meshes come out in their own
@@ -10,8 +10,9 @@
 //! comes out in that world. [`crate::scene::file`] and [`scene`] place it in a scene, where a
 //! mesh that several nodes use is shared (instanced), not copied.
 //!
-//! Not read (yet): occlusion, alpha modes, the thickness texture, mipmaps, iridescence and the rest (named in a note when a file uses them), skins, morph targets,
-//! animations, orthographic cameras, points and lines.
+//! Not read (yet): occlusion, alpha modes, the thickness texture, mipmaps, iridescence and the
+//! rest (named in a note when a file uses them), skins, morph targets, animations,
+//! orthographic cameras, points and lines.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -385,6 +386,24 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         };
     }
 
+    // A texture info from an extension's JSON (material `name`'s `key`, in messages).
+    macro_rules! json_texture {
+        ($info:expr, $name:expr, $key:expr, $decode:expr) => {{
+            let info = $info;
+            let index = info.get("index").and_then(|v| v.as_u64()).map(|i| i as usize);
+            let Some(texture) = index.and_then(|i| document.textures().nth(i)) else {
+                return Err(format!(
+                    "material `{}`: `{}` names no texture (it has {})",
+                    $name,
+                    $key,
+                    document.textures().len()
+                ));
+            };
+            let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+            texture_of(texture, Transform::of_json(info), k, $decode, &mut notes)?.0
+        }};
+    }
+
     let mut materials = Vec::new();
     let mut unread_parts = Vec::new();
     for m in document.materials() {
@@ -454,31 +473,17 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             ("KHR_materials_sheen", "sheenRoughnessTexture", Decode::Alpha, &mut layer.sheen_roughness),
         ] {
             let Some(info) = m.extension_value(ext).and_then(|e| e.get(key)) else { continue };
-            let index = info.get("index").and_then(|v| v.as_u64()).map(|i| i as usize);
-            let Some(texture) = index.and_then(|i| document.textures().nth(i)) else {
-                return Err(format!(
-                    "material `{name}`: `{key}` names no texture (it has {})",
-                    document.textures().len()
-                ));
-            };
-            let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-            *slot = Some(texture_of(texture, Transform::of_json(info), k, decode, &mut notes)?.0 as u32);
+            *slot = Some(json_texture!(info, name, key, decode) as u32);
         }
         // The clearcoat's normal map, with its scale.
-        if let Some(info) =
-            m.extension_value("KHR_materials_clearcoat").and_then(|e| e.get("clearcoatNormalTexture"))
-        {
-            let index = info.get("index").and_then(|v| v.as_u64()).map(|i| i as usize);
-            let Some(texture) = index.and_then(|i| document.textures().nth(i)) else {
-                return Err(format!("material `{name}`: `clearcoatNormalTexture` names no texture"));
-            };
+        let coat = m.extension_value("KHR_materials_clearcoat");
+        if let Some(info) = coat.and_then(|e| e.get("clearcoatNormalTexture")) {
             let scale = info.get("scale").and_then(|v| v.as_f64()).unwrap_or(1.0) as f32;
             if !scale.is_finite() {
                 return Err(format!("material `{name}`: a clearcoat normal map scale that is not finite"));
             }
-            let k = info.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-            let t = texture_of(texture, Transform::of_json(info), k, Decode::Linear, &mut notes)?.0 as u32;
-            layer.clearcoat_normal = Some((t, scale));
+            layer.clearcoat_normal =
+                Some((json_texture!(info, name, "clearcoatNormalTexture", Decode::Linear) as u32, scale));
         }
         let transmission_texture = m
             .transmission()
