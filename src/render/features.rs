@@ -13,7 +13,8 @@ pub const MIS: u8 = 1;
 pub const SPLIT: u8 = 2;
 /// The guide buffers: object ID and coverage, normal, depth, albedo.
 pub const GUIDES: u8 = 4;
-/// Colour textures and bump maps.
+/// Colour textures, bump maps and vertex colours: without them a hit computes neither its
+/// texture coordinates nor its vertex colour.
 pub const TEXTURES: u8 = 8;
 /// Every feature: the general integrator.
 pub const ALL: u8 = MIS | SPLIT | GUIDES | TEXTURES;
@@ -27,7 +28,7 @@ pub struct Features {
     pub split: bool,
     /// [`GUIDES`]: the guide buffers.
     pub guides: bool,
-    /// [`TEXTURES`]: colour textures and bump maps.
+    /// [`TEXTURES`]: colour textures, bump maps and vertex colours.
     pub textures: bool,
 }
 
@@ -56,7 +57,7 @@ impl Features {
             mis: analysis.lights.hittable() > 0,
             split: outputs.split,
             guides: outputs.guides,
-            textures: analysis.color_textures + analysis.bump_maps > 0,
+            textures: analysis.textured(),
         }
     }
 

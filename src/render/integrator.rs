@@ -295,7 +295,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 self.escaped(&mut walk.out, &walk.path, ray.dir);
                 break;
             };
-            let s = surface_with(scene, self.faces, &ray, &hit);
+            let s = surface_with(scene, self.faces, &ray, &hit, F & TEXTURES != 0);
             let shape = &scene.shapes[hit.shape as usize];
             record.vertex(depth, &shape.name, s.p, walk.path.beta, walk.out.beauty);
             let wo = -ray.dir;

@@ -26,7 +26,7 @@ pub struct Shading<'a> {
     scene: &'a Scene,
     shape: &'a Shape,
     s: &'a Surface,
-    maps: Maps,
+    maps: &'a Maps,
 }
 
 impl<'a> Shading<'a> {
@@ -34,7 +34,7 @@ impl<'a> Shading<'a> {
     /// its constants alone.
     #[inline(always)]
     pub fn new(scene: &'a Scene, shape: &'a Shape, s: &'a Surface, textured: bool) -> Self {
-        let maps = if textured { scene.maps(shape.material) } else { Maps::default() };
+        let maps = if textured { scene.maps(shape.material) } else { &Maps::NONE };
         Shading { scene, shape, s, maps }
     }
 

@@ -18,7 +18,8 @@ pub struct Surface {
     pub ng: Vec3,
     pub ns: Vec3,
     /// The mesh's texture coordinates interpolated, else the barycentrics; on a sphere,
-    /// longitude and latitude over [0, 1] (v = 1 at the +y pole).
+    /// longitude and latitude over [0, 1] (v = 1 at the +y pole). In a render without textures,
+    /// the hit's barycentrics.
     pub uv: Vec2,
     /// The second set of texture coordinates (a glTF's `TEXCOORD_1`), else `uv`.
     pub uv1: Vec2,
@@ -130,19 +131,23 @@ fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> Option<Vec3> {
 
 /// The surface at `hit`, its triangle's normal computed from its corners.
 pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
-    surface_from(scene, ray, hit, |a, b, c, _| (face_normal(a, b, c), triangle_magnitude(a, b, c)))
+    surface_from(scene, ray, hit, true, |a, b, c, _| (face_normal(a, b, c), triangle_magnitude(a, b, c)))
 }
 
 /// The surface at `hit`, its triangle's normal read from `faces` where it has a table (the same
-/// values as [`surface`], bit for bit).
+/// values as [`surface`], bit for bit). With `textured` false (a render that reads no texture
+/// and no vertex colour) the texture coordinates are the barycentrics, the colour white and
+/// the normal-map frame zero: none of them is computed.
 #[inline(always)]
-pub fn surface_with(scene: &Scene, faces: &FaceNormals, ray: &Ray, hit: &Hit) -> Surface {
-    surface_from(scene, ray, hit, |a, b, c, prim| match faces.shapes[hit.shape as usize].get(prim as usize) {
-        Some(f) => {
-            let n = f.truncate();
-            ((n != Vec3::ZERO).then_some(n), f.w)
+pub fn surface_with(scene: &Scene, faces: &FaceNormals, ray: &Ray, hit: &Hit, textured: bool) -> Surface {
+    surface_from(scene, ray, hit, textured, |a, b, c, prim| {
+        match faces.shapes[hit.shape as usize].get(prim as usize) {
+            Some(f) => {
+                let n = f.truncate();
+                ((n != Vec3::ZERO).then_some(n), f.w)
+            }
+            None => (face_normal(a, b, c), triangle_magnitude(a, b, c)),
         }
-        None => (face_normal(a, b, c), triangle_magnitude(a, b, c)),
     })
 }
 
@@ -151,6 +156,7 @@ fn surface_from(
     scene: &Scene,
     ray: &Ray,
     hit: &Hit,
+    textured: bool,
     face: impl Fn(Vec3, Vec3, Vec3, u32) -> (Option<Vec3>, f32),
 ) -> Surface {
     // Only for a degenerate primitive, so computed only then.
@@ -159,7 +165,12 @@ fn surface_from(
         Geometry::Sphere { center, radius } => {
             // Re-project the hit onto the sphere: tighter than o + t d alone.
             let n = (ray.at(hit.t) - *center).try_normalize().unwrap_or_else(fallback);
-            let uv = Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI);
+            let uv = match textured {
+                true => {
+                    Vec2::new(n.z.atan2(n.x).rem_euclid(TAU) / TAU, 1.0 - n.y.clamp(-1.0, 1.0).acos() / PI)
+                }
+                false => Vec2::new(hit.u, hit.v),
+            };
             Surface {
                 p: *center + n * *radius,
                 ng: n,
@@ -197,6 +208,23 @@ fn surface_from(
                 }
                 None => ng,
             };
+            if !textured {
+                let (uv, zero) = (Vec2::new(u, v), Vec3::ZERO);
+                let (dpdu, dpdv, color) = (zero, zero, Vec3::ONE);
+                return Surface {
+                    p,
+                    ng,
+                    ns,
+                    uv,
+                    uv1: uv,
+                    color,
+                    magnitude,
+                    dpdu,
+                    dpdv,
+                    prim: hit.prim,
+                    bary: (u, v),
+                };
+            }
             let uv = mesh.uv(0, hit.prim, (u, v)).unwrap_or(Vec2::new(u, v));
             let shape = &scene.shapes[hit.shape as usize];
             let (mut uv1, mut color) = (uv, Vec3::ONE);

@@ -69,6 +69,8 @@ pub struct Analysis {
     pub color_textures: usize,
     /// Materials (used by shapes) that read a bump map.
     pub bump_maps: usize,
+    /// Meshes with vertex colours (multiplying their material's colour, as a texture does).
+    pub vertex_colours: usize,
     /// Triangles in the scene, each instance's counted.
     pub triangles: usize,
     /// Triangles held in memory: a mesh shared by several instances counted once.
@@ -82,6 +84,12 @@ pub struct Analysis {
 }
 
 impl Analysis {
+    /// Whether a render reads textures or vertex colours: without them a hit computes neither
+    /// its texture coordinates nor its colour.
+    pub fn textured(&self) -> bool {
+        self.color_textures + self.bump_maps + self.vertex_colours > 0
+    }
+
     pub fn of(scene: &Scene) -> Analysis {
         let mut used = vec![false; scene.materials.len()];
         let mut a = Analysis {
@@ -89,6 +97,7 @@ impl Analysis {
             lights: LightKinds::default(),
             color_textures: 0,
             bump_maps: 0,
+            vertex_colours: 0,
             triangles: scene.triangle_count(),
             stored_triangles: 0,
             instances: 0,
@@ -99,6 +108,7 @@ impl Analysis {
         let mut shared = std::collections::HashSet::new();
         for shape in &scene.shapes {
             if let Geometry::Triangles(mesh) = &shape.geometry {
+                a.vertex_colours += mesh.attributes.as_ref().is_some_and(|at| at.colors.is_some()) as usize;
                 match mesh.instance {
                     None => a.stored_triangles += mesh.indices.len(),
                     Some(_) => {
@@ -238,7 +248,11 @@ impl fmt::Display for Analysis {
         .flatten()
         .collect();
         writeln!(f, "lights: {}", if lights.is_empty() { "none".to_string() } else { lights.join(", ") })?;
-        writeln!(f, "textures: {} colour, {} bump", self.color_textures, self.bump_maps)?;
+        write!(f, "textures: {} colour, {} bump", self.color_textures, self.bump_maps)?;
+        match self.vertex_colours {
+            0 => writeln!(f)?,
+            n => writeln!(f, "; {n} meshes with vertex colours")?,
+        }
         writeln!(f, "so a render of it needs:")?;
         let need = |f: &mut fmt::Formatter<'_>, what: &str, needed: bool, why: &str| {
             writeln!(f, "{}", need_line(what, needed, why))
@@ -260,12 +274,7 @@ impl fmt::Display for Analysis {
             "needs a specular-like bounce after a diffuse one",
         )?;
         need(f, "lookups at infinity", k.distant() > 0, "a sun or a sky, seen by escaping rays")?;
-        need(
-            f,
-            "texture evaluation",
-            self.color_textures + self.bump_maps > 0,
-            "materials that read a texture",
-        )?;
+        need(f, "texture evaluation", self.textured(), "materials that read a texture, or vertex colours")?;
         need(f, "the GGX lobe", l.glossy, "glossy materials")?;
         need(f, "Fresnel refraction", l.glass, "glass")?;
         Ok(())

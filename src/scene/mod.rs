@@ -541,6 +541,16 @@ pub struct LayerMaps {
 }
 
 impl LayerMaps {
+    pub const NONE: LayerMaps = LayerMaps {
+        clearcoat: None,
+        clearcoat_roughness: None,
+        sheen_color: None,
+        sheen_roughness: None,
+        specular: None,
+        specular_color: None,
+        clearcoat_normal: None,
+    };
+
     pub fn count(&self) -> usize {
         [
             self.clearcoat,
@@ -558,6 +568,19 @@ impl LayerMaps {
 }
 
 impl Maps {
+    /// A material without textures.
+    pub const NONE: Maps = Maps {
+        color: None,
+        bump: None,
+        metal_rough: None,
+        normal: None,
+        height: None,
+        transmission: None,
+        emission: None,
+        spec_gloss: None,
+        layer: LayerMaps::NONE,
+    };
+
     /// Whether these maps read a solid texture of `textures` (as the colour or the bump).
     pub fn read_solid(&self, textures: &[texture::Texture]) -> bool {
         [self.color, self.bump.map(|(t, _)| t)]
@@ -599,8 +622,11 @@ impl Scene {
     }
 
     /// The textures material `m` reads.
-    pub fn maps(&self, m: u32) -> Maps {
-        self.maps.get(m as usize).copied().unwrap_or_default()
+    /// Material `m`'s maps, by reference: a hit reads them on the path from the intersection
+    /// to the BSDF, and a copy is some 140 bytes.
+    #[inline(always)]
+    pub fn maps(&self, m: u32) -> &Maps {
+        self.maps.get(m as usize).unwrap_or(&Maps::NONE)
     }
 
     /// Whether material `m` reads a solid texture (its colour or its bump): its meshes keep

@@ -190,7 +190,7 @@ mod tests {
         let s = parse_str(&format!("{MINIMAL}{marble}{mat}texture = \"m\"\nbump = \"m\"\n")).expect("parses");
         assert!(matches!(s.textures[0], Texture::Noise { pattern: Pattern::Marble, frequency: 2.0, .. }));
         assert_eq!(
-            s.maps(0),
+            *s.maps(0),
             Maps {
                 color: Some(0),
                 bump: Some((0, 0.02)),
@@ -203,7 +203,7 @@ mod tests {
                 layer: Default::default()
             }
         );
-        assert_eq!(s.maps(7), Maps::default());
+        assert_eq!(*s.maps(7), Maps::default());
         let image = "[[texture]]\nname = \"i\"\ntype = \"image\"\nfile = \"nowhere.png\"\n";
         for (text, needle, line) in [
             (format!("{MINIMAL}{mat}texture = \"nope\"\n"), "nope", 4),
