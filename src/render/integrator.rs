@@ -15,7 +15,7 @@ use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::lights::{LightSample, Lights, ShadowEnd};
 use super::material::{Shading, UseBsdf};
 use super::sampler::{Dim, Sampler};
-use super::surface::{surface_with, FaceNormals, Surface};
+use super::surface::{surface_with, valid_reflection, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::scene::{Scene, Shape};
@@ -331,12 +331,15 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let s = v.s;
         let ng = if s.ng.dot(v.wo) >= 0.0 { s.ng } else { -s.ng };
         let shading = Shading::new(self.scene, v.shape, s, F & TEXTURES != 0);
-        let ns = shading.normal(ng);
+        // Raised where its reflection of the view would fall below the surface (Cycles' bump-map
+        // correction): a bent normal turned away from the viewer must not end the path.
+        let bent = shading.normal(ng);
+        let ns = valid_reflection(ng, v.wo, bent);
         // Every ray leaving a reflecting point (shadow or bounce) goes to the side of `ng`.
         let at = Reflecting { p: s.p, origin: s.origin(ng), ns, ng, wo: v.wo, object: v.shape.object };
         // Entering when the ray meets the outside, the side the geometric normal points to.
         let entering = s.ng.dot(v.wo) > 0.0;
-        shading.with_bsdf(ns, entering, Scatter { integrator: self, walk, at: &at, v })
+        shading.with_bsdf(ns, bent, v.wo, entering, Scatter { integrator: self, walk, at: &at, v })
     }
 
     /// Scatters the path at a reflecting vertex through `bsdf`: the vertex's bookkeeping,

@@ -9,7 +9,7 @@ use glam::{DVec3, Vec2, Vec3};
 use super::bsdf::{
     alpha, dielectric_f0, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr, Principled, SheenLobe,
 };
-use super::surface::{apply_height, apply_normal_map, Surface};
+use super::surface::{apply_height, apply_normal_map, valid_reflection, Surface};
 use crate::math::Frame;
 use crate::scene::texture::Texture;
 use crate::scene::{Maps, Material, Scene, Shape};
@@ -103,11 +103,8 @@ impl<'a> Shading<'a> {
     fn normal_mapped(&self, ns: Vec3, ng: Vec3, (t, scale): (u32, f32)) -> Vec3 {
         let c = self.read(t) * 2.0 - Vec3::ONE;
         let bent = apply_normal_map(ns, self.s.dpdu, self.s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
-        if bent.dot(ng) > 1e-3 {
-            bent
-        } else {
-            ns
-        }
+        let _ = ng;
+        bent
     }
 
     /// The material's colour: its texture's where it has one, else `constant`; times the
@@ -134,10 +131,13 @@ impl<'a> Shading<'a> {
     }
 
     /// The material's BSDF at shading normal `n` (on the side the path arrived from), handed to
-    /// `u`; `entering` when the path arrived from the outside (the side the geometric normal
-    /// points to).
+    /// `u`; `bent` the normal the maps made, of which `n` is the raised form
+    /// ([`valid_reflection`]) that glossy lobes use (a diffuse base keeps `bent`), `wo` the
+    /// direction to the viewer, `entering` when the path arrived from the outside (the side
+    /// the geometric normal points to).
     #[inline(always)]
-    pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, entering: bool, u: U) -> U::Output {
+    pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, bent: Vec3, wo: Vec3, entering: bool, u: U) -> U::Output {
+        let base_frame = (bent != n).then(|| Frame::new(bent));
         match &self.scene.materials[self.shape.material as usize] {
             &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
             &Material::Mirror { color } => u.with(&Mirror { color, n }),
@@ -158,6 +158,7 @@ impl<'a> Shading<'a> {
                     lobes,
                     base: color * (1.0 - metallic),
                     frame: Frame::new(n),
+                    base_frame,
                     rough: roughness >= diffuse_from,
                     metallic,
                     metal: color,
@@ -187,14 +188,17 @@ impl<'a> Shading<'a> {
                 let sheen_color = layers.sheen_color * at(lm.sheen_color);
                 let sheen_roughness = layers.sheen_roughness * at(lm.sheen_roughness).x;
                 // The clearcoat's own normal map bends the interpolated normal (on the side of
-                // `n`), not the base's.
+                // `n`), not the base's; raised as the base's is where it would reflect the view
+                // below the surface.
                 let coat_frame = lm.clearcoat_normal.filter(|_| coat > 0.0).map(|map| {
-                    let ns = if self.s.ns.dot(n) >= 0.0 { self.s.ns } else { -self.s.ns };
-                    Frame::new(self.normal_mapped(ns, n, map))
+                    let ng = if self.s.ng.dot(wo) >= 0.0 { self.s.ng } else { -self.s.ng };
+                    let ns = if self.s.ns.dot(ng) >= 0.0 { self.s.ns } else { -self.s.ns };
+                    Frame::new(valid_reflection(ng, wo, self.normal_mapped(ns, ng, map)))
                 });
                 u.with(&Principled {
                     frame: Frame::new(n),
                     coat_frame,
+                    base_frame,
                     entering,
                     color: l.base_color * self.color(Vec3::ONE),
                     metallic,

@@ -111,6 +111,31 @@ pub fn apply_normal_map(n: Vec3, dpdu: Vec3, dpdv: Vec3, m: Vec3) -> Vec3 {
     (t * m.x + b * m.y + n * m.z).try_normalize().unwrap_or(n)
 }
 
+/// The shading normal `n` raised toward the geometric normal `ng` just enough that the mirror
+/// reflection of `wo` about it stays above the surface (`ng`, `wo` and `n` unit, `wo` on `ng`'s
+/// side), as Cycles' bump-map correction does: a normal map or a smooth mesh's interpolated
+/// normal that turns away from the viewer would otherwise leave the view below the shading
+/// hemisphere, where the path ends black. `n` itself when its reflection is already at least
+/// `min(0.9 cos, 0.01)` above the surface (`cos` the view's geometric cosine).
+///
+/// The raised normal stays in the plane of `ng` and `n`, at angle `theta` from `ng`: with `wo`
+/// at `(x, z)` in that plane's axes (`x` along `n`'s tangential part), the reflection's height
+/// is `z cos 2 theta + x sin 2 theta`, so `2 theta = atan2(x, z) + acos(t / |(x, z)|)`.
+#[inline(always)]
+pub fn valid_reflection(ng: Vec3, wo: Vec3, n: Vec3) -> Vec3 {
+    let z = wo.dot(ng);
+    let threshold = (0.9 * z).min(0.01);
+    let r = n * (2.0 * n.dot(wo)) - wo;
+    if r.dot(ng) >= threshold || z <= 0.0 {
+        return n;
+    }
+    let Some(axis) = (n - ng * n.dot(ng)).try_normalize() else { return n };
+    let x = wo.dot(axis);
+    let length = (x * x + z * z).sqrt();
+    let theta = 0.5 * (x.atan2(z) + (threshold / length).clamp(-1.0, 1.0).acos());
+    (ng * theta.cos() + axis * theta.sin()).normalize_or(n)
+}
+
 /// The shading normal `n` (unit) of a surface displaced along it by the height field `h` of the
 /// texture coordinates: the normal of dp/du + n dh/du and dp/dv + n dh/dv (pbrt's bump mapping,
 /// the normal's own change left out), turned to `n`'s side. `n` itself when the derivatives are
@@ -262,5 +287,55 @@ fn surface_from(
             };
             Surface { p, ng, ns, uv, uv1, color, magnitude, dpdu, dpdv, prim: hit.prim, bary: (u, v) }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic spread of unit vectors (a Fibonacci sphere).
+    fn directions(n: usize) -> impl Iterator<Item = Vec3> {
+        (0..n).map(move |i| {
+            let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let phi = i as f32 * 2.399_963;
+            let r = (1.0 - z * z).sqrt();
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+    }
+
+    #[test]
+    fn a_raised_normal_reflects_the_view_above_the_surface_and_a_valid_one_is_kept() {
+        let ng = Vec3::Z;
+        let (mut raised, mut kept) = (0, 0);
+        for wo in directions(400).filter(|w| w.z > 0.02) {
+            for n in directions(400).filter(|n| n.z > 0.05) {
+                let m = valid_reflection(ng, wo, n);
+                let threshold = (0.9 * wo.z).min(0.01);
+                let r = n * (2.0 * n.dot(wo)) - wo;
+                if r.z >= threshold {
+                    assert_eq!(m, n, "a valid normal is kept");
+                    kept += 1;
+                    continue;
+                }
+                raised += 1;
+                assert!((m.length() - 1.0).abs() < 1e-5, "{m}");
+                let rm = m * (2.0 * m.dot(wo)) - wo;
+                assert!(
+                    (rm.z - threshold).abs() < 2e-3,
+                    "wo {wo} n {n}: reflection height {} for {threshold}",
+                    rm.z
+                );
+                assert!(m.dot(wo) > 0.0, "the view is above the raised normal");
+                // Raised toward ng, in the plane of ng and n, never past it.
+                assert!(m.z > n.z - 1e-6, "{m} is lower than {n}");
+                let (tn, tm) = (n.truncate().normalize(), m.truncate());
+                assert!(
+                    tm.length() < 1e-4 || (tm.normalize() - tn).length() < 1e-3,
+                    "{m} left the plane of {n}"
+                );
+            }
+        }
+        assert!(raised > 1000 && kept > 1000, "raised {raised}, kept {kept}");
     }
 }

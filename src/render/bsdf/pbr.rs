@@ -22,6 +22,10 @@ pub struct Pbr {
     pub lobes: GlossyLobes,
     pub base: Vec3,
     pub frame: Frame,
+    /// The base's own frame where it differs from `frame`: the normal map's bent normal, when
+    /// the shading normal was raised so that the lobe's reflection of the view stays above the
+    /// surface (Cycles raises it for its glossy lobes only, and so it is here).
+    pub base_frame: Option<Frame>,
     pub rough: bool,
     /// The metallic blend: the lobe's multiple scattering is that of the dielectric's (f0
     /// 0.04) and the metal's (f0 `metal`) lobes, mixed by it.
@@ -73,11 +77,19 @@ impl Pbr {
         View { multiscatter, through, p_spec }
     }
 
-    fn eval_base(&self, view: &View, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
+    /// The base's BRDF toward local `wi_l` (`wi` in world space) and its sampling density (its
+    /// probability included). In its own frame, its cosine there in place of the shading
+    /// normal's (which the caller multiplies by).
+    fn base_value(&self, view: &View, wo: Vec3, wi: Vec3, wi_l: Vec3) -> (Vec3, f32) {
+        let cos = match self.base_frame {
+            None => wi_l.z,
+            Some(b) => b.to_local(wi).z,
+        };
+        if wo.z <= 0.0 || wi_l.z <= 0.0 || cos <= 0.0 {
+            return (Vec3::ZERO, 0.0);
         }
-        self.base * view.through * FRAC_1_PI
+        let f = self.base * view.through * (FRAC_1_PI * cos / wi_l.z);
+        (f, (1.0 - view.p_spec) * cos * FRAC_1_PI)
     }
 }
 
@@ -113,22 +125,23 @@ impl Bsdf for Pbr {
         let wo_l = self.frame.to_local(wo);
         let view = self.view(wo_l);
         let p_spec = view.p_spec;
-        let (wi_l, specular) = if u.get_1d(Dim::Lobe) < p_spec {
-            (g.sample_specular(wo_l, u.get_2d(Dim::Direction)), true)
-        } else {
-            (cosine_hemisphere(u.get_2d(Dim::Direction)), false)
-        };
-        if wi_l.z <= 0.0 {
+        if u.get_1d(Dim::Lobe) < p_spec {
+            let wi_l = g.sample_specular(wo_l, u.get_2d(Dim::Direction));
+            if wi_l.z <= 0.0 {
+                return None;
+            }
+            let weight = g.specular_weight(wo_l, wi_l) * view.multiscatter / p_spec;
+            let pdf = p_spec * g.pdf_specular(wo_l, wi_l);
+            return Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe: self.tag() });
+        }
+        let local = cosine_hemisphere(u.get_2d(Dim::Direction));
+        let wi = self.base_frame.unwrap_or(self.frame).to_world(local);
+        let wi_l = self.frame.to_local(wi);
+        let (f, pdf) = self.base_value(&view, wo_l, wi, wi_l);
+        if pdf <= 0.0 {
             return None;
         }
-        let (weight, pdf, lobe) = if specular {
-            let weight = g.specular_weight(wo_l, wi_l) * view.multiscatter / p_spec;
-            (weight, p_spec * g.pdf_specular(wo_l, wi_l), self.tag())
-        } else {
-            let pdf = (1.0 - p_spec) * wi_l.z * FRAC_1_PI;
-            (self.eval_base(&view, wo_l, wi_l) * (wi_l.z / pdf), pdf, Lobe::Diffuse)
-        };
-        Some(BsdfSample { wi: self.frame.to_world(wi_l), weight, pdf, lobe })
+        Some(BsdfSample { wi, weight: f * (wi_l.z / pdf), pdf, lobe: Lobe::Diffuse })
     }
 
     fn eval_lobes(&self, wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
@@ -138,6 +151,7 @@ impl Bsdf for Pbr {
         let p_spec = view.p_spec;
         let f = g.eval_specular(wo_l, wi_l) * view.multiscatter;
         each(self.tag(), f, p_spec * g.pdf_specular(wo_l, wi_l));
-        each(Lobe::Diffuse, self.eval_base(&view, wo_l, wi_l), (1.0 - p_spec) * wi_l.z.max(0.0) * FRAC_1_PI);
+        let (f, pdf) = self.base_value(&view, wo_l, wi, wi_l);
+        each(Lobe::Diffuse, f, pdf);
     }
 }

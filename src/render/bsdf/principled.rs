@@ -48,6 +48,10 @@ pub struct Principled {
     pub frame: Frame,
     /// The clearcoat's own frame, when its normal map bends it away from `frame`'s.
     pub coat_frame: Option<Frame>,
+    /// The diffuse base's own frame where it differs from `frame`: the normal map's bent
+    /// normal, when the shading normal was raised so that the glossy lobes' reflection of the
+    /// view stays above the surface (Cycles raises it for its glossy lobes only).
+    pub base_frame: Option<Frame>,
     /// Whether the path arrived from outside (the side the geometric normal points to).
     pub entering: bool,
     /// The base colour: the Lambertian base's albedo, a metal's f0, transmission's tint.
@@ -214,7 +218,14 @@ impl Principled {
                 let f = self.fresnel(w, wo.dot(h)) * g.eval_specular(wo, wi).x;
                 (f, p * g.pdf_specular(wo, wi))
             }
-            Which::Diffuse => (w.diffuse * FRAC_1_PI, p * wi.z * FRAC_1_PI),
+            Which::Diffuse => match self.base_frame {
+                None => (w.diffuse * FRAC_1_PI, p * wi.z * FRAC_1_PI),
+                // In its own frame, its cosine in place of the shading normal's.
+                Some(base) => match base.to_local(self.frame.to_world(wi)).z {
+                    cos if cos > 0.0 => (w.diffuse * (FRAC_1_PI * cos / wi.z.max(1e-6)), p * cos * FRAC_1_PI),
+                    _ => (Vec3::ZERO, 0.0),
+                },
+            },
             Which::Transmission => (Vec3::ZERO, 0.0),
         }
     }
@@ -363,7 +374,11 @@ impl Bsdf for Principled {
                 }
             },
             Which::Specular => self.spec_lobe().sample_specular(wo_l, u2),
-            Which::Sheen | Which::Diffuse => cosine_hemisphere(u2),
+            Which::Sheen => cosine_hemisphere(u2),
+            Which::Diffuse => match self.base_frame {
+                None => cosine_hemisphere(u2),
+                Some(base) => self.frame.to_local(base.to_world(cosine_hemisphere(u2))),
+            },
             Which::Transmission => {
                 let (wt, scale) = self.transmit(wo_l, u2)?;
                 let weight = w.through * (scale / p);

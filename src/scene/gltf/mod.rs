@@ -105,23 +105,6 @@ pub struct PbrMaterial {
     pub transmission_texture: Option<usize>,
 }
 
-impl PbrMaterial {
-    /// Whether it is read as Lambertian: metallic 0 and roughness 1 exactly, untextured but for
-    /// a base colour texture under a white factor. It is what converters from diffuse-only
-    /// materials write (obj2gltf writes an OBJ's `Kd` so), and the glTF BRDF at these factors
-    /// differs from Lambert's only by a 4% rough specular layer; in a box of white walls that
-    /// layer compounds over the bounces to a visibly darker image than the same OBJ's.
-    pub fn is_lambertian(&self) -> bool {
-        self.metallic == 0.0
-            && self.roughness == 1.0
-            && self.metallic_roughness_texture.is_none()
-            && self.normal_texture.is_none()
-            && (self.base_color_texture.is_none() || self.base_color == Vec3::ONE)
-            && self.layers.is_none()
-            && !self.unlit
-    }
-}
-
 impl Default for PbrMaterial {
     /// glTF's default material: white, fully metallic and rough.
     fn default() -> Self {
@@ -1034,8 +1017,6 @@ pub fn place(
     for (k, m) in g.materials.iter().chain(std::iter::once(&default)).enumerate() {
         out.materials.push(if m.unlit {
             Material::Diffuse { albedo: Vec3::ZERO }
-        } else if m.is_lambertian() {
-            Material::Diffuse { albedo: m.base_color }
         } else if let Some(mut layers) = m.layers {
             // Absorption is per unit of the glTF's world: per unit of the scene, divided by the
             // placement's (mean) scale.
