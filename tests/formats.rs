@@ -787,6 +787,50 @@ fn textures_read_their_sampler_and_second_coordinates() {
     assert!(black < 1e-6 && (white - 1.0).abs() < 1e-4, "first set {black}, second set {white}");
 }
 
+/// The mean of a 4x4 render of the unit quad under a directional light tilted `light_tilt`
+/// degrees toward +y, from the camera at `camera`, its normal map a uniform tangent-space normal
+/// `m`, with the given tangents and vertex colour.
+fn normal_mapped_quad(
+    m: Vec3,
+    light_tilt: f64,
+    camera: [f32; 3],
+    tangent: Option<[f32; 4]>,
+    color: Option<[f32; 3]>,
+) -> Vec3 {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.node(json!({"mesh": 0}), true);
+    let (s, c) = (-light_tilt / 2.0).to_radians().sin_cos();
+    doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    doc.json["extensions"] =
+        json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 683.0}]}});
+    doc.node(json!({"rotation": [s, 0, 0, c], "extensions": {"KHR_lights_punctual": {"light": 0}}}), true);
+    let byte = |x: f32| ((x + 1.0) * 0.5 * 255.0).round() as u8;
+    let mut png = Vec::new();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([byte(m.x), byte(m.y), byte(m.z)]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    let normal = doc.texture(&png);
+    doc.json["materials"] = json!([{"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "normalTexture": {"index": normal}}]);
+    doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    if let Some(t) = tangent {
+        let a = doc.floats(&t.repeat(4), "VEC4");
+        doc.json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(a);
+    }
+    if let Some(c) = color {
+        let a = doc.floats(&c.repeat(4), "VEC3");
+        doc.json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(a);
+    }
+    std::fs::write(dir.path().join("t.glb"), doc.glb()).expect("write");
+    let text = format!(
+        "[camera]\nposition = {camera:?}\nlook_at = [0, 0, 0]\nfov = 10\n[film]\nwidth = 4\nheight = 4\n\
+         [[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
+        dir.path().join("t.glb").display()
+    );
+    crate::common::render_text(&text, 64).film.raw.mean()
+}
+
 /// Vertex colours multiply the base colour, and a mesh's tangents give the normal map its
 /// frame, the bitangent's sign from their w: a quad facing +z under a directional light 40
 /// degrees toward +y, its normal map tilting 45 degrees along the map's y, is lit by the cosine
@@ -795,43 +839,9 @@ fn textures_read_their_sampler_and_second_coordinates() {
 /// bitangent along -x).
 #[test]
 fn vertex_colours_and_tangents_are_read() {
-    let dir = tempfile::tempdir().expect("tempdir");
+    let m = Vec3::new(0.0, 45f32.to_radians().sin(), 45f32.to_radians().cos());
     let render = |tangent: Option<[f32; 4]>, color: Option<[f32; 3]>| -> Vec3 {
-        let mut doc = GltfDoc::quad();
-        doc.node(json!({"mesh": 0}), true);
-        let (s, c) = (-20f64).to_radians().sin_cos();
-        doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
-        doc.json["extensions"] =
-            json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 683.0}]}});
-        doc.node(
-            json!({"rotation": [s, 0, 0, c], "extensions": {"KHR_lights_punctual": {"light": 0}}}),
-            true,
-        );
-        let m = Vec3::new(0.0, 45f32.to_radians().sin(), 45f32.to_radians().cos());
-        let byte = |x: f32| ((x + 1.0) * 0.5 * 255.0).round() as u8;
-        let mut png = Vec::new();
-        image::RgbImage::from_pixel(2, 2, image::Rgb([byte(m.x), byte(m.y), byte(m.z)]))
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .expect("png");
-        let normal = doc.texture(&png);
-        doc.json["materials"] = json!([{"pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 1.0},
-            "normalTexture": {"index": normal}}]);
-        doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
-        if let Some(t) = tangent {
-            let a = doc.floats(&t.repeat(4), "VEC4");
-            doc.json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] = json!(a);
-        }
-        if let Some(c) = color {
-            let a = doc.floats(&c.repeat(4), "VEC3");
-            doc.json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(a);
-        }
-        std::fs::write(dir.path().join("t.glb"), doc.glb()).expect("write");
-        let text = format!(
-            "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\nfov = 10\n[film]\nwidth = 4\nheight = 4\n\
-             [[shape]]\ntype = \"gltf\"\nfile = \"{}\"\n",
-            dir.path().join("t.glb").display()
-        );
-        crate::common::render_text(&text, 64).film.raw.mean()
+        normal_mapped_quad(m, 40.0, [0.0, 0.0, 3.0], tangent, color)
     };
     let none = render(None, None).x;
     let along = render(Some([1.0, 0.0, 0.0, 1.0]), None).x;
@@ -847,4 +857,24 @@ fn vertex_colours_and_tangents_are_read() {
     let red = render(None, Some([1.0, 0.0, 0.0]));
     // Green and blue are the specular layer's alone (4% at normal incidence).
     assert!(red.y < 0.1 * red.x && red.z < 0.1 * red.x, "a red vertex colour: {red}");
+}
+
+/// A normal map that turns the normal away from the viewer (60 degrees along +x, the camera 45
+/// degrees the other way: the view is below the bent normal) still shades, as Cycles does: the
+/// glossy layer in a normal raised until it reflects the view above the surface, the diffuse
+/// base by the bent normal, lit from overhead by its cosine of 60 degrees (a path that ended
+/// there was black). A normal turned 100 degrees, below the surface, leaves the base unlit
+/// (it was left unbent, as bright as a flat quad).
+#[test]
+fn normal_maps_turned_from_the_view_or_below_the_surface_shade_as_cycles_does() {
+    let tilted = |deg: f32| Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
+    let camera = [-2.12, 0.0, 2.12];
+    let flat = normal_mapped_quad(Vec3::Z, 0.0, camera, None, None).x;
+    let away = normal_mapped_quad(tilted(60.0), 0.0, camera, None, None).x;
+    let below = normal_mapped_quad(tilted(100.0), 0.0, camera, None, None).x;
+    // The base dominates (the specular layer reflects the light away from the camera); the
+    // map's 8-bit rounding moves the cosine by under 1%.
+    assert!(flat > 0.1, "the flat quad is lit: {flat}");
+    assert!((away / flat - 0.5).abs() < 0.06, "turned from the view: {away} against {flat}");
+    assert!(below < 0.1 * flat, "below the surface: {below} against {flat}");
 }
