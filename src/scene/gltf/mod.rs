@@ -10,9 +10,10 @@
 //! comes out in that world. [`crate::scene::file`] and [`scene`] place it in a scene, where a
 //! mesh that several nodes use is shared (instanced), not copied.
 //!
-//! Not read (yet): occlusion, alpha modes, the thickness texture, mipmaps, iridescence and the
-//! rest (named in a note when a file uses them), skins, morph targets, animations,
-//! orthographic cameras, points and lines.
+//! Not read (yet): occlusion, alpha modes, mipmaps, iridescence and the rest (named in a note
+//! when a file uses them), skins, morph targets, animations, orthographic cameras, points and
+//! lines. The volume's thickness texture is not read by design: a path tracer traces the
+//! geometry the thickness stands for.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
