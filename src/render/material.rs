@@ -137,7 +137,8 @@ impl<'a> Shading<'a> {
     /// the geometric normal points to).
     #[inline(always)]
     pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, bent: Vec3, wo: Vec3, entering: bool, u: U) -> U::Output {
-        let base_frame = (bent != n).then(|| Frame::new(bent));
+        // (Made only for the materials with a diffuse base under glossy lobes.)
+        let base_frame = || (bent != n).then(|| Frame::new(bent));
         match &self.scene.materials[self.shape.material as usize] {
             &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
             &Material::Mirror { color } => u.with(&Mirror { color, n }),
@@ -158,7 +159,7 @@ impl<'a> Shading<'a> {
                     lobes,
                     base: color * (1.0 - metallic),
                     frame: Frame::new(n),
-                    base_frame,
+                    base_frame: base_frame(),
                     rough: roughness >= diffuse_from,
                     metallic,
                     metal: color,
@@ -198,7 +199,7 @@ impl<'a> Shading<'a> {
                 u.with(&Principled {
                     frame: Frame::new(n),
                     coat_frame,
-                    base_frame,
+                    base_frame: base_frame(),
                     entering,
                     color: l.base_color * self.color(Vec3::ONE),
                     metallic,
