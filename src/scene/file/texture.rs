@@ -189,21 +189,9 @@ mod tests {
         let mat = "[[material]]\nname = \"x\"\ntype = \"diffuse\"\n";
         let s = parse_str(&format!("{MINIMAL}{marble}{mat}texture = \"m\"\nbump = \"m\"\n")).expect("parses");
         assert!(matches!(s.textures[0], Texture::Noise { pattern: Pattern::Marble, frequency: 2.0, .. }));
-        assert_eq!(
-            *s.maps(0),
-            Maps {
-                color: Some(0),
-                bump: Some((0, 0.02)),
-                metal_rough: None,
-                normal: None,
-                height: None,
-                transmission: None,
-                emission: None,
-                spec_gloss: None,
-                layer: Default::default()
-            }
-        );
-        assert_eq!(*s.maps(7), Maps::default());
+        assert_eq!(*s.maps(0), Maps { color: Some(0), bump: Some((0, 0.02)), ..Maps::NONE });
+        assert_eq!(*s.maps(7), Maps::NONE);
+        assert_eq!(Maps::NONE, Maps::default());
         let image = "[[texture]]\nname = \"i\"\ntype = \"image\"\nfile = \"nowhere.png\"\n";
         for (text, needle, line) in [
             (format!("{MINIMAL}{mat}texture = \"nope\"\n"), "nope", 4),
