@@ -25,7 +25,7 @@ pub use glass::Glass;
 pub use glossy::Glossy;
 pub use mirror::Mirror;
 pub use pbr::Pbr;
-pub use principled::{dielectric_f0, Principled};
+pub use principled::{dielectric_f0, InsideAlbedo, Principled};
 pub use sheen::SheenLobe;
 
 use glam::Vec3;

@@ -15,7 +15,8 @@
 //! reflects and transmits all the light, to the accuracy of the albedo tables.
 //!
 //! Seen from inside a closed transmissive object the surface is a rough dielectric boundary:
-//! Fresnel reflection back inside or refraction out, through a sampled microfacet.
+//! Fresnel reflection back inside or refraction out, through a sampled microfacet, the light a
+//! single facet loses restored by the interaction's albedo ([`InsideAlbedo`]).
 //!
 //! Component tags: the diffuse base and sheen are D; the specular lobe and the clearcoat are S,
 //! or D from the roughness at which a rough lobe counts as diffuse; transmission, and every
@@ -286,25 +287,154 @@ impl Principled {
         p * visible * jacobian
     }
 
-    /// Scattering from inside: reflection back in by the dielectric Fresnel at a sampled
-    /// microfacet (weighted by its shadowing over the lobe's albedo, so that total internal
-    /// reflection keeps all the light), or refraction out, tinted, with the radiance scaling
-    /// ior^2 of leaving the denser medium.
-    fn sample_inside(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    /// The two ways out of an interaction from inside at the microfacet sampled by `u` from `wo`
+    /// (local): the Fresnel reflectance of the facet, the reflection back in with its shadowing
+    /// over the lobe's albedo, and the refraction out; either `None` where its direction falls
+    /// on the wrong side of the surface (light that would scatter again among the facets).
+    fn inside_ways(&self, wo: Vec3, u: Vec2) -> Option<InsideWays> {
         let m = self.spec_lobe().visible_normal(wo, u);
         let cos_m = wo.dot(m);
         if cos_m <= 0.0 {
             return None;
         }
         let eta = 1.0 / self.ior;
-        let (wi, weight) = if u_lobe < fresnel_dielectric(cos_m, eta) {
-            let r = reflect(wo, m);
-            (r.z > 0.0).then_some((r, Vec3::splat(self.shadowing(wo, r))))?
+        let r = reflect(wo, m);
+        let reflected = (r.z > 0.0).then(|| (r, self.shadowing(wo, r)));
+        let fresnel = fresnel_dielectric(cos_m, eta);
+        let refracted = match fresnel < 1.0 {
+            true => Some(refract(wo, m, eta, cos_m)).filter(|t| t.z < 0.0),
+            false => None,
+        };
+        Some(InsideWays { fresnel, reflected, refracted })
+    }
+
+    /// Scattering from inside: reflection back in by the dielectric Fresnel at a sampled
+    /// microfacet (weighted by its shadowing over the lobe's albedo, so that total internal
+    /// reflection keeps all the light), or refraction out, tinted, with the radiance scaling
+    /// ior^2 of leaving the denser medium. The light a single facet loses (directions that would
+    /// scatter again among the facets: up to a quarter of it for a rough, high index) is
+    /// restored by dividing by the interaction's albedo ([`InsideAlbedo`], Turquin's scaling).
+    fn sample_inside(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let InsideWays { fresnel, reflected, refracted } = self.inside_ways(wo, u)?;
+        let kept = InsideAlbedo::get().at(wo.z, self.alpha, self.ior).max(0.05);
+        let (wi, weight) = if u_lobe < fresnel {
+            let (r, shadowing) = reflected?;
+            (r, Vec3::splat(shadowing / kept))
         } else {
-            let t = refract(wo, m, eta, cos_m);
-            (t.z < 0.0).then_some((t, self.color * (self.ior * self.ior)))?
+            (refracted?, self.color * (self.ior * self.ior / kept))
         };
         Some(BsdfSample { wi: self.frame.to_world(wi), weight, pdf: 1.0, lobe: Lobe::Delta })
+    }
+}
+
+/// [`Principled::inside_ways`]: the facet's Fresnel reflectance, the reflection back in (its
+/// direction and its shadowing over the lobe's albedo) and the refraction out.
+struct InsideWays {
+    fresnel: f32,
+    reflected: Option<(Vec3, f32)>,
+    refracted: Option<Vec3>,
+}
+
+/// The albedo of [`Principled::sample_inside`] for a white boundary (the expected weight, the
+/// radiance scaling of refraction left out): what one interaction from inside keeps, by view
+/// cosine, GGX alpha and index of refraction. Stored as `tables/inside-albedo.bin`
+/// (little-endian f32, index by index, alpha row by row, sqrt(cos) column by column), checked
+/// against [`InsideAlbedo::build`] by a test.
+pub struct InsideAlbedo {
+    table: Vec<f32>,
+}
+
+impl InsideAlbedo {
+    const N: usize = 32;
+    /// Indices of refraction from 1 to `MAX_IOR` in `IORS` steps.
+    const IORS: usize = 16;
+    const MAX_IOR: f32 = 3.0;
+
+    pub fn get() -> &'static InsideAlbedo {
+        static TABLE: std::sync::OnceLock<InsideAlbedo> = std::sync::OnceLock::new();
+        TABLE.get_or_init(|| InsideAlbedo {
+            table: super::stored_table(include_bytes!("tables/inside-albedo.bin")),
+        })
+    }
+
+    #[cfg(test)]
+    pub(super) fn values(&self) -> Vec<f32> {
+        self.table.clone()
+    }
+
+    /// The table integrated: each cell over a 32x32 grid of visible-normal samples, both ways
+    /// out weighted by the Fresnel reflectance.
+    #[cfg(test)]
+    pub(super) fn build() -> InsideAlbedo {
+        let (n, k) = (Self::N, 32);
+        let mut table = Vec::with_capacity(n * n * Self::IORS);
+        for e in 0..Self::IORS {
+            let ior = 1.0 + (Self::MAX_IOR - 1.0) * e as f32 / (Self::IORS - 1) as f32;
+            for j in 0..n {
+                let r = j as f32 / (n - 1) as f32;
+                let b = Principled { alpha: (r * r).max(super::MIN_ALPHA), ior, ..Self::boundary() };
+                for i in 0..n {
+                    let x = i as f32 / (n - 1) as f32;
+                    let cos = (x * x).max(1e-4);
+                    let wo = Vec3::new((1.0 - cos * cos).max(0.0).sqrt(), 0.0, cos);
+                    let mut sum = 0.0f64;
+                    for a in 0..k {
+                        for c in 0..k {
+                            let u = Vec2::new((a as f32 + 0.5) / k as f32, (c as f32 + 0.5) / k as f32);
+                            if let Some(w) = b.inside_ways(wo, u) {
+                                sum += (w.fresnel * w.reflected.map_or(0.0, |(_, s)| s)) as f64;
+                                sum += ((1.0 - w.fresnel) * w.refracted.map_or(0.0, |_| 1.0)) as f64;
+                            }
+                        }
+                    }
+                    table.push((sum / (k * k) as f64) as f32);
+                }
+            }
+        }
+        InsideAlbedo { table }
+    }
+
+    /// A clear boundary seen from inside, for [`InsideAlbedo::build`].
+    #[cfg(test)]
+    fn boundary() -> Principled {
+        Principled {
+            frame: Frame::new(Vec3::Z),
+            coat_frame: None,
+            base_frame: None,
+            entering: false,
+            color: Vec3::ONE,
+            metallic: 0.0,
+            alpha: 0.1,
+            f0: Vec3::splat(0.04),
+            f90: 1.0,
+            transmission: 1.0,
+            ior: 1.5,
+            thin: false,
+            coat: 0.0,
+            coat_alpha: 0.1,
+            sheen: SheenLobe::new(Vec3::ZERO, 0.5),
+            sheen_roughness: 0.5,
+            rough: false,
+            coat_rough: false,
+        }
+    }
+
+    /// The albedo at view cosine `cos`, GGX alpha `alpha` and index `ior`, trilinearly.
+    pub fn at(&self, cos: f32, alpha: f32, ior: f32) -> f32 {
+        let (n, m) = (Self::N, Self::IORS);
+        let coord = |v: f32, cells: usize| {
+            let x = (v * (cells - 1) as f32).clamp(0.0, (cells - 1) as f32 - 1e-4);
+            (x as usize, x - x.floor())
+        };
+        let (i, fx) = coord(cos.clamp(0.0, 1.0).sqrt(), n);
+        let (j, fy) = coord(alpha.clamp(0.0, 1.0).sqrt(), n);
+        let (e, fz) = coord((ior - 1.0) / (Self::MAX_IOR - 1.0), m);
+        let t = |i: usize, j: usize, e: usize| self.table.get((e * n + j) * n + i).copied().unwrap_or(1.0);
+        let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
+        let plane = |e: usize| {
+            lerp(lerp(t(i, j, e), t(i + 1, j, e), fx), lerp(t(i, j + 1, e), t(i + 1, j + 1, e), fx), fy)
+        };
+        lerp(plane(e), plane(e + 1), fz)
     }
 }
 

@@ -384,7 +384,14 @@ fn albedo_of(b: &Principled, wo: Vec3, n: usize) -> (f64, f64) {
 #[test]
 fn white_layered_materials_keep_all_the_light() {
     let inside = Principled { transmission: 1.0, entering: false, alpha: alpha(0.2), ..principled() };
-    for (name, b) in layered_cases().into_iter().chain([("seen from inside", inside)]) {
+    // A rough, high index from inside: one facet alone loses up to a quarter of the light.
+    let diamond = |roughness: f32| Principled { alpha: alpha(roughness), ior: 2.42, ..inside };
+    let insides = [
+        ("seen from inside", inside),
+        ("rough diamond inside", diamond(0.5)),
+        ("rougher diamond inside", diamond(1.0)),
+    ];
+    for (name, b) in layered_cases().into_iter().chain(insides) {
         if name == "specular colour" || name == "everything" {
             continue; // not white
         }
@@ -469,6 +476,7 @@ fn the_stored_albedo_tables_are_their_integrals() {
     let tables = [
         ("specular-albedo.bin", SpecularAlbedo::build().values(), SpecularAlbedo::get().values()),
         ("sheen-albedo.bin", sheen::SheenAlbedo::build().values(), sheen::SheenAlbedo::get().values()),
+        ("inside-albedo.bin", InsideAlbedo::build().values(), InsideAlbedo::get().values()),
     ];
     for (file, built, stored) in tables {
         if std::env::var_os("LIGHTSPLIT_WRITE_TABLES").is_some() {
