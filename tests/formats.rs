@@ -878,3 +878,44 @@ fn normal_maps_turned_from_the_view_or_below_the_surface_shade_as_cycles_does() 
     assert!((away / flat - 0.5).abs() < 0.06, "turned from the view: {away} against {flat}");
     assert!(below < 0.1 * flat, "below the surface: {below} against {flat}");
 }
+
+/// An OBJ or a PLY renders by itself as a glTF does: framed from the front (the mesh fills the
+/// middle of the image), lit by the default environment, both said in notes; a `usemtl` that no
+/// library defines is a note naming the file and line; with the environment taken away, a scene
+/// with no light source at all is a warning before the render.
+#[test]
+fn obj_and_ply_files_render_by_themselves_and_say_what_they_lack() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    std::fs::write(d.join("m.mtl"), "newmtl wall\nKd 0.5 0.5 0.5\n").expect("write");
+    let quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\n";
+    let obj = format!("mtllib m.mtl\n{quad}usemtl wall\nf 1 2 3 4\nusemtl light\nf 5 6 7\n");
+    std::fs::write(d.join("m.obj"), obj).expect("write");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0\n1 -1 0\n0 1 0\n3 0 1 2\n";
+    std::fs::write(d.join("t.ply"), ply).expect("write");
+    let run = |file: &str, extra: &[&str]| {
+        let (input, output) = (d.join(file), d.join("o.exr"));
+        let mut args = vec!["render", input.to_str().expect("utf-8"), "-o", output.to_str().expect("utf-8")];
+        args.extend_from_slice(&["--width", "32", "--height", "24", "--spp", "4"]);
+        args.extend_from_slice(extra);
+        let o = crate::common::lightsplit(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{file}: {err}");
+        (err, lightsplit::film::read_image(&output).expect("reads"))
+    };
+    let (err, image) = run("m.obj", &[]);
+    assert!(err.contains("m.obj: no camera: framing the model's bounds"), "{err}");
+    assert!(err.contains("m.obj: no lights: lit by the default environment"), "{err}");
+    assert!(err.contains("m.obj:11: `usemtl light`: its material libraries do not define it"), "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    // The sky at a corner, the grey wall (under a white sky, about its albedo) in the middle.
+    assert_eq!(image.get(0, 0), Vec3::ONE);
+    let middle = image.get(16, 12).x;
+    assert!(middle > 0.2 && middle < 0.8, "the wall fills the middle: {middle}");
+    let (err, _) = run("m.obj", &["--environment", "none"]);
+    assert!(err.contains("warning: ") && err.contains("no light source"), "{err}");
+    let (err, image) = run("t.ply", &[]);
+    assert!(err.contains("t.ply: no camera: framing"), "{err}");
+    assert!(image.get(16, 12).x < 1.0 && image.get(0, 0) == Vec3::ONE, "the triangle in the middle");
+}

@@ -14,6 +14,9 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
     if let Some(environment) = &args.environment {
         scene.set_environment(environment)?;
     }
+    if let Some(warning) = lightsplit::scene::analysis::no_light_warning(&scene) {
+        eprintln!("warning: {}: {warning}", args.scene.display());
+    }
     let request = Request {
         output: args.output.clone().unwrap_or_else(|| default_output(&args.scene)),
         width: args.width,

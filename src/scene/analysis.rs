@@ -281,6 +281,16 @@ impl fmt::Display for Analysis {
     }
 }
 
+/// The warning for a scene with no light source at all (no light, no emissive surface, no
+/// environment): its image is black, and the render says so before it starts.
+pub fn no_light_warning(scene: &Scene) -> Option<String> {
+    (Analysis::of(scene).lights.total() == 0).then(|| {
+        "the scene has no light source (no light, no emissive surface, no environment): its image \
+         will be black; add a light, or `--environment white`"
+            .to_string()
+    })
+}
+
 /// One line of what a render needs: the feature, yes or no, and why.
 pub fn need_line(what: &str, needed: bool, why: &str) -> String {
     format!("  {what:34} {:3}  ({why})", if needed { "yes" } else { "no" })

@@ -29,9 +29,33 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("gltf" | "glb") => gltf::scene(path),
+        Some("obj" | "ply") => file::mesh_scene(path),
         _ => file::load(path),
     }
     .and_then(|scene| scene.check_extent().map(|()| scene))
+}
+
+/// A camera framing the bounds `lo`..`hi` of a model rendered by itself (a glTF or mesh file
+/// without a camera): from the front and a little above, at 40 degrees, the bounding sphere
+/// filling the view. Its position and unit view direction.
+pub fn framing(lo: glam::DVec3, hi: glam::DVec3) -> (glam::DVec3, glam::DVec3) {
+    let centre = 0.5 * (lo + hi);
+    let radius = (0.5 * (hi - lo).length()).max(1e-6);
+    let distance = radius / (0.5 * FRAMING_FOV as f64).to_radians().sin();
+    let back = glam::DVec3::new(0.0, 0.35, 1.0).normalize();
+    (centre + back * distance, -back)
+}
+
+/// The field of view of [`framing`], in degrees.
+pub const FRAMING_FOV: f32 = 40.0;
+
+/// The note of a model lit by the default environment, as it says so.
+pub fn default_environment_note(emissive: bool) -> String {
+    let emission = if emissive { ", and its own emission" } else { "" };
+    format!(
+        "no lights: lit by the default environment, a uniform white sky of radiance 1{emission} \
+         (`--environment FILE.hdr|white|none` changes it)"
+    )
 }
 
 /// A bad scene file: one message naming the file and, where known, the line.

@@ -117,6 +117,43 @@ fn unread_keys(library: &Path) -> Vec<String> {
         .collect()
 }
 
+/// One note for each material a `usemtl` line names that no library defines (the faces after it
+/// take the default material): its first line and how many lines name it. A box whose light is
+/// such a material renders black, and says why.
+fn missing_materials(path: &Path, bytes: &[u8], materials: &[tobj::Material]) -> Vec<String> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut missing: Vec<(String, usize, usize)> = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("usemtl") {
+            continue;
+        }
+        let name = words.collect::<Vec<_>>().join(" ");
+        if name.is_empty() || materials.iter().any(|m| m.name == name) {
+            continue;
+        }
+        match missing.iter_mut().find(|(k, _, _)| *k == name) {
+            Some(entry) => entry.2 += 1,
+            None => missing.push((name, n + 1, 1)),
+        }
+    }
+    missing
+        .into_iter()
+        .map(|(name, line, count)| {
+            let more = if count > 1 { format!(" (on {count} lines)") } else { String::new() };
+            let libraries = if materials.is_empty() {
+                "no material library defines it"
+            } else {
+                "its material libraries do not define it"
+            };
+            format!(
+                "{}:{line}: `usemtl {name}`{more}: {libraries}, so its faces take the default material",
+                path.display()
+            )
+        })
+        .collect()
+}
+
 fn triple(values: &[f64]) -> DVec3 {
     match values {
         [a, b, c, ..] => DVec3::new(*a, *b, *c),
@@ -230,8 +267,9 @@ pub fn load(path: &Path) -> Result<Obj, String> {
         }
         read.push(material);
     }
+    let mut notes: Vec<String> = libraries.iter().flat_map(|l| unread_keys(l)).collect();
+    notes.extend(missing_materials(path, &bytes, &materials));
     let materials = read;
-    let notes = libraries.iter().flat_map(|l| unread_keys(l)).collect();
 
     let mut parts = Vec::new();
     for model in models {

@@ -22,7 +22,7 @@ use toml_edit::ImDocument;
 
 pub use filter::{FilterSection, KernelSpec};
 
-use super::{Scene, SceneError};
+use super::{Camera, Light, Scene, SceneError, Shape};
 
 /// A finite number within f32's range, kept in f64: TOML's `nan` and `inf` are rejected where
 /// they are written. Coordinates stay in f64 until the scene's origin is subtracted.
@@ -169,6 +169,38 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| SceneError::new(path, None, format!("cannot read the scene file: {e}")))?;
     parse(path, &text)
+}
+
+/// A mesh file (`.obj` with its `.mtl`, or `.ply`) rendered by itself, as a glTF file is: the
+/// mesh as one `type = "mesh"` shape, a camera framing its bounds, 640x480 at 16 spp, and the
+/// default environment when it has no light (said in notes). Errors name the mesh file.
+pub fn mesh_scene(path: &Path) -> Result<Scene, SceneError> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let quoted = toml_edit::Value::from(name.as_str()).to_string();
+    let text = format!(
+        "[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\n[film]\nwidth = 640\nheight = 480\nspp = 16\n\
+         [render]\nmax_depth = 8\n[[shape]]\ntype = \"mesh\"\nfile = {quoted}\n"
+    );
+    // The generated text's lines mean nothing to the user: an error is the mesh's own.
+    let mut scene = parse(path, &text).map_err(|e| {
+        let prefix = format!("mesh `{name}`: ");
+        let message = e.message.strip_prefix(&prefix).unwrap_or(&e.message).to_string();
+        SceneError::new(path, None, message)
+    })?;
+    let (lo, hi) = scene.bounds();
+    let (position, forward) = crate::scene::framing(lo.as_dvec3(), hi.as_dvec3());
+    scene.camera = Camera {
+        position: position.as_vec3(),
+        look_at: (position + forward).as_vec3(),
+        up: glam::Vec3::Y,
+        fov: crate::scene::FRAMING_FOV,
+    };
+    scene.notes.push("no camera: framing the model's bounds from the front".into());
+    if scene.lights.is_empty() {
+        scene.notes.push(crate::scene::default_environment_note(scene.shapes.iter().any(Shape::is_emissive)));
+        scene.lights.push(Light::Sky { radiance: glam::Vec3::ONE, diffuse_source: true });
+    }
+    Ok(scene)
 }
 
 /// Parses scene text as if read from `path` (relative mesh paths resolve against its directory).

@@ -1175,13 +1175,9 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
         return Err(error("it has no triangles to render".into()));
     }
     let camera = g.camera.unwrap_or_else(|| {
-        let centre = 0.5 * (lo + hi);
-        let radius = (0.5 * (hi - lo).length()).max(1e-6);
-        let fov = 40.0f32;
-        let distance = radius / (0.5 * fov as f64).to_radians().sin();
-        let back = DVec3::new(0.0, 0.35, 1.0).normalize();
+        let (position, forward) = crate::scene::framing(lo, hi);
         notes.push("no camera: framing the model's bounds from the front".into());
-        GltfCamera { position: centre + back * distance, forward: -back, up: DVec3::Y, fov, aspect: None }
+        GltfCamera { position, forward, up: DVec3::Y, fov: crate::scene::FRAMING_FOV, aspect: None }
     });
     // Both axes are unit or zero: an up along the view direction (a node whose transform turns
     // its camera's y axis onto its z axis) leaves the image's orientation undefined.
@@ -1210,12 +1206,7 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
     let placed = place(&g, &stem, &at, 0, 0, crate::scene::DIFFUSE_ROUGHNESS, &mut object);
     let mut lights = placed.lights;
     if lights.is_empty() {
-        let emission =
-            if placed.shapes.iter().any(Shape::is_emissive) { ", and its own emission" } else { "" };
-        notes.push(format!(
-            "no lights: lit by the default environment, a uniform white sky of radiance 1{emission} \
-             (`--environment FILE.hdr|white|none` changes it)"
-        ));
+        notes.push(crate::scene::default_environment_note(placed.shapes.iter().any(Shape::is_emissive)));
         lights.push(Light::Sky { radiance: Vec3::ONE, diffuse_source: true });
     }
     let mut maps = vec![Maps::default(); placed.materials.len()];
