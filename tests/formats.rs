@@ -919,3 +919,44 @@ fn obj_and_ply_files_render_by_themselves_and_say_what_they_lack() {
     assert!(err.contains("t.ply: no camera: framing"), "{err}");
     assert!(image.get(16, 12).x < 1.0 && image.get(0, 0) == Vec3::ONE, "the triangle in the middle");
 }
+
+/// `KHR_mesh_quantization`: positions as shorts (not normalized, scaled back by the node),
+/// normals and texture coordinates as normalized shorts, read to the same quad as the floats
+/// give; without the extension in the file, integer positions are one clear error naming it.
+#[test]
+fn quantized_meshes_read_as_their_floats() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let quad = |quantized: bool| {
+        let mut doc = GltfDoc::quad();
+        if quantized {
+            let p = doc.shorts(&[-500, -500, 0, 500, -500, 0, 500, 500, 0, -500, 500, 0], "VEC3", false);
+            let n = doc.shorts(&[0, 0, 32767].repeat(4), "VEC3", true);
+            let t = doc.shorts(&[0, 32767, 32767, 32767, 32767, 0, 0, 0], "VEC2", true);
+            doc.json["meshes"][0]["primitives"][0]["attributes"] =
+                json!({"POSITION": p, "NORMAL": n, "TEXCOORD_0": t});
+            doc.node(json!({"mesh": 0, "scale": [0.001, 0.001, 0.001]}), true);
+        } else {
+            doc.node(json!({"mesh": 0}), true);
+        }
+        doc
+    };
+    let triangles = |s: &lightsplit::scene::Scene| -> Vec<[Vec3; 3]> {
+        match &s.shapes[0].geometry {
+            lightsplit::scene::Geometry::Triangles(m) => (0..2).map(|t| m.triangle(t)).collect(),
+            _ => panic!("a mesh"),
+        }
+    };
+    let floats = scene::load(&quad(false).write_gltf(dir.path(), "f")).expect("loads");
+    let mut doc = quad(true);
+    doc.json["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    doc.json["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    let shorts = scene::load(&doc.write_gltf(dir.path(), "q")).expect("loads");
+    for (a, b) in triangles(&floats).iter().zip(&triangles(&shorts)) {
+        for (p, q) in a.iter().zip(b) {
+            assert!((*p - *q).abs().max_element() < 1e-6, "{p} against {q}");
+        }
+    }
+    assert!(shorts.notes.iter().all(|n| !n.contains("KHR_mesh_quantization")), "{:?}", shorts.notes);
+    let e = scene::load(&quad(true).write_gltf(dir.path(), "bad")).expect_err("refused");
+    assert!(e.to_string().contains("KHR_mesh_quantization"), "{e}");
+}

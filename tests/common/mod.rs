@@ -131,6 +131,28 @@ impl GltfDoc {
         accessors.len() - 1
     }
 
+    /// An accessor of signed shorts (KHR_mesh_quantization's integers), `kind` VEC2, VEC3 or
+    /// VEC4, normalized or not (min and max given for VEC3, as positions need).
+    pub fn shorts(&mut self, v: &[i16], kind: &str, normalized: bool) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let width = match kind {
+            "VEC2" => 2,
+            "VEC4" => 4,
+            _ => 3,
+        };
+        let mut a = serde_json::json!({"bufferView": view, "componentType": 5122, "count": v.len() / width,
+            "type": kind, "normalized": normalized});
+        if kind == "VEC3" {
+            let at = |k: usize| v.iter().skip(k).step_by(3).copied();
+            a["min"] = serde_json::json!((0..3).map(|k| at(k).min().unwrap_or(0)).collect::<Vec<_>>());
+            a["max"] = serde_json::json!((0..3).map(|k| at(k).max().unwrap_or(0)).collect::<Vec<_>>());
+        }
+        let accessors = self.json["accessors"].as_array_mut().expect("accessors");
+        accessors.push(a);
+        accessors.len() - 1
+    }
+
     /// An accessor of u32 indices.
     pub fn indices(&mut self, v: &[u32]) -> usize {
         let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();

@@ -270,6 +270,12 @@ impl<'a> Buffers<'a> {
         Ok(Layout { bytes, stride, count: count as usize, ty, dims, normalized: acc.normalized })
     }
 
+    /// Whether the file uses `KHR_mesh_quantization`: integer positions, normals, tangents and
+    /// texture coordinates, normalized or not (its nodes' transforms undo the quantization).
+    pub fn quantized(&self) -> bool {
+        self.root.extensions_used.iter().any(|e| e == "KHR_mesh_quantization")
+    }
+
     /// The elements of accessor `a`, of `dims` components of one of `types`, as floats, `dims`
     /// a vertex (sparse values applied). `what` names the data in messages.
     pub fn floats(
@@ -283,8 +289,10 @@ impl<'a> Buffers<'a> {
         let here = |e: String| format!("accessor {a} ({what}): {e}");
         if layout.dims != dims || !types.contains(&layout.ty) {
             let names: Vec<&str> = types.iter().map(|&t| type_name(t)).collect();
-            let quantized =
-                if layout.ty == ComponentType::F32 { "" } else { " (KHR_mesh_quantization is not read)" };
+            let quantized = match layout.ty == ComponentType::F32 || self.quantized() {
+                true => "",
+                false => " (the file does not use KHR_mesh_quantization, which allows integers here)",
+            };
             return Err(here(format!(
                 "{:?} of {}, where {:?} of {} is read{quantized}",
                 layout.dims,
@@ -293,9 +301,9 @@ impl<'a> Buffers<'a> {
                 names.join(" or ")
             )));
         }
-        if layout.ty != ComponentType::F32 && !layout.normalized {
+        if layout.ty != ComponentType::F32 && !layout.normalized && !self.quantized() {
             return Err(here(format!(
-                "{} that is not normalized (KHR_mesh_quantization is not read)",
+                "{} that is not normalized (the file does not use KHR_mesh_quantization, which allows it)",
                 type_name(layout.ty)
             )));
         }

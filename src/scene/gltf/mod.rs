@@ -251,6 +251,7 @@ fn sampling(texture: &gltf::Texture, set: u32, notes: &mut Vec<String>) -> Sampl
 /// The extensions read (the others a file uses are named in a note).
 const READ_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
+    "KHR_mesh_quantization",
     "KHR_materials_clearcoat",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
@@ -279,7 +280,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     // The crate's validation reads a primitive's POSITION accessor before it checks that the
     // accessor exists (and panics if it does not): that one index is checked first.
     let mut json = document.into_json();
-    json.extensions_required.retain(|e| !READ_RAW.contains(&e.as_str()));
+    json.extensions_required.retain(|e| !READ_RAW.contains(&e.as_str()) && e != "KHR_mesh_quantization");
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (k, primitive) in mesh.primitives.iter().enumerate() {
             for (semantic, a) in &primitive.attributes {
@@ -857,7 +858,19 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
         let floats = |a: usize, what: &str, dims: Type, types: &[C]| {
             buffers.floats(a, what, dims, types).map_err(|e| format!("{here}: {e}"))
         };
-        let positions = floats(position, "POSITION", Type::Vec3, &[C::F32])?;
+        // KHR_mesh_quantization: integer positions, normals, tangents and signed texture
+        // coordinates too (the base specification has floats, and unsigned normalized
+        // coordinates).
+        let q = buffers.quantized();
+        let (vectors, signed): (&[C], &[C]) = match q {
+            true => (&[C::F32, C::I8, C::U8, C::I16, C::U16], &[C::F32, C::I8, C::I16]),
+            false => (&[C::F32], &[C::F32]),
+        };
+        let coordinates: &[C] = match q {
+            true => &[C::F32, C::U8, C::U16, C::I8, C::I16],
+            false => &[C::F32, C::U8, C::U16],
+        };
+        let positions = floats(position, "POSITION", Type::Vec3, vectors)?;
         if let Some(i) = positions.iter().position(|x| !x.is_finite()) {
             return Err(format!("{here}: position {} is not finite (NaN or infinite)", i / 3));
         }
@@ -895,7 +908,7 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
         }
         let normals = match attribute(Semantic::Normals) {
             Some(a) => {
-                let ns = floats(a, "NORMAL", Type::Vec3, &[C::F32])?;
+                let ns = floats(a, "NORMAL", Type::Vec3, signed)?;
                 if ns.len() != 3 * n || ns.iter().any(|x| !x.is_finite()) {
                     return Err(format!("{here}: its normals are not one finite vector a vertex"));
                 }
@@ -906,7 +919,7 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
         // Texture coordinates, v flipped up.
         let read_uvs = |set: u32| -> Result<Option<Arc<[Vec2]>>, String> {
             let Some(a) = attribute(Semantic::TexCoords(set)) else { return Ok(None) };
-            let t = floats(a, &format!("TEXCOORD_{set}"), Type::Vec2, &[C::F32, C::U8, C::U16])?;
+            let t = floats(a, &format!("TEXCOORD_{set}"), Type::Vec2, coordinates)?;
             if t.len() != 2 * n || t.iter().any(|x| !x.is_finite()) {
                 return Err(format!("{here}: its TEXCOORD_{set} are not one finite pair a vertex"));
             }
@@ -930,7 +943,7 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
         };
         let tangents = match attribute(Semantic::Tangents) {
             Some(a) => {
-                let t = floats(a, "TANGENT", Type::Vec4, &[C::F32])?;
+                let t = floats(a, "TANGENT", Type::Vec4, signed)?;
                 if t.len() != 4 * n || t.iter().any(|x| !x.is_finite()) {
                     return Err(format!("{here}: its tangents are not one finite vector a vertex"));
                 }
