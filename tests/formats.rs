@@ -960,3 +960,25 @@ fn quantized_meshes_read_as_their_floats() {
     let e = scene::load(&quad(true).write_gltf(dir.path(), "bad")).expect_err("refused");
     assert!(e.to_string().contains("KHR_mesh_quantization"), "{e}");
 }
+
+/// A file that requires a compression lightsplit does not decode is refused by the extension's
+/// name, with what to do instead (exit status 2).
+#[test]
+fn compressed_gltf_files_are_refused_by_name_with_what_to_do() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (extension, advice) in [
+        ("KHR_draco_mesh_compression", "uncompressed meshes"),
+        ("EXT_meshopt_compression", "uncompressed meshes"),
+        ("KHR_texture_basisu", "gltf-transform ktxdecompress"),
+    ] {
+        let mut doc = GltfDoc::quad();
+        doc.node(json!({"mesh": 0}), true);
+        doc.json["extensionsUsed"] = json!([extension]);
+        doc.json["extensionsRequired"] = json!([extension]);
+        let path = doc.write_gltf(dir.path(), "c");
+        let o = crate::common::lightsplit(&["render", path.to_str().expect("utf-8"), "-o", "/dev/null.png"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("requires `{extension}`")) && err.contains(advice), "{err}");
+    }
+}

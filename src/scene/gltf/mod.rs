@@ -268,6 +268,23 @@ const READ_EXTENSIONS: &[&str] = &[
 /// refuses a file that requires them, so they are taken off the required list first).
 const READ_RAW: &[&str] = &["KHR_materials_clearcoat", "KHR_materials_sheen"];
 
+/// The refusal of a file that requires a compression lightsplit does not decode, saying what to
+/// do instead; `None` for any other extension.
+fn compressed_refusal(extension: &str) -> Option<String> {
+    let (what, instead) = match extension {
+        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => (
+            "compressed meshes",
+            "write it with uncompressed meshes first (Blender's glTF importer reads it; export it again without compression)",
+        ),
+        "KHR_texture_basisu" => (
+            "KTX2 (Basis Universal) textures",
+            "convert its textures to PNG first, for example with `gltf-transform ktxdecompress IN OUT`",
+        ),
+        _ => return None,
+    };
+    Some(format!("it requires `{extension}` ({what}), which lightsplit does not decode: {instead}"))
+}
+
 /// Reads a glTF or GLB file. Every problem is one message: what is wrong, and where in the file
 /// (which buffer, accessor, mesh or primitive).
 pub fn load(path: &Path) -> Result<Gltf, String> {
@@ -280,6 +297,9 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     // The crate's validation reads a primitive's POSITION accessor before it checks that the
     // accessor exists (and panics if it does not): that one index is checked first.
     let mut json = document.into_json();
+    if let Some(refusal) = json.extensions_required.iter().find_map(|e| compressed_refusal(e)) {
+        return Err(refusal);
+    }
     json.extensions_required.retain(|e| !READ_RAW.contains(&e.as_str()) && e != "KHR_mesh_quantization");
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (k, primitive) in mesh.primitives.iter().enumerate() {
