@@ -385,6 +385,10 @@ pub struct RenderArgs {
     /// uniform sky of radiance 1) or `none`; its other lights and emission are kept.
     #[arg(long, value_name = "FILE|white|none", value_parser = environment)]
     pub environment: Option<Environment>,
+    /// A glTF file's camera to render through: its index from 0 (in the order of the node
+    /// hierarchy) or its name (the camera's, else its node's); the first by default.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub camera: Option<String>,
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     pub debug_nonfinite: bool,

@@ -165,7 +165,12 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 /// Loads a scene and the filter setting its `[filter]` section asks for: a bad section is a bad
 /// scene, whether or not the command filters.
 fn load_scene(path: &Path) -> Result<(scene::Scene, Setting), Failure> {
-    let scene = scene::load(path)?;
+    load_scene_with_camera(path, None)
+}
+
+/// [`load_scene`] through a glTF file's camera `camera` (`render --camera`).
+fn load_scene_with_camera(path: &Path, camera: Option<&str>) -> Result<(scene::Scene, Setting), Failure> {
+    let scene = scene::load_with_camera(path, camera)?;
     for note in &scene.notes {
         eprintln!("note: {}: {note}", path.display());
     }

@@ -982,3 +982,46 @@ fn compressed_gltf_files_are_refused_by_name_with_what_to_do() {
         assert!(err.contains(&format!("requires `{extension}`")) && err.contains(advice), "{err}");
     }
 }
+
+/// `--camera` picks one of a glTF file's cameras by index or by name (the camera's, else its
+/// node's); with several and no choice the first is used and a note names the others; an
+/// unknown choice, or a choice for a file that is not a glTF, is one error.
+#[test]
+fn a_gltf_camera_is_picked_by_index_or_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut doc = GltfDoc::quad();
+    doc.node(json!({"mesh": 0}), true);
+    doc.json["cameras"] = json!([
+        {"type": "perspective", "name": "front", "perspective": {"yfov": 0.8, "znear": 0.01}},
+        {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.01}}
+    ]);
+    doc.node(json!({"camera": 0, "translation": [0, 0, 3]}), true);
+    doc.node(json!({"camera": 1, "name": "far", "translation": [0, 0, 6]}), true);
+    let path = doc.write_gltf(dir.path(), "cams");
+    let origin = |choice: Option<&str>| scene::load_with_camera(&path, choice).expect("loads").origin;
+    assert_eq!(origin(None), glam::DVec3::new(0.0, 0.0, 3.0));
+    assert_eq!(origin(Some("1")), glam::DVec3::new(0.0, 0.0, 6.0));
+    assert_eq!(origin(Some("far")), glam::DVec3::new(0.0, 0.0, 6.0));
+    assert_eq!(origin(Some("front")), glam::DVec3::new(0.0, 0.0, 3.0));
+    let notes = scene::load(&path).expect("loads").notes;
+    assert!(
+        notes.iter().any(|n| n.contains("2 cameras: rendering the first") && n.contains("1 `far`")),
+        "{notes:?}"
+    );
+    for (choice, wanted) in [("2", "no such camera"), ("back", "0 `front`, 1 `far`")] {
+        let o = crate::common::lightsplit(&[
+            "render",
+            path.to_str().expect("utf-8"),
+            "--camera",
+            choice,
+            "-o",
+            "/dev/null.exr",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(wanted), "{err}");
+    }
+    let e =
+        scene::load_with_camera(std::path::Path::new("scenes/cornell.toml"), Some("0")).expect_err("refused");
+    assert!(e.to_string().contains("not a glTF file"), "{e}");
+}

@@ -7,10 +7,10 @@ use lightsplit::job::{Job, Request};
 use lightsplit::{film, output};
 
 use crate::cli::RenderArgs;
-use crate::{default_output, load_scene, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
+use crate::{default_output, load_scene_with_camera, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
 
 pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
-    let (mut scene, scene_filter) = load_scene(&args.scene)?;
+    let (mut scene, scene_filter) = load_scene_with_camera(&args.scene, args.camera.as_deref())?;
     if let Some(environment) = &args.environment {
         scene.set_environment(environment)?;
     }

@@ -26,9 +26,22 @@ pub use file::{FilterSection, KernelSpec};
 
 /// Loads a scene: a glTF file (`.gltf`, `.glb`) as a whole scene, any other as a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    load_with_camera(path, None)
+}
+
+/// [`load`], a glTF file rendered through the camera `camera` names (its index from 0, or its
+/// name); any other file refuses the choice.
+pub fn load_with_camera(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if let (Some(choice), false) = (camera, matches!(ext.as_deref(), Some("gltf" | "glb"))) {
+        return Err(SceneError::new(
+            path,
+            None,
+            format!("--camera `{choice}` picks one of a glTF file's cameras; this is not a glTF file"),
+        ));
+    }
     match ext.as_deref() {
-        Some("gltf" | "glb") => gltf::scene(path),
+        Some("gltf" | "glb") => gltf::scene(path, camera),
         Some("obj" | "ply") => file::mesh_scene(path),
         _ => file::load(path),
     }

@@ -414,7 +414,7 @@ pub(super) fn add(
             }
             out.libraries.extend(g.files.iter().cloned());
             out.notes.extend(g.notes.iter().map(|n| format!("glTF `{file}`: {n}")));
-            if g.camera.is_some() {
+            if !g.cameras.is_empty() {
                 out.notes.push(format!("glTF `{file}`: its camera is not used (the scene file has one)"));
             }
             let at = gltf::Placement {

@@ -4,7 +4,8 @@
 //! tangents, textures through their samplers (wrap modes, nearest or bilinear), the
 //! metallic-roughness materials with their textures and emission (its texture a texture), the material extensions
 //! of one layered BSDF (specular, ior, transmission, volume, clearcoat, sheen;
-//! specular-glossiness converted: [`layers`]), the first camera, `KHR_lights_punctual` lights,
+//! specular-glossiness converted: [`layers`]), its perspective cameras (the first, or the one
+//! `render --camera` names), `KHR_lights_punctual` lights,
 //! `KHR_materials_emissive_strength` and `KHR_texture_transform`. Meshes come out in their own
 //! coordinates, read once, with each node's transform into the glTF's world (f64); the rest
 //! comes out in that world. [`crate::scene::file`] and [`scene`] place it in a scene, where a
@@ -128,7 +129,7 @@ impl Default for PbrMaterial {
     }
 }
 
-/// The first camera, placed by its node.
+/// A perspective camera, placed by its node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GltfCamera {
     pub position: DVec3,
@@ -162,7 +163,9 @@ pub struct Gltf {
     /// Textures: an image of [`Gltf::images`], the transform of its (u, v) ([`uv_transform`])
     /// and its sampler; the materials' textures index these.
     pub textures: Vec<(usize, Option<Affine2>, Sampling)>,
-    pub camera: Option<GltfCamera>,
+    /// The perspective cameras in the order of the node hierarchy, each named by its camera's
+    /// name, else its node's.
+    pub cameras: Vec<(String, GltfCamera)>,
     pub lights: Vec<PunctualLight>,
     /// The external files it read (buffers, images), besides itself.
     pub files: Vec<PathBuf>,
@@ -576,7 +579,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         materials,
         images,
         textures,
-        camera: None,
+        cameras: Vec::new(),
         lights: Vec::new(),
         files: Vec::new(),
         notes,
@@ -615,17 +618,21 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
                 });
             }
         }
-        if let (Some(camera), None) = (node.camera(), out.camera) {
+        if let Some(camera) = node.camera() {
+            let name = camera.name().map_or_else(|| node_name.clone(), str::to_string);
             match camera.projection() {
                 gltf::camera::Projection::Perspective(p) => {
                     let at = |v: DVec4| world * v;
-                    out.camera = Some(GltfCamera {
-                        position: at(DVec4::W).truncate(),
-                        forward: at(DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero(),
-                        up: at(DVec4::Y).truncate().normalize_or_zero(),
-                        fov: p.yfov().to_degrees(),
-                        aspect: p.aspect_ratio(),
-                    })
+                    out.cameras.push((
+                        name,
+                        GltfCamera {
+                            position: at(DVec4::W).truncate(),
+                            forward: at(DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero(),
+                            up: at(DVec4::Y).truncate().normalize_or_zero(),
+                            fov: p.yfov().to_degrees(),
+                            aspect: p.aspect_ratio(),
+                        },
+                    ))
                 }
                 gltf::camera::Projection::Orthographic(_) => {
                     out.notes.push(format!("camera of node `{node_name}`: orthographic cameras are not read"))
@@ -1188,15 +1195,51 @@ fn part_mesh(primitive: &Primitive, part: &NodePrimitive, at: &Placement) -> Mes
 /// aspect ratio says (4:3 without one).
 const WIDTH: u32 = 640;
 
-/// A glTF file as a whole scene (`lightsplit render model.glb`): its camera, or one framing its
-/// bounds from the front (+z, glTF's forward) and a little above; its lights, or with no
+/// The cameras' names with their indices, for messages.
+fn camera_names(cameras: &[(String, GltfCamera)]) -> String {
+    cameras.iter().enumerate().map(|(i, (n, _))| format!("{i} `{n}`")).collect::<Vec<_>>().join(", ")
+}
+
+/// The camera `choice` names (an index from 0, or a camera's or its node's name), or the first;
+/// `None` when the file has none (and none was asked for).
+fn choose_camera(
+    cameras: &[(String, GltfCamera)],
+    choice: Option<&str>,
+) -> Result<Option<GltfCamera>, String> {
+    let Some(choice) = choice else { return Ok(cameras.first().map(|c| c.1)) };
+    let found = match choice.parse::<usize>() {
+        Ok(i) => cameras.get(i),
+        Err(_) => cameras.iter().find(|(n, _)| n == choice),
+    };
+    match (found, cameras.is_empty()) {
+        (Some(c), _) => Ok(Some(c.1)),
+        (None, true) => Err(format!("--camera `{choice}`: the file has no perspective camera")),
+        (None, false) => Err(format!(
+            "--camera `{choice}`: no such camera; the file has {} ({}), by index or name",
+            cameras.len(),
+            camera_names(cameras)
+        )),
+    }
+}
+
+/// A glTF file as a whole scene (`lightsplit render model.glb`): its camera (`choice`, else the
+/// first), or one framing its bounds from the front (+z, glTF's forward) and a little above;
+/// its lights, or with no
 /// punctual light a uniform white sky of radiance 1 (its emission kept), said in
 /// [`Scene::notes`] (`render --environment` changes it).
-pub fn scene(path: &Path) -> Result<Scene, SceneError> {
+pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
     let error = |e: String| SceneError::new(path, None, e);
     crate::scene::limits::check_input_file(path).map_err(error)?;
     let g = load(path).map_err(error)?;
     let mut notes = g.notes.clone();
+    let chosen = choose_camera(&g.cameras, choice).map_err(error)?;
+    if choice.is_none() && g.cameras.len() > 1 {
+        notes.push(format!(
+            "{} cameras: rendering the first (`--camera NAME|INDEX` picks another: {})",
+            g.cameras.len(),
+            camera_names(&g.cameras)
+        ));
+    }
     let (lo, hi) = g
         .parts
         .iter()
@@ -1207,7 +1250,7 @@ pub fn scene(path: &Path) -> Result<Scene, SceneError> {
     if g.parts.is_empty() {
         return Err(error("it has no triangles to render".into()));
     }
-    let camera = g.camera.unwrap_or_else(|| {
+    let camera = chosen.unwrap_or_else(|| {
         let (position, forward) = crate::scene::framing(lo, hi);
         notes.push("no camera: framing the model's bounds from the front".into());
         GltfCamera { position, forward, up: DVec3::Y, fov: crate::scene::FRAMING_FOV, aspect: None }
