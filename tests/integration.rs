@@ -8,6 +8,7 @@ mod common;
 mod adaptive;
 mod agreement;
 mod analytic;
+mod cameras;
 mod checker;
 mod cli;
 mod components;

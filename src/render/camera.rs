@@ -1,4 +1,5 @@
-//! Primary rays of a pinhole camera. Pixel (0, 0) is the top-left corner of the image.
+//! Primary rays of a pinhole or an orthographic camera. Pixel (0, 0) is the top-left corner of
+//! the image.
 
 use glam::{DMat4, DVec3, DVec4, Vec2, Vec3};
 
@@ -14,6 +15,9 @@ pub struct PinholeCamera {
     up: Vec3,
     width: f32,
     height: f32,
+    /// Orthographic: the rays start across the film (`right` and `up` its half extents) and
+    /// all run along `forward`.
+    orthographic: bool,
 }
 
 impl PinholeCamera {
@@ -22,15 +26,21 @@ impl PinholeCamera {
         // Right-handed: with y up and the view along +z, +x is on the left of the image.
         let right = forward.cross(camera.up).normalize();
         let up = right.cross(forward);
-        let tan_half = (camera.fov.to_radians() * 0.5).tan();
+        // The film's half height: at unit distance for a pinhole, in scene units for an
+        // orthographic camera.
+        let half = match camera.orthographic {
+            Some(h) => 0.5 * h,
+            None => (camera.fov.to_radians() * 0.5).tan(),
+        };
         let aspect = width as f32 / height as f32;
         PinholeCamera {
             origin: camera.position,
             forward,
-            right: right * tan_half * aspect,
-            up: up * tan_half,
+            right: right * half * aspect,
+            up: up * half,
             width: width as f32,
             height: height as f32,
+            orthographic: camera.orthographic.is_some(),
         }
     }
 
@@ -38,6 +48,9 @@ impl PinholeCamera {
     pub fn ray(&self, x: u32, y: u32, offset: Vec2) -> Ray {
         let sx = 2.0 * (x as f32 + offset.x) / self.width - 1.0;
         let sy = 1.0 - 2.0 * (y as f32 + offset.y) / self.height;
+        if self.orthographic {
+            return Ray::new(self.origin + sx * self.right + sy * self.up, self.forward);
+        }
         let dir = (self.forward + sx * self.right + sy * self.up).normalize();
         Ray::new(self.origin, dir)
     }
@@ -67,8 +80,33 @@ pub fn exr_matrices(camera: &Camera, origin: DVec3, width: u32, height: u32) -> 
     let rotation =
         DMat4::from_cols(right.extend(0.0), up.extend(0.0), forward.extend(0.0), DVec4::W).transpose();
     let world_to_camera = rotation * DMat4::from_translation(-eye);
-    let t = (0.5 * (camera.fov as f64).to_radians()).tan();
     let aspect = width as f64 / height as f64;
+    if let Some(h) = camera.orthographic {
+        // x and y over the view's extent to [0, 1], z from the near plane to the far one.
+        let half = 0.5 * h as f64;
+        let ndc_from_camera = DMat4::from_cols_array(&[
+            0.5 / (half * aspect),
+            0.0,
+            0.0,
+            0.5,
+            0.0,
+            0.5 / half,
+            0.0,
+            0.5,
+            0.0,
+            0.0,
+            1.0 / (FAR - NEAR),
+            -NEAR / (FAR - NEAR),
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+        ])
+        .transpose();
+        let rows = |m: DMat4| m.transpose().to_cols_array().map(|v| v as f32);
+        return (rows(world_to_camera), rows(ndc_from_camera * world_to_camera));
+    }
+    let t = (0.5 * (camera.fov as f64).to_radians()).tan();
     let ndc_from_camera = DMat4::from_cols_array(&[
         0.5 / (t * aspect),
         0.0,
@@ -100,7 +138,13 @@ mod tests {
     /// space's origin and the view its +z; at 1e8 from the world's origin as at the origin.
     #[test]
     fn exr_matrices_map_pixels_to_ndc() {
-        let cam = Camera { position: Vec3::ZERO, look_at: Vec3::new(0.3, -0.2, 1.0), up: Vec3::Y, fov: 50.0 };
+        let cam = Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::new(0.3, -0.2, 1.0),
+            up: Vec3::Y,
+            fov: 50.0,
+            orthographic: None,
+        };
         let (w, h) = (64u32, 48u32);
         let pinhole = PinholeCamera::new(&cam, w, h);
         for origin in [DVec3::ZERO, DVec3::new(1e3, -2e3, 5e2)] {
@@ -130,7 +174,8 @@ mod tests {
 
     #[test]
     fn centre_and_corners() {
-        let cam = Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 90.0 };
+        let cam =
+            Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 90.0, orthographic: None };
         let c = PinholeCamera::new(&cam, 100, 50);
         let centre = c.ray(50, 25, Vec2::ZERO);
         assert!((centre.dir - Vec3::Z).length() < 1e-6);

@@ -96,14 +96,17 @@ impl fmt::Display for SceneError {
 
 impl std::error::Error for SceneError {}
 
-/// A pinhole camera.
+/// A pinhole or an orthographic camera.
 #[derive(Clone, Copy, Debug)]
 pub struct Camera {
     pub position: Vec3,
     pub look_at: Vec3,
     pub up: Vec3,
-    /// Vertical field of view in degrees.
+    /// Vertical field of view in degrees (a pinhole camera's).
     pub fov: f32,
+    /// An orthographic camera's view height in scene units (from the image's bottom edge to its
+    /// top), its rays parallel; `None` for a pinhole camera.
+    pub orthographic: Option<f32>,
 }
 
 /// Image size and samples per pixel.

@@ -12,7 +12,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
         path: "test".into(),
         inputs: vec![],
         origin: glam::DVec3::ZERO,
-        camera: Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 40.0 },
+        camera: Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 40.0, orthographic: None },
         film: FilmSettings { width: 1, height: 1, spp: 1 },
         render: RenderSettings { max_depth: 1, seed: 0, sampler: Default::default() },
         materials: vec![Material::Diffuse { albedo: Vec3::ONE }],

@@ -194,6 +194,7 @@ pub fn mesh_scene(path: &Path) -> Result<Scene, SceneError> {
         look_at: (position + forward).as_vec3(),
         up: glam::Vec3::Y,
         fov: crate::scene::FRAMING_FOV,
+        orthographic: None,
     };
     scene.notes.push("no camera: framing the model's bounds from the front".into());
     if scene.lights.is_empty() {

@@ -1,4 +1,4 @@
-//! `[camera]`, `[film]` and `[render]`: the pinhole camera, the image size and samples per pixel,
+//! `[camera]`, `[film]` and `[render]`: the pinhole or orthographic camera, the image size and samples per pixel,
 //! the path length limit and the seed. Each is one table of fixed keys.
 
 use serde::Deserialize;
@@ -18,6 +18,8 @@ pub(super) struct FileCamera {
     look_at: V3,
     up: Option<V3>,
     fov: Option<Spanned<F>>,
+    /// An orthographic camera's view height, in scene units.
+    orthographic: Option<Spanned<F>>,
 }
 
 /// `[film]` as written.
@@ -57,6 +59,13 @@ pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<(Camera, DVec
         Some(f) => f.get_ref().0,
         None => 40.0,
     };
+    let orthographic = match &c.orthographic {
+        Some(h) if !(h.get_ref().0 > 0.0 && h.get_ref().0 < 1e30) => {
+            return ctx.err(h.span(), "`orthographic` (the view's height) must be a positive number")
+        }
+        Some(h) => Some(h.get_ref().0),
+        None => None,
+    };
     let forward = look_at - position;
     if forward.length_squared() == 0.0 {
         return ctx.err(span, "the camera's `position` and `look_at` are the same point");
@@ -64,7 +73,7 @@ pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<(Camera, DVec
     if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared() {
         return ctx.err(span, "the camera's `up` is zero or parallel to its view direction");
     }
-    Ok((Camera { position, look_at, up, fov }, origin))
+    Ok((Camera { position, look_at, up, fov, orthographic }, origin))
 }
 
 /// The film settings, with their defaults (256 x 256, 16 samples per pixel).

@@ -4,7 +4,7 @@
 //! tangents, textures through their samplers (wrap modes, nearest or bilinear), the
 //! metallic-roughness materials with their textures and emission (its texture a texture), the material extensions
 //! of one layered BSDF (specular, ior, transmission, volume, clearcoat, sheen;
-//! specular-glossiness converted: [`layers`]), its perspective cameras (the first, or the one
+//! specular-glossiness converted: [`layers`]), its perspective and orthographic cameras (the first, or the one
 //! `render --camera` names), `KHR_lights_punctual` lights,
 //! `KHR_materials_emissive_strength` and `KHR_texture_transform`. Meshes come out in their own
 //! coordinates, read once, with each node's transform into the glTF's world (f64); the rest
@@ -12,8 +12,7 @@
 //! mesh that several nodes use is shared (instanced), not copied.
 //!
 //! Not read (yet): occlusion, alpha modes, mipmaps, iridescence and the rest (named in a note
-//! when a file uses them), skins, morph targets, animations, orthographic cameras, points and
-//! lines. The volume's thickness texture is not read by design: a path tracer traces the
+//! when a file uses them), skins, morph targets, animations, points and lines. The volume's thickness texture is not read by design: a path tracer traces the
 //! geometry the thickness stands for.
 
 use std::collections::HashMap;
@@ -129,7 +128,7 @@ impl Default for PbrMaterial {
     }
 }
 
-/// A perspective camera, placed by its node.
+/// A camera, placed by its node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GltfCamera {
     pub position: DVec3,
@@ -138,6 +137,8 @@ pub struct GltfCamera {
     /// Vertical field of view, degrees.
     pub fov: f32,
     pub aspect: Option<f32>,
+    /// An orthographic camera's view height (twice its `ymag`), in the glTF's world.
+    pub orthographic: Option<f64>,
 }
 
 /// A `KHR_lights_punctual` light, placed by its node, in radiometric units.
@@ -163,7 +164,7 @@ pub struct Gltf {
     /// Textures: an image of [`Gltf::images`], the transform of its (u, v) ([`uv_transform`])
     /// and its sampler; the materials' textures index these.
     pub textures: Vec<(usize, Option<Affine2>, Sampling)>,
-    /// The perspective cameras in the order of the node hierarchy, each named by its camera's
+    /// The cameras (perspective and orthographic) in the order of the node hierarchy, each named by its camera's
     /// name, else its node's.
     pub cameras: Vec<(String, GltfCamera)>,
     pub lights: Vec<PunctualLight>,
@@ -631,11 +632,25 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
                             up: at(DVec4::Y).truncate().normalize_or_zero(),
                             fov: p.yfov().to_degrees(),
                             aspect: p.aspect_ratio(),
+                            orthographic: None,
                         },
                     ))
                 }
-                gltf::camera::Projection::Orthographic(_) => {
-                    out.notes.push(format!("camera of node `{node_name}`: orthographic cameras are not read"))
+                gltf::camera::Projection::Orthographic(o) => {
+                    let at = |v: DVec4| world * v;
+                    // The view's height (twice `ymag`), scaled as the node scales its y axis.
+                    let up = at(DVec4::Y).truncate();
+                    out.cameras.push((
+                        name,
+                        GltfCamera {
+                            position: at(DVec4::W).truncate(),
+                            forward: at(DVec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize_or_zero(),
+                            up: up.normalize_or_zero(),
+                            fov: crate::scene::FRAMING_FOV,
+                            aspect: (o.ymag() != 0.0).then(|| o.xmag() / o.ymag()),
+                            orthographic: Some(2.0 * o.ymag() as f64 * up.length()),
+                        },
+                    ))
                 }
             }
         }
@@ -1213,7 +1228,7 @@ fn choose_camera(
     };
     match (found, cameras.is_empty()) {
         (Some(c), _) => Ok(Some(c.1)),
-        (None, true) => Err(format!("--camera `{choice}`: the file has no perspective camera")),
+        (None, true) => Err(format!("--camera `{choice}`: the file has no camera")),
         (None, false) => Err(format!(
             "--camera `{choice}`: no such camera; the file has {} ({}), by index or name",
             cameras.len(),
@@ -1253,13 +1268,23 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
     let camera = chosen.unwrap_or_else(|| {
         let (position, forward) = crate::scene::framing(lo, hi);
         notes.push("no camera: framing the model's bounds from the front".into());
-        GltfCamera { position, forward, up: DVec3::Y, fov: crate::scene::FRAMING_FOV, aspect: None }
+        GltfCamera {
+            position,
+            forward,
+            up: DVec3::Y,
+            fov: crate::scene::FRAMING_FOV,
+            aspect: None,
+            orthographic: None,
+        }
     });
     // Both axes are unit or zero: an up along the view direction (a node whose transform turns
     // its camera's y axis onto its z axis) leaves the image's orientation undefined.
-    if camera.forward.cross(camera.up).length() < 1e-6 || !(camera.fov > 0.0 && camera.fov < 180.0) {
+    if camera.forward.cross(camera.up).length() < 1e-6
+        || !(camera.fov > 0.0 && camera.fov < 180.0)
+        || camera.orthographic.is_some_and(|h| !(h.is_finite() && h > 0.0 && h < 1e30))
+    {
         return Err(error(
-            "its camera cannot be oriented (a zero axis, an up parallel to the view direction, or a field of view outside (0, 180))"
+            "its camera cannot be oriented (a zero axis, an up parallel to the view direction, a field of view outside (0, 180), or an orthographic view of no height)"
                 .into(),
         ));
     }
@@ -1298,6 +1323,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             look_at: camera.forward.as_vec3(),
             up: camera.up.as_vec3(),
             fov: camera.fov,
+            orthographic: camera.orthographic.map(|h| h as f32),
         },
         film: FilmSettings { width: WIDTH, height, spp: 16 },
         render: RenderSettings { max_depth: 8, seed: 0, sampler: Default::default() },
