@@ -61,6 +61,11 @@ impl PinholeCamera {
     }
 }
 
+/// A matrix's values row by row, in f32.
+fn rows(m: DMat4) -> [f32; 16] {
+    m.transpose().to_cols_array().map(|v| v as f32)
+}
+
 /// The near and far planes of [`exr_matrices`]' NDC depth, as pbrt-v4's perspective camera has.
 const NEAR: f64 = 1e-2;
 const FAR: f64 = 1e3;
@@ -103,7 +108,6 @@ pub fn exr_matrices(camera: &Camera, origin: DVec3, width: u32, height: u32) -> 
             1.0,
         ])
         .transpose();
-        let rows = |m: DMat4| m.transpose().to_cols_array().map(|v| v as f32);
         return (rows(world_to_camera), rows(ndc_from_camera * world_to_camera));
     }
     let t = (0.5 * (camera.fov as f64).to_radians()).tan();
@@ -126,7 +130,6 @@ pub fn exr_matrices(camera: &Camera, origin: DVec3, width: u32, height: u32) -> 
         0.0,
     ])
     .transpose();
-    let rows = |m: DMat4| m.transpose().to_cols_array().map(|v| v as f32);
     (rows(world_to_camera), rows(ndc_from_camera * world_to_camera))
 }
 
