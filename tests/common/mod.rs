@@ -112,41 +112,39 @@ impl GltfDoc {
     /// positions need).
     pub fn floats(&mut self, v: &[f32], kind: &str) -> usize {
         let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let view = self.view(&bytes);
-        let width = match kind {
-            "VEC2" => 2,
-            "VEC4" => 4,
-            _ => 3,
-        };
-        let mut a = serde_json::json!({"bufferView": view, "componentType": 5126, "count": v.len() / width, "type": kind});
-        if kind == "VEC3" {
-            let at = |k: usize| v.iter().skip(k).step_by(3).copied();
-            let min: Vec<f32> = (0..3).map(|k| at(k).fold(f32::INFINITY, f32::min)).collect();
-            let max: Vec<f32> = (0..3).map(|k| at(k).fold(f32::NEG_INFINITY, f32::max)).collect();
-            a["min"] = serde_json::json!(min);
-            a["max"] = serde_json::json!(max);
-        }
-        let accessors = self.json["accessors"].as_array_mut().expect("accessors");
-        accessors.push(a);
-        accessors.len() - 1
+        let values: Vec<f64> = v.iter().map(|&x| x as f64).collect();
+        self.vectors(&bytes, &values, kind, serde_json::json!({"componentType": 5126}))
     }
 
     /// An accessor of signed shorts (KHR_mesh_quantization's integers), `kind` VEC2, VEC3 or
     /// VEC4, normalized or not (min and max given for VEC3, as positions need).
     pub fn shorts(&mut self, v: &[i16], kind: &str, normalized: bool) -> usize {
         let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let view = self.view(&bytes);
+        let values: Vec<f64> = v.iter().map(|&x| x as f64).collect();
+        self.vectors(
+            &bytes,
+            &values,
+            kind,
+            serde_json::json!({"componentType": 5122, "normalized": normalized}),
+        )
+    }
+
+    /// An accessor of `bytes` holding `values` as vectors of `kind`, with the keys of `a`.
+    fn vectors(&mut self, bytes: &[u8], values: &[f64], kind: &str, mut a: serde_json::Value) -> usize {
+        let view = self.view(bytes);
         let width = match kind {
             "VEC2" => 2,
             "VEC4" => 4,
             _ => 3,
         };
-        let mut a = serde_json::json!({"bufferView": view, "componentType": 5122, "count": v.len() / width,
-            "type": kind, "normalized": normalized});
+        (a["bufferView"], a["count"], a["type"]) = (view.into(), (values.len() / width).into(), kind.into());
         if kind == "VEC3" {
-            let at = |k: usize| v.iter().skip(k).step_by(3).copied();
-            a["min"] = serde_json::json!((0..3).map(|k| at(k).min().unwrap_or(0)).collect::<Vec<_>>());
-            a["max"] = serde_json::json!((0..3).map(|k| at(k).max().unwrap_or(0)).collect::<Vec<_>>());
+            let at = |k: usize| values.iter().skip(k).step_by(3).copied();
+            a["min"] =
+                serde_json::json!((0..3).map(|k| at(k).fold(f64::INFINITY, f64::min)).collect::<Vec<_>>());
+            a["max"] = serde_json::json!((0..3)
+                .map(|k| at(k).fold(f64::NEG_INFINITY, f64::max))
+                .collect::<Vec<_>>());
         }
         let accessors = self.json["accessors"].as_array_mut().expect("accessors");
         accessors.push(a);
