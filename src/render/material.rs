@@ -70,8 +70,9 @@ impl<'a> Shading<'a> {
     }
 
     /// The shading normal turned to the side of `ng` (the geometric normal, already on the side
-    /// the path came from: surfaces are two-sided), bent by the material's maps. A bent normal
-    /// that would fall below the surface is left unbent.
+    /// the path came from: surfaces are two-sided), bent by the material's maps. A bump or height
+    /// map that would bend it below the surface leaves it unbent; a normal map's bent normal is
+    /// kept ([`Shading::normal_mapped`]).
     #[inline(always)]
     pub fn normal(&self, ng: Vec3) -> Vec3 {
         let s = self.s;
@@ -92,19 +93,17 @@ impl<'a> Shading<'a> {
             ns = if bent.dot(ng) > 1e-3 { bent } else { ns };
         }
         if let Some(map) = self.maps.normal {
-            ns = self.normal_mapped(ns, ng, map);
+            ns = self.normal_mapped(ns, map);
         }
         ns
     }
 
-    /// `ns` bent by normal map `(t, scale)`, unless the bent normal falls below the surface
-    /// whose normal is `ng`.
+    /// `ns` bent by normal map `(t, scale)`, kept even where it falls below the surface (its
+    /// diffuse base is then dark, as in Cycles; the glossy lobes raise it: [`valid_reflection`]).
     #[inline(always)]
-    fn normal_mapped(&self, ns: Vec3, ng: Vec3, (t, scale): (u32, f32)) -> Vec3 {
+    fn normal_mapped(&self, ns: Vec3, (t, scale): (u32, f32)) -> Vec3 {
         let c = self.read(t) * 2.0 - Vec3::ONE;
-        let bent = apply_normal_map(ns, self.s.dpdu, self.s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z));
-        let _ = ng;
-        bent
+        apply_normal_map(ns, self.s.dpdu, self.s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z))
     }
 
     /// The material's colour: its texture's where it has one, else `constant`; times the
@@ -194,7 +193,7 @@ impl<'a> Shading<'a> {
                 let coat_frame = lm.clearcoat_normal.filter(|_| coat > 0.0).map(|map| {
                     let ng = if self.s.ng.dot(wo) >= 0.0 { self.s.ng } else { -self.s.ng };
                     let ns = if self.s.ns.dot(ng) >= 0.0 { self.s.ns } else { -self.s.ns };
-                    Frame::new(valid_reflection(ng, wo, self.normal_mapped(ns, ng, map)))
+                    Frame::new(valid_reflection(ng, wo, self.normal_mapped(ns, map)))
                 });
                 u.with(&Principled {
                     frame: Frame::new(n),
