@@ -13,6 +13,7 @@ mod checker;
 mod cli;
 mod components;
 mod converge;
+mod cutouts;
 mod determinism;
 mod features;
 mod formats;

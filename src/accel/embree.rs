@@ -12,6 +12,7 @@ use embree_sys as sys;
 use glam::{Vec3A, Vec4};
 
 use super::{Accel, BuildHints, BuildQuality, Hit, Ray, PACKET};
+use crate::scene::cutout::Cutouts;
 
 /// `RTC_INVALID_GEOMETRY_ID` is a cast macro in the header, which bindgen cannot evaluate.
 const INVALID_ID: u32 = u32::MAX;
@@ -147,8 +148,13 @@ impl Device {
         if raw.is_null() {
             return Err(EmbreeError::Device("rtcNewScene returned null".into()));
         }
-        let scene =
-            SceneBuilder { raw, device: self.inner.clone(), meshes: Vec::new(), prototypes: Vec::new() };
+        let scene = SceneBuilder {
+            raw,
+            device: self.inner.clone(),
+            meshes: Vec::new(),
+            prototypes: Vec::new(),
+            cutouts: None,
+        };
         // SAFETY: `raw` is a live scene; these are plain setters.
         unsafe {
             let flags = if settings.robust { sys::RTC_SCENE_FLAG_ROBUST } else { sys::RTC_SCENE_FLAG_NONE };
@@ -182,6 +188,8 @@ pub struct SceneBuilder {
     device: Arc<DeviceInner>,
     meshes: Vec<SharedMesh>,
     prototypes: Vec<Arc<CommittedScene>>,
+    /// The cut-outs that the filter functions of its cut meshes read.
+    cutouts: Option<Arc<Cutouts>>,
 }
 
 impl Drop for SceneBuilder {
@@ -225,6 +233,41 @@ impl SceneBuilder {
         positions: Arc<[Vec3A]>,
         indices: Arc<[[u32; 3]]>,
     ) -> Result<(), EmbreeError> {
+        let geometry = self.mesh_geometry(positions, indices)?;
+        self.attach(geometry, id)
+    }
+
+    /// [`Self::add_triangles`], its hits (camera and shadow rays alike) asked whether they count
+    /// by `cutouts` ([`Cutouts::keeps`]) through Embree's intersection and occlusion filter
+    /// functions: a mesh with a cut-out. A hit in an instance of this scene is asked about as
+    /// the instance's geometry ID.
+    pub fn add_cut_triangles(
+        &mut self,
+        id: u32,
+        positions: Arc<[Vec3A]>,
+        indices: Arc<[[u32; 3]]>,
+        cutouts: &Arc<Cutouts>,
+    ) -> Result<(), EmbreeError> {
+        let cutouts = self.cutouts.get_or_insert_with(|| cutouts.clone()).clone();
+        let geometry = self.mesh_geometry(positions, indices)?;
+        // SAFETY: `geometry` is live and not yet committed. The user pointer is the Cutouts the
+        // builder (and then the committed scene) holds in an Arc, alive for as long as Embree
+        // may call the filters; `cutout_filter` only reads through it.
+        unsafe {
+            sys::rtcSetGeometryUserData(geometry, Arc::as_ptr(&cutouts) as *mut c_void);
+            sys::rtcSetGeometryIntersectFilterFunction(geometry, Some(cutout_filter));
+            sys::rtcSetGeometryOccludedFilterFunction(geometry, Some(cutout_filter));
+        }
+        self.attach(geometry, id)
+    }
+
+    /// A triangle geometry reading these buffers in place (kept alive by `self.meshes`), not
+    /// yet attached.
+    fn mesh_geometry(
+        &mut self,
+        positions: Arc<[Vec3A]>,
+        indices: Arc<[[u32; 3]]>,
+    ) -> Result<sys::RTCGeometry, EmbreeError> {
         const _: () = assert!(std::mem::size_of::<Vec3A>() == 16);
         let geometry = self.new_geometry(sys::RTC_GEOMETRY_TYPE_TRIANGLE)?;
         // SAFETY: both pointers stay valid (the Arcs are stored in `self.meshes` and moved into
@@ -253,7 +296,7 @@ impl SceneBuilder {
             );
         }
         self.meshes.push(SharedMesh { _positions: positions, _indices: indices });
-        self.attach(geometry, id)
+        Ok(geometry)
     }
 
     /// Adds analytic spheres (`RTC_GEOMETRY_TYPE_SPHERE_POINT`) with geometry ID `id`; each
@@ -337,6 +380,7 @@ impl SceneBuilder {
             _device: self.device.clone(),
             _meshes: std::mem::take(&mut self.meshes),
             _prototypes: std::mem::take(&mut self.prototypes),
+            _cutouts: self.cutouts.take(),
         })
     }
 }
@@ -351,6 +395,39 @@ pub struct CommittedScene {
     _meshes: Vec<SharedMesh>,
     /// The scenes this one instances.
     _prototypes: Vec<Arc<CommittedScene>>,
+    /// What the filter functions of its cut meshes read.
+    _cutouts: Option<Arc<Cutouts>>,
+}
+
+/// The intersection and occlusion filter of a mesh with a cut-out: each valid hit of the
+/// packet that [`Cutouts::keeps`] refuses is made invalid, so Embree goes on past it.
+unsafe extern "C" fn cutout_filter(args: *const sys::RTCFilterFunctionNArguments) {
+    // SAFETY: Embree passes valid arguments: `valid` holds N ints, `hit` is an RTCHitN of N
+    // lanes laid out as the header's RTCHitN_* accessors read it (Ng x, y, z, u, v, primID,
+    // geomID, then instID of each level, N floats or uints each), and the user pointer is the
+    // Cutouts `add_cut_triangles` set, alive as long as the scene is.
+    unsafe {
+        let args = &*args;
+        let n = args.N as usize;
+        if args.valid.is_null() || args.hit.is_null() || args.geometryUserPtr.is_null() {
+            return;
+        }
+        let cutouts = &*(args.geometryUserPtr as *const Cutouts);
+        let valid = std::slice::from_raw_parts_mut(args.valid, n);
+        let floats = args.hit as *const f32;
+        let words = args.hit as *const u32;
+        for (i, valid) in valid.iter_mut().enumerate() {
+            if *valid == 0 {
+                continue;
+            }
+            let (u, v) = (*floats.add(3 * n + i), *floats.add(4 * n + i));
+            let (prim, geometry, instance) =
+                (*words.add(5 * n + i), *words.add(6 * n + i), *words.add(7 * n + i));
+            if !cutouts.keeps(shape_of(instance, geometry), prim, u, v) {
+                *valid = 0;
+            }
+        }
+    }
 }
 
 // SAFETY: a committed Embree scene is never modified again (no method takes &mut or rebuilds it),

@@ -217,6 +217,21 @@ pub fn build_embree_with(
     let config = device_config(threads);
     let device = embree::Device::with_config(&config)?;
     let mut builder = device.scene_with(settings)?;
+    // Only the meshes with a cut-out (or whose instances have one) get a filter function.
+    let cutouts = crate::scene::cutout::Cutouts::new(scene).map(std::sync::Arc::new);
+    let cut_arrays: std::collections::HashSet<(usize, usize)> = match &cutouts {
+        None => Default::default(),
+        Some(c) => scene
+            .shapes
+            .iter()
+            .enumerate()
+            .filter(|(id, _)| c.cuts(*id as u32))
+            .filter_map(|(_, s)| match &s.geometry {
+                Geometry::Triangles(mesh) if mesh.instance.is_some() => Some(mesh.arrays()),
+                _ => None,
+            })
+            .collect(),
+    };
     // One scene per shared mesh, instanced by every shape that places it.
     let mut prototypes: std::collections::HashMap<(usize, usize), std::sync::Arc<embree::CommittedScene>> =
         std::collections::HashMap::new();
@@ -226,13 +241,26 @@ pub fn build_embree_with(
                 builder.add_spheres(id as u32, &[center.extend(*radius)])?;
             }
             Geometry::Triangles(mesh) => match &mesh.instance {
-                None => builder.add_triangles(id as u32, mesh.positions.clone(), mesh.indices.clone())?,
+                None => match &cutouts {
+                    Some(c) if c.cuts(id as u32) => builder.add_cut_triangles(
+                        id as u32,
+                        mesh.positions.clone(),
+                        mesh.indices.clone(),
+                        c,
+                    )?,
+                    _ => builder.add_triangles(id as u32, mesh.positions.clone(), mesh.indices.clone())?,
+                },
                 Some(instance) => {
                     let prototype = match prototypes.get(&mesh.arrays()) {
                         Some(p) => p.clone(),
                         None => {
                             let mut one = device.scene_with(settings)?;
-                            one.add_triangles(0, mesh.positions.clone(), mesh.indices.clone())?;
+                            match &cutouts {
+                                Some(c) if cut_arrays.contains(&mesh.arrays()) => {
+                                    one.add_cut_triangles(0, mesh.positions.clone(), mesh.indices.clone(), c)?
+                                }
+                                _ => one.add_triangles(0, mesh.positions.clone(), mesh.indices.clone())?,
+                            }
                             let p = std::sync::Arc::new(one.commit()?);
                             prototypes.insert(mesh.arrays(), p.clone());
                             p

@@ -264,6 +264,24 @@ fn read_with(path: &Path, srgb: bool) -> Result<Image, String> {
     }
 }
 
+/// Reads an image as coverage (an OBJ's `map_d`), in all three channels: its alpha channel
+/// where it has one, else its first channel, as data (without the sRGB curve).
+pub fn read_coverage(path: &Path) -> Result<Image, String> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("exr" | "pfm" | "hdr")) {
+        let image = read_linear(path)?;
+        return Ok(Image { pixels: image.pixels.iter().map(|p| Vec3::splat(p.x)).collect(), ..image });
+    }
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0) {
+        return Err(format!("{}: the file is empty (0 bytes)", path.display()));
+    }
+    let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let alpha = img.color().has_alpha();
+    let img = img.into_rgba32f();
+    let pick = |p: &image::Rgba<f32>| Vec3::splat(if alpha { p.0[3] } else { p.0[0] });
+    Ok(Image { width: img.width(), height: img.height(), pixels: img.pixels().map(pick).collect() })
+}
+
 /// The linear value of an sRGB-encoded one in [0, 1].
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {

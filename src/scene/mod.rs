@@ -3,6 +3,7 @@
 //! [`file`] (TOML), [`obj`] (Wavefront OBJ meshes) and [`image`] (texture images).
 
 pub mod analysis;
+pub mod cutout;
 pub mod environment;
 pub mod file;
 pub mod gltf;
@@ -283,6 +284,9 @@ pub struct Attributes {
     /// Tangents (`TANGENT`, in the mesh's coordinates) and, in w, the sign of the bitangent
     /// (`cross(normal, tangent) * w`): the frame of the normal map.
     pub tangents: Option<Arc<[glam::Vec4]>>,
+    /// Vertex alpha (`COLOR_0`'s fourth component), multiplying the material's alpha; kept
+    /// only where the material has an alpha mode.
+    pub alpha: Option<Arc<[f32]>>,
 }
 
 /// Where a shared mesh is placed: an affine map from its own coordinates into the scene's that
@@ -563,6 +567,8 @@ pub struct Maps {
     pub spec_gloss: Option<(u32, u32)>,
     /// The textures of the layered material's extensions.
     pub layer: LayerMaps,
+    /// Where the surface is cut out: its alpha ([`cutout`]).
+    pub alpha: Option<cutout::Alpha>,
 }
 
 /// The textures of glTF's material extensions, each multiplying its factor: the clearcoat's
@@ -619,6 +625,7 @@ impl Maps {
         emission: None,
         spec_gloss: None,
         layer: LayerMaps::NONE,
+        alpha: None,
     };
 
     /// Whether these maps read a solid texture of `textures` (as the colour or the bump).

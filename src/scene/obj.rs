@@ -27,6 +27,9 @@ pub struct ObjMaterial {
     /// `map_Bump` or `bump`: a height image (its luminance) and its `-bm` multiplier, the
     /// height in scene units of a white texel.
     pub bump: Option<(PathBuf, f32)>,
+    /// Coverage, when the material is not opaque and not a dielectric: `d` (or 1 - `Tr`) and
+    /// `map_d`, multiplying it.
+    pub alpha: Option<(f32, Option<PathBuf>)>,
 }
 
 /// The file and `-bm` multiplier of a `map_Bump` line's arguments (other options are skipped
@@ -60,7 +63,7 @@ pub fn roughness_of_exponent(ns: f32) -> f32 {
 /// Whether a `.mtl` material is a dielectric (rendered as smooth glass): its illumination model
 /// is one of the MTL specification's refracting ones (4, 6, 7, 9), or it is partly transparent
 /// (`d` below 1, or `Tr` above 0) with an index of refraction `Ni` above 1. Transparency
-/// without refraction (a cut-out, alpha) is not read.
+/// without refraction is coverage ([`ObjMaterial::alpha`]): a cut-out.
 pub fn is_dielectric(illum: Option<u8>, dissolve: f32, ior: Option<f32>) -> bool {
     matches!(illum, Some(4 | 6 | 7 | 9)) || (dissolve < 1.0 && ior.is_some_and(|n| n > 1.0))
 }
@@ -90,7 +93,7 @@ pub struct Obj {
 /// The `.mtl` keys lightsplit reads.
 const READ_KEYS: &[&str] = &[
     "newmtl", "Kd", "Ke", "Ks", "Ns", "Ni", "d", "Tr", "Tf", "illum", "map_Kd", "map_Bump", "map_bump",
-    "bump",
+    "map_d", "bump",
 ];
 
 /// One note for each key of a material library that is not read: its first line and how many
@@ -246,7 +249,12 @@ pub fn load(path: &Path) -> Result<Obj, String> {
             dielectric: is_dielectric(m.illumination_model, dissolve, ior)
                 .then(|| ior.filter(|&n| n > 1.0).unwrap_or(1.5)),
             transmission: tf,
+            alpha: None,
         };
+        let mut material = material;
+        if material.dielectric.is_none() && (dissolve < 1.0 || m.dissolve_texture.is_some()) {
+            material.alpha = Some((dissolve.clamp(0.0, 1.0), m.dissolve_texture.as_ref().map(|t| locate(t))));
+        }
         let finite = [material.diffuse, material.emission, material.specular, material.transmission]
             .iter()
             .all(|v| v.is_finite())

@@ -73,16 +73,17 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
             bounds: None,
             wide: Bvh8::collapse(&[], &[], &[]),
             instances: None,
+            cutouts: None,
         };
     };
     let wide = Bvh8::collapse(&nodes, &prims, &order);
     let bounds = nodes.first().map(Node::bounds);
     if options.keep_binary {
         let ordered = order.iter().map(|&i| prims[i as usize]).collect();
-        Bvh { nodes, prims: ordered, bounds, wide, instances: None }
+        Bvh { nodes, prims: ordered, bounds, wide, instances: None, cutouts: None }
     } else {
         // Rays traverse the wide tree only: the binary one and the primitives are not kept.
-        Bvh { nodes: Vec::new(), prims: Vec::new(), bounds, wide, instances: None }
+        Bvh { nodes: Vec::new(), prims: Vec::new(), bounds, wide, instances: None, cutouts: None }
     }
 }
 

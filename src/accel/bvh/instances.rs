@@ -7,8 +7,9 @@ use std::collections::HashMap;
 
 use glam::{Affine3A, Vec3A};
 
-use super::{any, build, closest, Aabb, BuildOptions, Bvh, Node, Prim, TooLarge};
+use super::{any, build, closest, Aabb, BuildOptions, Bvh, Filter, Node, Prim, TooLarge};
 use crate::accel::{Hit, Ray};
+use crate::scene::cutout::Cutouts;
 use crate::scene::{Geometry, Scene};
 
 /// One placed mesh.
@@ -32,7 +33,13 @@ pub(super) struct Instances {
 
 impl Instances {
     /// The instanced shapes of `scene`, or `None` when it has none (or only empty ones).
-    pub(super) fn new(scene: &Scene, options: BuildOptions) -> Result<Option<Instances>, TooLarge> {
+    /// The meshes that some instance with a cut-out places have all their lanes marked: their
+    /// hits are asked about as each instance's shape.
+    pub(super) fn new(
+        scene: &Scene,
+        options: BuildOptions,
+        cutouts: Option<&Cutouts>,
+    ) -> Result<Option<Instances>, TooLarge> {
         let mut meshes: Vec<Bvh> = Vec::new();
         let mut by_arrays: HashMap<(usize, usize), u32> = HashMap::new();
         let mut placed = Vec::new();
@@ -62,6 +69,13 @@ impl Instances {
         if placed.is_empty() {
             return Ok(None);
         }
+        if let Some(c) = cutouts {
+            for (m, mesh) in meshes.iter_mut().enumerate() {
+                if placed.iter().any(|p: &Placed| p.mesh as usize == m && c.cuts(p.shape)) {
+                    mesh.wide.mark_cutouts(|_| true);
+                }
+            }
+        }
         let Some((nodes, order)) =
             build::tree(boxes.len(), |i| Some(boxes[i]), BuildOptions { max_leaf: 1, block: 1, ..options })
         else {
@@ -84,13 +98,14 @@ impl Instances {
     }
 
     /// The closest hit along `ray` nearer than `best` (the hit found so far, if any).
-    pub(super) fn intersect(&self, ray: &Ray, best: Option<Hit>) -> Option<Hit> {
+    pub(super) fn intersect(&self, ray: &Ray, best: Option<Hit>, filter: Filter) -> Option<Hit> {
         let t_max = best.map_or(ray.t_max, |h| h.t);
         closest(&self.nodes, ray, t_max, best, |range, t_max| {
             let mut found = None;
             for p in &self.placed[range] {
                 let local = Ray { t_max: *t_max, ..local_ray(ray, &p.to_local) };
-                if let Some(h) = self.meshes[p.mesh as usize].intersect(&local) {
+                let filter = Filter { shape: Some(p.shape), ..filter };
+                if let Some(h) = self.meshes[p.mesh as usize].wide.intersect(&local, filter) {
                     *t_max = h.t;
                     found = Some(Hit { shape: p.shape, ..h });
                 }
@@ -100,11 +115,12 @@ impl Instances {
     }
 
     /// Whether any instance lies along `ray` within [0, t_max].
-    pub(super) fn occluded(&self, ray: &Ray) -> bool {
+    pub(super) fn occluded(&self, ray: &Ray, filter: Filter) -> bool {
         any(&self.nodes, ray, |range| {
             self.placed[range].iter().any(|p| {
                 let local = Ray { t_max: ray.t_max, ..local_ray(ray, &p.to_local) };
-                self.meshes[p.mesh as usize].occluded(&local)
+                let filter = Filter { shape: Some(p.shape), ..filter };
+                self.meshes[p.mesh as usize].wide.occluded(&local, filter)
             })
         })
     }

@@ -18,6 +18,7 @@ pub mod wide;
 use glam::{Vec3, Vec3A};
 
 use super::{Accel, Hit, Ray};
+use crate::scene::cutout::Cutouts;
 use crate::scene::{Geometry, Scene};
 use intersect::{prim_hit, RayTri};
 
@@ -109,6 +110,31 @@ pub struct Bvh {
     wide: wide::Bvh8,
     /// Shapes that place a shared mesh: the second level.
     instances: Option<Box<instances::Instances>>,
+    /// The scene's cut-outs, when it has any: the hits the traversal asks about.
+    cutouts: Option<std::sync::Arc<Cutouts>>,
+}
+
+/// What a traversal asks about a hit on a lane marked as a cut-out: whether it counts, by the
+/// scene's [`Cutouts`]; the hits of an instanced mesh (shape 0 in its own tree) are asked
+/// about as the instance's shape.
+#[derive(Clone, Copy)]
+pub struct Filter<'a> {
+    cutouts: Option<&'a Cutouts>,
+    shape: Option<u32>,
+}
+
+impl Filter<'_> {
+    /// No cut-outs: every hit counts.
+    pub const NONE: Filter<'static> = Filter { cutouts: None, shape: None };
+
+    /// Whether the hit at `(u, v)` of triangle `prim` of shape `shape` counts.
+    #[inline]
+    fn keeps(&self, shape: u32, prim: u32, u: f32, v: f32) -> bool {
+        match self.cutouts {
+            None => true,
+            Some(c) => c.keeps(self.shape.unwrap_or(shape), prim, u, v),
+        }
+    }
 }
 
 /// A scene with more primitives than the BVH's 30-bit child references can reach.
@@ -180,8 +206,14 @@ impl Bvh {
         }
         let options =
             BuildOptions { max_leaf: options.max_leaf.clamp(1, wide::MAX_LEAF as usize), ..options };
-        let instances = instances::Instances::new(scene, options)?.map(Box::new);
-        Ok(Bvh { instances, ..build::build(prims, options) })
+        let cutouts = Cutouts::new(scene).map(std::sync::Arc::new);
+        let instances = instances::Instances::new(scene, options, cutouts.as_deref())?.map(Box::new);
+        let mut bvh = Bvh { instances, ..build::build(prims, options) };
+        if let Some(c) = &cutouts {
+            bvh.wide.mark_cutouts(|shape| c.cuts(shape));
+        }
+        bvh.cutouts = cutouts;
+        Ok(bvh)
     }
 
     /// Number of binary nodes, of wide nodes and of primitives (of the first level).
@@ -309,16 +341,24 @@ impl RayBox {
 impl Bvh {
     /// Closest hit along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let hit = self.wide.intersect(ray);
+        let filter = self.filter();
+        let hit = self.wide.intersect(ray, filter);
         match &self.instances {
             None => hit,
-            Some(instances) => instances.intersect(ray, hit),
+            Some(instances) => instances.intersect(ray, hit, filter),
         }
     }
 
     /// Whether anything lies along `ray` within [0, t_max]: stops at the first hit found.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.wide.occluded(ray) || self.instances.as_ref().is_some_and(|i| i.occluded(ray))
+        let filter = self.filter();
+        self.wide.occluded(ray, filter) || self.instances.as_ref().is_some_and(|i| i.occluded(ray, filter))
+    }
+
+    /// The filter of this tree's cut-outs.
+    #[inline(always)]
+    fn filter(&self) -> Filter<'_> {
+        Filter { cutouts: self.cutouts.as_deref(), shape: None }
     }
 
     /// Closest hit by the binary tree (the reference the wide tree is tested against; `None`

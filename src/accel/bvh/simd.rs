@@ -12,6 +12,7 @@
 use wide::f32x8;
 
 use super::wide::{Bvh8, Node8};
+use super::Filter;
 use crate::accel::{Hit, Ray};
 
 /// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
@@ -94,29 +95,29 @@ impl Avx2 {
     }
 
     /// The closest hit, by a traversal compiled for AVX2.
-    pub fn intersect(self, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+    pub fn intersect(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
         // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that
         // `intersect_avx2` is compiled for.
-        unsafe { intersect_avx2(self, bvh, ray) }
+        unsafe { intersect_avx2(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX2.
-    pub fn occluded(self, bvh: &Bvh8, ray: &Ray) -> bool {
+    pub fn occluded(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
         // SAFETY: as in `intersect`: AVX and AVX2 were detected.
-        unsafe { occluded_avx2(self, bvh, ray) }
+        unsafe { occluded_avx2(self, bvh, ray, filter) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn intersect_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
-    bvh.intersect_with(ray, k)
+fn intersect_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    bvh.intersect_with(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn occluded_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray) -> bool {
-    bvh.occluded_with(ray, k)
+fn occluded_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    bvh.occluded_with(ray, filter, k)
 }
 
 /// The slab arithmetic of both x86 kernels: each child's entry distance and its exit distance
@@ -196,29 +197,29 @@ impl Avx512 {
 
     /// The closest hit, by a traversal compiled for AVX-512 (32 vector registers, so the
     /// ray's values stay in registers beside the triangle test's).
-    pub fn intersect(self, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
+    pub fn intersect(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
         // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all
         // that `intersect_avx512` is compiled for.
-        unsafe { intersect_avx512(self, bvh, ray) }
+        unsafe { intersect_avx512(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX-512.
-    pub fn occluded(self, bvh: &Bvh8, ray: &Ray) -> bool {
+    pub fn occluded(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
         // SAFETY: as in `intersect`: AVX, AVX2, AVX-512 F and VL were detected.
-        unsafe { occluded_avx512(self, bvh, ray) }
+        unsafe { occluded_avx512(self, bvh, ray, filter) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
-fn intersect_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray) -> Option<Hit> {
-    bvh.intersect_with(ray, k)
+fn intersect_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    bvh.intersect_with(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
-fn occluded_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray) -> bool {
-    bvh.occluded_with(ray, k)
+fn occluded_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    bvh.occluded_with(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -10,6 +10,7 @@ use wide::f32x4;
 use super::intersect::{gamma, sphere, RayTri};
 use super::pages::Pages;
 use super::simd::{BoxTest, Isa, Portable, RayBox8};
+use super::Filter;
 use super::{Node, Prim};
 use crate::accel::{Hit, Ray};
 
@@ -74,9 +75,11 @@ pub struct Leaf4 {
     triangles: u32,
     spheres_first: u32,
     spheres_count: u32,
-    /// To three cache lines, spelled out (blocks are cast from the tree's [`Line`]s, plain
-    /// data).
-    _pad: u32,
+    /// The lanes whose shape has a cut-out ([`Bvh8::mark_cutouts`]): their hits are asked
+    /// whether they count. Zero for the blocks of a scene without alpha, which test nothing
+    /// more. (It also fills the block to three cache lines: blocks are cast from the tree's
+    /// [`Line`]s, plain data.)
+    cut: u32,
 }
 
 impl Leaf4 {
@@ -88,7 +91,7 @@ impl Leaf4 {
         triangles: 0,
         spheres_first: 0,
         spheres_count: 0,
-        _pad: 0,
+        cut: 0,
     };
 }
 
@@ -442,6 +445,33 @@ impl Bvh8 {
         }
     }
 
+    /// Marks the lanes whose shape `cuts` names as cut-outs, whose hits the traversal asks
+    /// its [`Filter`] about; returns whether any lane is marked.
+    pub(super) fn mark_cutouts(&mut self, cuts: impl Fn(u32) -> bool) -> bool {
+        let mut leaves = Vec::new();
+        let mut stack = vec![self.root];
+        while let Some(child) = stack.pop() {
+            if child == Child::EMPTY {
+                continue;
+            }
+            if child.is_leaf() {
+                leaves.push(child);
+            } else {
+                stack.extend(self.node(child).children.iter().copied());
+            }
+        }
+        let mut any = false;
+        for child in leaves {
+            for block in self.blocks_mut(child) {
+                block.cut = (0..block.triangles as usize)
+                    .filter(|&l| cuts(block.shape[l]))
+                    .fold(0, |m, l| m | 1 << l);
+                any |= block.cut != 0;
+            }
+        }
+        any
+    }
+
     /// Inner node `child`.
     #[inline(always)]
     fn node(&self, child: Child) -> &Node8 {
@@ -620,6 +650,53 @@ impl RayTri4 {
     /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
     #[inline(always)]
     fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
+        let (mut mask, t, inv, v, w) = self.lanes(leaf, t_max)?;
+        let mut best = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        while mask != 0 {
+            let l = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[l] < t[best] {
+                best = l;
+            }
+        }
+        Some((t[best], best, v[best] * inv[best], w[best] * inv[best]))
+    }
+
+    /// [`Self::hit`], each lane's hit taken only if `keeps(lane, u, v)` says it counts (a
+    /// cut-out's), nearest first: the nearest hit that counts.
+    #[inline(always)]
+    fn hit_kept(
+        &self,
+        leaf: &Leaf4,
+        t_max: f32,
+        keeps: impl Fn(usize, f32, f32) -> bool,
+    ) -> Option<(f32, usize, f32, f32)> {
+        let (mut mask, t, inv, v, w) = self.lanes(leaf, t_max)?;
+        while mask != 0 {
+            let mut best = mask.trailing_zeros() as usize;
+            let mut rest = mask & (mask - 1);
+            while rest != 0 {
+                let l = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                if t[l] < t[best] {
+                    best = l;
+                }
+            }
+            let (u, v) = (v[best] * inv[best], w[best] * inv[best]);
+            if leaf.cut & (1 << best) == 0 || keeps(best, u, v) {
+                return Some((t[best], best, u, v));
+            }
+            mask &= !(1 << best);
+        }
+        None
+    }
+
+    /// The lanes the ray hits within [0, t_max] (a bit mask, never empty) with their `t`, the
+    /// reciprocal of their determinant and their two unscaled barycentrics.
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    fn lanes(&self, leaf: &Leaf4, t_max: f32) -> Option<(u32, [f32; 4], [f32; 4], [f32; 4], [f32; 4])> {
         let [kx, ky, kz] = self.k;
         let (sx, sy, sz) =
             (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
@@ -681,63 +758,53 @@ impl RayTri4 {
             f32x4::splat(3.0) * (g(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e)
         };
         let valid = in_range & t_signed.simd_gt(bound);
-        let mut mask = valid.to_bitmask();
+        let mask = valid.to_bitmask();
         if mask == 0 {
             return None;
         }
         // t, u, v as the scalar test computes them: through the reciprocal of det.
         let inv = f32x4::splat(1.0) / det;
-        let (t, inv, v, w) = ((t_scaled * inv).to_array(), inv.to_array(), v.to_array(), w.to_array());
-        let mut best = mask.trailing_zeros() as usize;
-        mask &= mask - 1;
-        while mask != 0 {
-            let l = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            if t[l] < t[best] {
-                best = l;
-            }
-        }
-        Some((t[best], best, v[best] * inv[best], w[best] * inv[best]))
+        Some((mask, (t_scaled * inv).to_array(), inv.to_array(), v.to_array(), w.to_array()))
     }
 }
 
 impl Bvh8 {
     /// Closest hit along `ray`, with the slab test this CPU runs best.
-    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+    pub fn intersect(&self, ray: &Ray, filter: Filter) -> Option<Hit> {
         match self.isa {
-            Isa::Portable => self.intersect_with(ray, Portable),
+            Isa::Portable => self.intersect_with(ray, filter, Portable),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.intersect(self, ray),
+            Isa::Avx2(k) => k.intersect(self, ray, filter),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(k) => k.intersect(self, ray),
+            Isa::Avx512(k) => k.intersect(self, ray, filter),
         }
     }
 
     /// Whether anything lies along `ray` within [0, t_max]; stops at the first hit.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    pub fn occluded(&self, ray: &Ray, filter: Filter) -> bool {
         match self.isa {
-            Isa::Portable => self.occluded_with(ray, Portable),
+            Isa::Portable => self.occluded_with(ray, filter, Portable),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.occluded(self, ray),
+            Isa::Avx2(k) => k.occluded(self, ray, filter),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(k) => k.occluded(self, ray),
+            Isa::Avx512(k) => k.occluded(self, ray, filter),
         }
     }
 
     /// Closest hit along `ray`, ordered: the children a node's box test passes are visited
     /// nearest first, and entries the closest hit so far has passed are skipped when popped.
     #[inline(always)]
-    pub(super) fn intersect_with<K: BoxTest>(&self, ray: &Ray, k: K) -> Option<Hit> {
+    pub(super) fn intersect_with<K: BoxTest>(&self, ray: &Ray, filter: Filter, k: K) -> Option<Hit> {
         if (WIDTH - 1) * self.depth < SHORT_STACK {
-            self.intersect_stack::<K, SHORT_STACK>(ray, k)
+            self.intersect_stack::<K, SHORT_STACK>(ray, filter, k)
         } else {
-            self.intersect_stack::<K, STACK>(ray, k)
+            self.intersect_stack::<K, STACK>(ray, filter, k)
         }
     }
 
     /// [`Self::intersect_with`] on a stack of `N` entries.
     #[inline(always)]
-    fn intersect_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, k: K) -> Option<Hit> {
+    fn intersect_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
@@ -753,7 +820,12 @@ impl Bvh8 {
             if child.is_leaf() {
                 let blocks = self.blocks(child);
                 for leaf in blocks {
-                    if let Some((t, lane, u, v)) = rt.hit(leaf, t_max) {
+                    let hit = if leaf.cut == 0 {
+                        rt.hit(leaf, t_max)
+                    } else {
+                        rt.hit_kept(leaf, t_max, |l, u, v| filter.keeps(leaf.shape[l], leaf.prim[l], u, v))
+                    };
+                    if let Some((t, lane, u, v)) = hit {
                         t_max = t;
                         best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
                     }
@@ -825,17 +897,17 @@ impl Bvh8 {
 
     /// Whether anything lies along `ray` within [0, t_max], in any order.
     #[inline(always)]
-    pub(super) fn occluded_with<K: BoxTest>(&self, ray: &Ray, k: K) -> bool {
+    pub(super) fn occluded_with<K: BoxTest>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
         if (WIDTH - 1) * self.depth < SHORT_STACK {
-            self.occluded_stack::<K, SHORT_STACK>(ray, k)
+            self.occluded_stack::<K, SHORT_STACK>(ray, filter, k)
         } else {
-            self.occluded_stack::<K, STACK>(ray, k)
+            self.occluded_stack::<K, STACK>(ray, filter, k)
         }
     }
 
     /// [`Self::occluded_with`] on a stack of `N` entries.
     #[inline(always)]
-    fn occluded_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, k: K) -> bool {
+    fn occluded_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
@@ -846,7 +918,13 @@ impl Bvh8 {
         loop {
             if current.is_leaf() {
                 let blocks = self.blocks(current);
-                if blocks.iter().any(|leaf| rt.hit(leaf, ray.t_max).is_some()) {
+                let blocked = |leaf: &Leaf4| match leaf.cut {
+                    0 => rt.hit(leaf, ray.t_max).is_some(),
+                    _ => rt
+                        .hit_kept(leaf, ray.t_max, |l, u, v| filter.keeps(leaf.shape[l], leaf.prim[l], u, v))
+                        .is_some(),
+                };
+                if blocks.iter().any(blocked) {
                     return true;
                 }
                 if self

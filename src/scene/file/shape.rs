@@ -320,7 +320,7 @@ pub(super) fn add(
             out.notes.extend(notes);
             // Each OBJ object is a shape of its own (and an object of its own, unless the scene
             // file names one), with its .mtl material unless the scene file gives one.
-            let mut images: HashMap<(std::path::PathBuf, bool), u32> = HashMap::new();
+            let mut images: HashMap<(std::path::PathBuf, Read), u32> = HashMap::new();
             for part in parts {
                 let part_material = match (material, &part.material) {
                     (Some(id), _) => id,
@@ -336,16 +336,16 @@ pub(super) fn add(
                         });
                         let id = (materials.len() - 1) as u32;
                         let mut image_texture =
-                            |t: &std::path::PathBuf, key: &str, linear: bool| -> Result<u32, SceneError> {
-                                if let Some(&k) = images.get(&(t.clone(), linear)) {
+                            |t: &std::path::PathBuf, key: &str, read: Read| -> Result<u32, SceneError> {
+                                if let Some(&k) = images.get(&(t.clone(), read)) {
                                     return Ok(k);
                                 }
-                                let read = if linear {
-                                    super::texture::data_image
-                                } else {
-                                    super::texture::colour_image
+                                let read_image = match read {
+                                    Read::Colour => super::texture::colour_image,
+                                    Read::Data => super::texture::data_image,
+                                    Read::Coverage => super::texture::coverage_image,
                                 };
-                                let image = read(t).map_err(|e| {
+                                let image = read_image(t).map_err(|e| {
                                     SceneError::new(ctx.path, line, format!("mesh `{file}`: {key}: {e}"))
                                 })?;
                                 out.textures.push(crate::scene::texture::Texture::Image {
@@ -356,15 +356,26 @@ pub(super) fn add(
                                 });
                                 out.libraries.push(t.clone());
                                 let k = out.textures_before + out.textures.len() as u32 - 1;
-                                images.insert((t.clone(), linear), k);
+                                images.insert((t.clone(), read), k);
                                 Ok(k)
                             };
                         let mut maps = crate::scene::Maps::default();
                         if let (Some(t), None) = (&m.texture, m.dielectric) {
-                            maps.color = Some(image_texture(t, "map_Kd", false)?);
+                            maps.color = Some(image_texture(t, "map_Kd", Read::Colour)?);
                         }
                         if let Some((t, scale)) = &m.bump {
-                            maps.height = Some((image_texture(t, "map_Bump", true)?, *scale));
+                            maps.height = Some((image_texture(t, "map_Bump", Read::Data)?, *scale));
+                        }
+                        if let Some((factor, map)) = &m.alpha {
+                            let texture = match map {
+                                Some(t) => Some(image_texture(t, "map_d", Read::Coverage)?),
+                                None => None,
+                            };
+                            maps.alpha = Some(crate::scene::cutout::Alpha {
+                                mode: crate::scene::cutout::AlphaMode::Blend,
+                                factor: *factor,
+                                texture,
+                            });
                         }
                         if maps != crate::scene::Maps::default() {
                             out.maps.push((id, maps));
@@ -569,4 +580,13 @@ mod tests {
         let far = Transform::new(None, DVec3::splat(1e8));
         assert_eq!(far.point(DVec3::new(1e8 + 1.0, 1e8, 1e8 - 0.5)), Vec3::new(1.0, 0.0, -0.5));
     }
+}
+
+/// How a mesh file's material reads an image: as colour (sRGB), as data, or as coverage (its
+/// alpha, else its first channel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Read {
+    Colour,
+    Data,
+    Coverage,
 }

@@ -114,6 +114,12 @@ pub(super) fn data_image(path: &Path) -> Result<Arc<crate::scene::image::Image>,
     checked_image(path, image::read_linear)
 }
 
+/// An image read as coverage (its alpha, else its first channel: an OBJ's `map_d`), checked
+/// and clamped as [`colour_image`] does.
+pub(super) fn coverage_image(path: &Path) -> Result<Arc<crate::scene::image::Image>, String> {
+    checked_image(path, image::read_coverage)
+}
+
 fn checked_image(
     path: &Path,
     read: fn(&Path) -> Result<crate::scene::image::Image, String>,

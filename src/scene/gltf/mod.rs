@@ -23,6 +23,7 @@ mod data;
 
 use glam::{Affine2, DMat3, DMat4, DVec3, DVec4, Vec2, Vec3, Vec3A};
 
+use crate::scene::cutout::{Alpha, AlphaMode};
 use crate::scene::image::Image;
 use crate::scene::texture::{Sampling, Texture, Wrap};
 use crate::scene::{
@@ -104,6 +105,9 @@ pub struct PbrMaterial {
     pub layers: Option<Layers>,
     /// Linear: the transmitted fraction in R, multiplying the transmission factor.
     pub transmission_texture: Option<usize>,
+    /// `alphaMode` MASK or BLEND: the base colour's alpha (its texture an index into
+    /// [`Gltf::textures`], the base colour texture's alpha channel).
+    pub alpha: Option<Alpha>,
 }
 
 impl Default for PbrMaterial {
@@ -124,6 +128,7 @@ impl Default for PbrMaterial {
             unlit: false,
             spec_gloss_texture: None,
             layer: LayerMaps::default(),
+            alpha: None,
         }
     }
 }
@@ -419,7 +424,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         let pbr = m.pbr_metallic_roughness();
         let name = m.name().map_or_else(|| format!("material{}", m.index().unwrap_or(0)), str::to_string);
         let spec_gloss = m.pbr_specular_glossiness();
-        let [r, g, b, _] = match &spec_gloss {
+        let [r, g, b, a] = match &spec_gloss {
             Some(sg) => sg.diffuse_factor(),
             None => pbr.base_color_factor(),
         };
@@ -427,7 +432,27 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             Some(sg) => sg.diffuse_texture(),
             None => pbr.base_color_texture(),
         };
-        let base_color_texture = color_texture.map(|t| texture_info!(t, Decode::Srgb)).transpose()?;
+        let base_color_texture =
+            color_texture.as_ref().map(|t| texture_info!(t, Decode::Srgb)).transpose()?;
+        // The base colour's alpha, for the modes that read it: its factor, and the texture's
+        // alpha channel read as a texture of its own.
+        let alpha = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => None,
+            mode => {
+                let mode = match mode {
+                    gltf::material::AlphaMode::Mask => {
+                        let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                        if !cutoff.is_finite() || cutoff < 0.0 {
+                            return Err(format!("material `{name}`: an alpha cutoff of {cutoff}"));
+                        }
+                        AlphaMode::Mask(cutoff)
+                    }
+                    _ => AlphaMode::Blend,
+                };
+                let texture = color_texture.as_ref().map(|t| texture_info!(t, Decode::Alpha)).transpose()?;
+                Some(Alpha { mode, factor: a, texture: texture.map(|t| t as u32) })
+            }
+        };
         let (metallic, roughness, layers) = layers(&m, &name, &mut unread_parts)?;
         // The specular-glossiness texture: the specular colour in RGB (sRGB), the glossiness in
         // alpha (linear), read as two textures.
@@ -569,6 +594,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
             unlit,
             spec_gloss_texture,
             layer,
+            alpha,
         });
     }
 
@@ -968,7 +994,10 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
             Ok(Some(t.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect()))
         };
         let (uvs, uv1) = (read_uvs(0)?, read_uvs(1)?);
-        // Vertex colours: RGB or RGBA (the alpha is not read), floats or normalized integers.
+        // Vertex colours: RGB or RGBA, floats or normalized integers; the alpha is kept where
+        // the material has an alpha mode and some vertex is not opaque.
+        let mut alpha = None;
+        let with_alpha = primitive.material().alpha_mode() != gltf::material::AlphaMode::Opaque;
         let colors = match primitive.get(&Semantic::Colors(0)) {
             Some(a) => {
                 let dims = if a.dimensions() == Type::Vec3 { Type::Vec3 } else { Type::Vec4 };
@@ -978,6 +1007,9 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
                     return Err(format!(
                         "{here}: its COLOR_0 are not one finite, non-negative colour a vertex"
                     ));
+                }
+                if k == 4 && with_alpha && c.chunks_exact(4).any(|c| c[3] < 1.0) {
+                    alpha = Some(c.chunks_exact(4).map(|c| c[3].min(1.0)).collect());
                 }
                 Some(c.chunks_exact(k).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
             }
@@ -993,8 +1025,8 @@ fn add_mesh(out: &mut Gltf, buffers: &Buffers, mesh: &gltf::Mesh) -> Result<(), 
             }
             None => None,
         };
-        let attributes = (uv1.is_some() || colors.is_some() || tangents.is_some())
-            .then(|| Box::new(Attributes { uv1, colors, tangents }));
+        let attributes = (uv1.is_some() || colors.is_some() || tangents.is_some() || alpha.is_some())
+            .then(|| Box::new(Attributes { uv1, colors, tangents, alpha }));
         let material = primitive.material().index();
         if material.is_some_and(|m| m >= out.materials.len()) {
             return Err(format!("{here}: no material {}", material.unwrap_or(0)));
@@ -1112,6 +1144,7 @@ pub fn place(
                     clearcoat_normal: l.clearcoat_normal.map(|(i, scale)| (texture(i as usize), scale)),
                 }
             },
+            alpha: m.alpha.map(|a| Alpha { texture: a.texture.map(|t| texture(t as usize)), ..a }),
             ..Maps::default()
         };
         if maps != Maps::default() {
