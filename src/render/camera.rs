@@ -18,6 +18,9 @@ pub struct PinholeCamera {
     /// Orthographic: the rays start across the film (`right` and `up` its half extents) and
     /// all run along `forward`.
     orthographic: bool,
+    /// A thin lens: the unit vectors across the view times its radius, and its focus
+    /// distance.
+    lens: Option<(Vec3, Vec3, f32)>,
 }
 
 impl PinholeCamera {
@@ -41,7 +44,38 @@ impl PinholeCamera {
             width: width as f32,
             height: height as f32,
             orthographic: camera.orthographic.is_some(),
+            lens: camera.lens.map(|l| (right * l.radius, up * l.radius, l.focus_distance)),
         }
+    }
+
+    /// Whether rays leave a lens (and so draw two numbers for the point on it).
+    pub fn has_lens(&self) -> bool {
+        self.lens.is_some()
+    }
+
+    /// The ray of a path sample through pixel `(x, y)`: its position in the pixel from
+    /// `sampler`, and with a lens the point on the lens too.
+    #[inline]
+    pub fn generate(&self, x: u32, y: u32, sampler: &mut crate::render::sampler::Sampler) -> Ray {
+        let offset = sampler.pixel_2d();
+        match self.lens {
+            None => self.ray(x, y, offset),
+            Some(_) => self.lens_ray(x, y, offset, sampler.lens_2d()),
+        }
+    }
+
+    /// The ray through the film position `pixel + offset` that leaves the lens at `lens` (in
+    /// [0, 1)^2, mapped to the disc by Shirley and Chiu's concentric map): it passes where the
+    /// pinhole ray meets the plane of focus, so that plane is sharp (pbrt's thin lens).
+    pub fn lens_ray(&self, x: u32, y: u32, offset: Vec2, lens: Vec2) -> Ray {
+        let pinhole = self.ray(x, y, offset);
+        let Some((across, up, focus)) = self.lens else { return pinhole };
+        // The pinhole ray's point on the plane of focus, `focus` along the view.
+        let t = focus / pinhole.dir.dot(self.forward);
+        let target = pinhole.at(t);
+        let d = crate::math::concentric_disk(lens);
+        let origin = pinhole.origin + across * d.x + up * d.y;
+        Ray::new(origin, (target - origin).normalize())
     }
 
     /// The ray through the film position `pixel + offset` (offset in [0, 1)^2 within the pixel).
@@ -147,6 +181,7 @@ mod tests {
             up: Vec3::Y,
             fov: 50.0,
             orthographic: None,
+            lens: None,
         };
         let (w, h) = (64u32, 48u32);
         let pinhole = PinholeCamera::new(&cam, w, h);
@@ -177,8 +212,14 @@ mod tests {
 
     #[test]
     fn centre_and_corners() {
-        let cam =
-            Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 90.0, orthographic: None };
+        let cam = Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::Z,
+            up: Vec3::Y,
+            fov: 90.0,
+            orthographic: None,
+            lens: None,
+        };
         let c = PinholeCamera::new(&cam, 100, 50);
         let centre = c.ray(50, 25, Vec2::ZERO);
         assert!((centre.dir - Vec3::Z).length() < 1e-6);

@@ -650,7 +650,7 @@ fn render_features<A: Accel, const F: u8>(
         }
         let mut sampler =
             Sampler::of(options.sampler, options.seed, y as u64 * width as u64 + x as u64, k as u64);
-        let ray = camera.ray(x, y, sampler.pixel_2d());
+        let ray = camera.generate(x, y, &mut sampler);
         let mut path = Vec::new();
         let again = integrator.sample_recorded(ray, &mut sampler, &mut 0, &mut path);
         eprintln!(
@@ -688,7 +688,7 @@ fn render_features<A: Accel, const F: u8>(
                 let streams = PixelSampler::new(options.sampler, options.seed, at as u64);
                 if trace_first && from == range.start {
                     let mut sampler = streams.sample(0);
-                    let ray = camera.ray(x, y, sampler.pixel_2d());
+                    let ray = camera.generate(x, y, &mut sampler);
                     let hit = accel.intersect(&ray);
                     let s = integrator.sample_from(ray, hit, &mut sampler, &mut tile.rays);
                     sums.set_object(i, s.object);
@@ -704,7 +704,7 @@ fn render_features<A: Accel, const F: u8>(
                         std::array::from_fn(|j| if j == 0 || j >= n { first.clone() } else { stream(j) });
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
                     for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
-                        *ray = camera.ray(x, y, sampler.pixel_2d());
+                        *ray = camera.generate(x, y, sampler);
                     }
                     let mut hits = [None; PACKET];
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);

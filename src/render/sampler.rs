@@ -218,6 +218,9 @@ impl Sobol {
     }
 }
 
+/// The purpose of the lens's sequence ([`Sampler::lens_2d`]), apart from every bounce's.
+const LENS: u64 = 0x6c65_6e73_0000_0001;
+
 /// What every sample of one pixel under one seed shares, made once a pixel: [`Sampler`]s come
 /// from it.
 #[derive(Clone, Debug)]
@@ -289,6 +292,15 @@ impl Sampler {
     pub fn pixel_2d(&mut self) -> Vec2 {
         match &mut self.sobol {
             Some(s) => sobol_2d(s.index_rev, s.scrambles(None)),
+            None => self.next_2d(),
+        }
+    }
+
+    /// The point on a thin lens: a sequence of its own, so a lens moves no other number.
+    #[inline]
+    pub fn lens_2d(&mut self) -> Vec2 {
+        match &mut self.sobol {
+            Some(s) => sobol_2d(s.index_rev, Scrambles::of(mix(s.key ^ LENS))),
             None => self.next_2d(),
         }
     }

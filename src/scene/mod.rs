@@ -108,6 +108,30 @@ pub struct Camera {
     /// An orthographic camera's view height in scene units (from the image's bottom edge to its
     /// top), its rays parallel; `None` for a pinhole camera.
     pub orthographic: Option<f32>,
+    /// A thin lens (depth of field); `None` for a pinhole (everything in focus).
+    pub lens: Option<Lens>,
+}
+
+/// A thin lens: rays leave a disc of radius `radius` (scene units) across the view and meet on
+/// the plane `focus_distance` along it, which is in focus.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    pub radius: f32,
+    pub focus_distance: f32,
+}
+
+impl Lens {
+    /// The height of a full-frame (35 mm) sensor, 24 mm, in metres: what an f-number's
+    /// aperture is measured against, the scene's units taken as metres.
+    pub const SENSOR_HEIGHT: f64 = 0.024;
+
+    /// The aperture radius of f-number `n` for a camera of vertical field of view `fov`
+    /// (degrees) on a full-frame sensor: the focal length (half the sensor height over the
+    /// tangent of half the view) over twice the f-number.
+    pub fn radius_of_f_number(n: f64, fov: f64) -> f64 {
+        let focal = 0.5 * Self::SENSOR_HEIGHT / (0.5 * fov.to_radians()).tan();
+        focal / (2.0 * n)
+    }
 }
 
 /// Image size and samples per pixel.

@@ -195,6 +195,7 @@ pub fn mesh_scene(path: &Path) -> Result<Scene, SceneError> {
         up: glam::Vec3::Y,
         fov: crate::scene::FRAMING_FOV,
         orthographic: None,
+        lens: None,
     };
     scene.notes.push("no camera: framing the model's bounds from the front".into());
     if scene.lights.is_empty() {

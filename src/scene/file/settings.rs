@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 
 use super::{dv3, v3, Ctx, F, V3};
 use crate::scene::SamplerKind;
-use crate::scene::{limits, Camera, FilmSettings, RenderSettings, SceneError};
+use crate::scene::{limits, Camera, FilmSettings, Lens, RenderSettings, SceneError};
 
 /// `[camera]` as written.
 #[derive(Deserialize)]
@@ -20,6 +20,12 @@ pub(super) struct FileCamera {
     fov: Option<Spanned<F>>,
     /// An orthographic camera's view height, in scene units.
     orthographic: Option<Spanned<F>>,
+    /// A thin lens: its aperture radius in scene units, or its f-number.
+    aperture: Option<Spanned<F>>,
+    f_number: Option<Spanned<F>>,
+    /// The distance along the view that is in focus, or a point on that plane.
+    focus_distance: Option<Spanned<F>>,
+    focus_on: Option<Spanned<V3>>,
 }
 
 /// `[film]` as written.
@@ -73,7 +79,71 @@ pub(super) fn camera(ctx: &Ctx, c: &Spanned<FileCamera>) -> Result<(Camera, DVec
     if forward.cross(up).length_squared() <= 1e-12 * forward.length_squared() * up.length_squared() {
         return ctx.err(span, "the camera's `up` is zero or parallel to its view direction");
     }
-    Ok((Camera { position, look_at, up, fov, orthographic }, origin))
+    let lens = lens(ctx, c, span, origin, forward, fov)?;
+    Ok((Camera { position, look_at, up, fov, orthographic, lens }, origin))
+}
+
+/// The thin lens of `[camera]`, when it has an `aperture` (a radius) or an `f_number`: in focus
+/// at `focus_distance`, or on the plane through `focus_on`, or (neither) through `look_at`.
+fn lens(
+    ctx: &Ctx,
+    c: &FileCamera,
+    span: std::ops::Range<usize>,
+    origin: DVec3,
+    forward: Vec3,
+    fov: f32,
+) -> Result<Option<Lens>, SceneError> {
+    let positive = |v: &Spanned<F>, key: &str| -> Result<f64, SceneError> {
+        let x = v.get_ref().0 as f64;
+        if x > 0.0 && x < 1e30 {
+            Ok(x)
+        } else {
+            ctx.err(v.span(), format!("`{key}` must be a positive number"))
+        }
+    };
+    let radius = match (&c.aperture, &c.f_number) {
+        (Some(a), Some(_)) => {
+            return ctx.err(a.span(), "a camera takes `aperture` (a radius) or `f_number`, not both")
+        }
+        (Some(a), None) => positive(a, "aperture")?,
+        (None, Some(n)) => {
+            if c.orthographic.is_some() {
+                return ctx.err(
+                    n.span(),
+                    "an orthographic camera's lens takes `aperture` (a radius), not `f_number`",
+                );
+            }
+            Lens::radius_of_f_number(positive(n, "f_number")?, fov as f64)
+        }
+        (None, None) => {
+            if let Some(f) = c.focus_distance.as_ref() {
+                return ctx.err(f.span(), "`focus_distance` needs a lens: an `aperture` or an `f_number`");
+            }
+            if let Some(f) = c.focus_on.as_ref() {
+                return ctx.err(f.span(), "`focus_on` needs a lens: an `aperture` or an `f_number`");
+            }
+            return Ok(None);
+        }
+    };
+    let view = forward.as_dvec3().normalize();
+    let focus_distance = match (&c.focus_distance, &c.focus_on) {
+        (Some(f), Some(_)) => {
+            return ctx.err(f.span(), "a camera takes `focus_distance` or `focus_on`, not both")
+        }
+        (Some(f), None) => positive(f, "focus_distance")?,
+        (None, Some(p)) => {
+            let d = (dv3(*p.get_ref()) - origin).dot(view);
+            if d.is_nan() || d <= 0.0 {
+                return ctx.err(p.span(), "`focus_on` must lie in front of the camera");
+            }
+            d
+        }
+        (None, None) => forward.as_dvec3().length(),
+    };
+    if !(radius.is_finite() && focus_distance.is_finite()) {
+        return ctx.err(span, "the lens's aperture or focus distance is not finite");
+    }
+    Ok(Some(Lens { radius: radius as f32, focus_distance: focus_distance as f32 }))
 }
 
 /// The film settings, with their defaults (256 x 256, 16 samples per pixel).

@@ -1357,6 +1357,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             up: camera.up.as_vec3(),
             fov: camera.fov,
             orthographic: camera.orthographic.map(|h| h as f32),
+            lens: None,
         },
         film: FilmSettings { width: WIDTH, height, spp: 16 },
         render: RenderSettings { max_depth: 8, seed: 0, sampler: Default::default() },
