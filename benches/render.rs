@@ -29,6 +29,7 @@ fn bench(c: &mut Criterion) {
             lights: &lights,
             faces: &faces,
             max_depth: scene.render.max_depth,
+            cone: lightsplit::render::integrator::Cone::of_camera(&scene.camera, scene.film.height, 1),
         };
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);

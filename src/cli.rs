@@ -392,6 +392,10 @@ pub struct RenderArgs {
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     pub debug_nonfinite: bool,
+    /// Look image textures up at a point (bilinear, at full resolution), as before texture
+    /// filtering, instead of over the camera ray cone's footprint through their mipmaps.
+    #[arg(long)]
+    pub point_textures: bool,
     /// Adaptive sampling: stop a pixel once the estimated relative error of its mean (standard
     /// error over mean luminance, checked after 16, 32, 64, ... samples) is at most THRESHOLD,
     /// e.g. 0.02; --spp is then the most a pixel takes. Converged tiles are skipped.

@@ -43,6 +43,8 @@ pub struct Request {
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
+    /// Image textures looked up at a point, not over the footprint.
+    pub point_textures: bool,
     /// Adaptive sampling's threshold.
     pub adaptive: Option<f32>,
     /// Compute every feature, whatever the scene and the output need.
@@ -148,6 +150,7 @@ impl<'s> Job<'s> {
         options.accel = request.accel;
         options.threads = request.threads;
         options.debug_nonfinite = request.debug_nonfinite;
+        options.texture_filter = !request.point_textures;
         options.spp = request.spp.unwrap_or(options.spp);
         options.seed = request.seed.unwrap_or(options.seed);
         options.width = request.width.unwrap_or(options.width);

@@ -28,6 +28,7 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,
+        point_textures: args.point_textures,
         adaptive: args.adaptive,
         all_features: args.all_features,
         part: args.part.clone(),

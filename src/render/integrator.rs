@@ -29,6 +29,34 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     /// The scene's triangle normals, made once (`FaceNormals::new`).
     pub faces: &'a FaceNormals,
     pub max_depth: u32,
+    /// The camera rays' cone, for the footprint of texture lookups ([`Cone`]).
+    pub cone: Cone,
+}
+
+/// A ray cone (Akenine-Möller et al., "Texture Level of Detail Strategies for Real-Time Ray
+/// Tracing", 2019): a camera ray's footprint is `width + spread * distance` across, at
+/// distance `distance` from the eye. It is followed through specular-like vertices (ignoring
+/// their curvature, as pbrt-v4's camera approximation does) and dropped at the first diffuse
+/// one, past which lookups are points again. Zero: every lookup a point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Cone {
+    pub width: f32,
+    pub spread: f32,
+}
+
+impl Cone {
+    /// A camera's cone for an image `height` pixels high at `spp` samples a pixel: a pixel's
+    /// width at unit distance (a pinhole's; the thin lens's the same, ignoring the lens) or
+    /// across the view (an orthographic camera's), scaled, as pbrt-v4 scales its camera's ray
+    /// differentials, by 1 / sqrt(spp) (at least 1/8): the samples spread over the pixel
+    /// already, and a cone a pixel wide would blur twice.
+    pub fn of_camera(camera: &crate::scene::Camera, height: u32, spp: u32) -> Cone {
+        let scale = (1.0 / (spp.max(1) as f32).sqrt()).max(0.125) / height.max(1) as f32;
+        match camera.orthographic {
+            Some(h) => Cone { width: h * scale, spread: 0.0 },
+            None => Cone { width: 0.0, spread: 2.0 * (0.5 * camera.fov.to_radians()).tan() * scale },
+        }
+    }
 }
 
 /// What one path sample found: its radiance, the same split by light path, and the guide
@@ -330,7 +358,13 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     fn scatter_at(&self, walk: &mut Walk, v: &Vertex) -> Option<Ray> {
         let s = v.s;
         let ng = if s.ng.dot(v.wo) >= 0.0 { s.ng } else { -s.ng };
-        let shading = Shading::new(self.scene, v.shape, s, F & TEXTURES != 0);
+        let mut shading = Shading::new(self.scene, v.shape, s, F & TEXTURES != 0);
+        if F & TEXTURES != 0 && walk.path.class.diffuse == 0 {
+            // The cone across the surface: its width over the cosine, the footprint's long
+            // axis (an isotropic lookup as wide as the footprint is long).
+            let width = self.cone.width + self.cone.spread * walk.path.travelled;
+            shading.set_footprint(width / ng.dot(v.wo).abs().max(1e-3));
+        }
         // Raised where its reflection of the view would fall below the surface (Cycles' bump-map
         // correction): a bent normal turned away from the viewer must not end the path.
         let bent = shading.normal(ng);

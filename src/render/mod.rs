@@ -51,6 +51,9 @@ pub struct RenderOptions {
     pub accel: Backend,
     /// Print each dropped non-finite sample (the first few): pixel, sample index, path.
     pub debug_nonfinite: bool,
+    /// Image textures filtered over the camera ray cone's footprint by their mipmaps (true by
+    /// default); false: looked up at a point.
+    pub texture_filter: bool,
     /// What the integrator computes: by default what the scene needs for every layer.
     pub features: Features,
     /// How the accelerator builds the scene: by default what the scene needs.
@@ -178,6 +181,7 @@ impl RenderOptions {
             threads: None,
             accel: Backend::Embree,
             debug_nonfinite: false,
+            texture_filter: true,
             features: Features::needed(&analysis, Outputs::ALL),
             build: BuildHints::for_scene(&analysis),
             adaptive: None,
@@ -614,8 +618,17 @@ fn render_features<A: Accel, const F: u8>(
     let camera = PinholeCamera::new(&scene.camera, width, height);
     let lights = Lights::new(scene);
     let faces = surface::FaceNormals::new(scene);
-    let integrator: Integrator<'_, A, F> =
-        Integrator { scene, accel, lights: &lights, faces: &faces, max_depth: options.max_depth };
+    let integrator: Integrator<'_, A, F> = Integrator {
+        scene,
+        accel,
+        lights: &lights,
+        faces: &faces,
+        max_depth: options.max_depth,
+        cone: match options.texture_filter {
+            true => integrator::Cone::of_camera(&scene.camera, height, options.spp),
+            false => integrator::Cone::default(),
+        },
+    };
     let spp = options.spp.max(1);
     let reported = AtomicU32::new(0);
 

@@ -75,7 +75,70 @@ pub enum Texture {
         repeat: Vec2,
         transform: Option<glam::Affine2>,
         sampling: Sampling,
+        /// The image's mipmaps, halving down to one texel ([`Texture::image`]; none for a
+        /// `nearest` sampler, whose texels stay crisp).
+        mips: Mips,
     },
+}
+
+/// An image's mipmaps: levels 1, 2, ... of its pyramid (level 0 is the image), each a box
+/// filter of the one before, its size halved (rounded up) down to one texel.
+#[derive(Clone, Debug)]
+pub struct Mips(Arc<[Image]>);
+
+impl Default for Mips {
+    fn default() -> Self {
+        Mips(Arc::from(Vec::new()))
+    }
+}
+
+impl PartialEq for Mips {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0) || self.0 == other.0
+    }
+}
+
+impl Mips {
+    /// The pyramid of `image`: each level's texel the mean of the two by two texels it covers
+    /// (one or two at an odd edge). On the calling thread: a level is a third of the image's
+    /// texels at most, about 0.1 s for an 8192^2 image, and threads of their own would each
+    /// reserve memory (a malloc arena) that a limit on address space counts.
+    pub fn of(image: &Image) -> Mips {
+        let mut levels: Vec<Image> = Vec::new();
+        let mut last = image;
+        while last.width > 1 || last.height > 1 {
+            let (w, h) = (last.width.div_ceil(2), last.height.div_ceil(2));
+            let mut next = Image::new(w, h);
+            next.pixels.chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+                let ys = [2 * y as u32, (2 * y as u32 + 1).min(last.height - 1)];
+                for (x, out) in row.iter_mut().enumerate() {
+                    let xs = [2 * x as u32, (2 * x as u32 + 1).min(last.width - 1)];
+                    *out = 0.25
+                        * (last.get(xs[0], ys[0])
+                            + last.get(xs[1], ys[0])
+                            + last.get(xs[0], ys[1])
+                            + last.get(xs[1], ys[1]));
+                }
+            });
+            levels.push(next);
+            last = levels.last().unwrap_or(image);
+        }
+        Mips(Arc::from(levels))
+    }
+
+    /// How many levels past the image itself.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Level `k` (1 or more).
+    pub fn level(&self, k: usize) -> Option<&Image> {
+        self.0.get(k.checked_sub(1)?)
+    }
 }
 
 /// Octaves of |noise|, normalised to [0, 1].
@@ -91,6 +154,60 @@ fn turbulence(seed: u32, p: Vec3, octaves: u32) -> f32 {
 }
 
 impl Texture {
+    /// An image texture, its mipmaps made (unless its sampler is `nearest`).
+    pub fn image(
+        image: Arc<Image>,
+        repeat: Vec2,
+        transform: Option<glam::Affine2>,
+        sampling: Sampling,
+    ) -> Texture {
+        let mips = if sampling.nearest { Mips::default() } else { Mips::of(&image) };
+        Texture::Image { image, repeat, transform, sampling, mips }
+    }
+
+    /// How many texels of the image's finest level one unit of texture coordinates spans at
+    /// most, through its repeat and transform (1 for anything but an image).
+    fn texels_per_unit(&self) -> f32 {
+        match self {
+            Texture::Image { image, repeat, transform, .. } => {
+                let stretch =
+                    transform.map_or(1.0, |t| t.matrix2.x_axis.length().max(t.matrix2.y_axis.length()));
+                (image.width as f32 * image.height as f32).sqrt() * repeat.max_element() * stretch
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// The mip level of a lookup whose footprint is `width` wide in texture coordinates: the
+    /// log2 of its width in texels of the finest level, 0 (the image itself) for a footprint
+    /// within one texel.
+    pub fn level(&self, width: f32) -> f32 {
+        (width * self.texels_per_unit()).max(1.0).log2()
+    }
+
+    /// [`Texture::color`] over a footprint `width` wide in texture coordinates: an image's
+    /// trilinear lookup between the two mip levels around [`Texture::level`]; for a footprint
+    /// within a texel (or zero: a point) and anything but an image, `color` itself.
+    #[inline]
+    pub fn color_over(&self, p: DVec3, uv: Vec2, width: f32) -> Vec3 {
+        let Texture::Image { image, repeat, transform, sampling, mips } = self else {
+            return self.color(p, uv);
+        };
+        let level = self.level(width);
+        if level <= 0.0 || mips.is_empty() {
+            return self.color(p, uv);
+        }
+        let at = transform.map_or(uv, |t| t.transform_point2(uv)) * *repeat;
+        let k = (level.floor() as usize).min(mips.len());
+        let f = if k == mips.len() { 0.0 } else { level - k as f32 };
+        let of = |k: usize| if k == 0 { image.as_ref() } else { mips.level(k).unwrap_or(image) };
+        let lo = lookup(of(k), at, sampling);
+        if f == 0.0 {
+            return lo;
+        }
+        lo * (1.0 - f) + lookup(of(k + 1), at, sampling) * f
+    }
+
     /// Half the size of a texel in texture coordinates (an image's; 1 for anything else).
     pub fn texel(&self) -> f32 {
         match self {
@@ -137,7 +254,7 @@ impl Texture {
         match self {
             Texture::Constant(c) => *c,
             Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. } => a.lerp(*b, self.scalar(p, uv)),
-            Texture::Image { image, repeat, transform, sampling } => {
+            Texture::Image { image, repeat, transform, sampling, .. } => {
                 lookup(image, transform.map_or(uv, |t| t.transform_point2(uv)) * *repeat, sampling)
             }
         }
@@ -287,17 +404,80 @@ mod tests {
         assert_eq!(flat, Vec3::Y);
     }
 
+    /// A checker image of `n` x `n` texels, checks of `check` texels, 1 and 0.
+    fn checker(n: u32, check: u32) -> Texture {
+        let mut img = Image::new(n, n);
+        for y in 0..n {
+            for x in 0..n {
+                img.set(x, y, Vec3::splat(((x / check + y / check) % 2) as f32));
+            }
+        }
+        Texture::image(Arc::new(img), Vec2::ONE, None, Sampling::default())
+    }
+
+    #[test]
+    fn the_mip_level_is_the_log2_of_the_footprint_in_texels() {
+        let t = checker(256, 1);
+        // Within a texel (or a point): the image itself; 4 texels: level 2; 64: level 6.
+        assert_eq!(t.level(0.0), 0.0);
+        assert_eq!(t.level(1.0 / 256.0), 0.0);
+        assert_eq!(t.level(4.0 / 256.0), 2.0);
+        assert_eq!(t.level(64.0 / 256.0), 6.0);
+        // A repeat of 4 makes each unit of (u, v) four times the texels.
+        let Texture::Image { image, .. } = &t else { unreachable!() };
+        let repeated = Texture::image(image.clone(), Vec2::splat(4.0), None, Sampling::default());
+        assert_eq!(repeated.level(4.0 / 256.0), 4.0);
+        // A nearest sampler keeps no mipmaps and reads the texel whatever the footprint.
+        let nearest =
+            Texture::image(image.clone(), Vec2::ONE, None, Sampling { nearest: true, ..Default::default() });
+        let uv = Vec2::new(0.5 / 256.0, 1.0 - 0.5 / 256.0);
+        assert_eq!(nearest.color_over(DVec3::ZERO, uv, 0.5), nearest.color(DVec3::ZERO, uv));
+    }
+
+    #[test]
+    fn mipmaps_halve_to_one_texel_and_keep_the_mean() {
+        let t = checker(256, 1);
+        let Texture::Image { mips, image, .. } = &t else { unreachable!() };
+        assert_eq!(mips.len(), 8);
+        for k in 1..=8 {
+            let level = mips.level(k).expect("level");
+            assert_eq!((level.width, level.height), (256 >> k, 256 >> k));
+            assert!((level.mean() - image.mean()).abs().max_element() < 1e-6, "level {k}");
+        }
+        // Level 1 of a one-texel checker is grey everywhere: the mean of each 2 x 2 block.
+        assert!(mips.level(1).expect("1").pixels.iter().all(|p| (p.x - 0.5).abs() < 1e-6));
+        // Odd sizes round up, the edge texel counted twice: 5 x 3, 3 x 2, 2 x 1, 1 x 1.
+        let odd = Mips::of(&Image::new(5, 3));
+        let sizes: Vec<(u32, u32)> =
+            (1..=odd.len()).map(|k| odd.level(k).map_or((0, 0), |l| (l.width, l.height))).collect();
+        assert_eq!(sizes, [(3, 2), (2, 1), (1, 1)]);
+    }
+
+    #[test]
+    fn a_lookup_over_a_footprint_blends_its_levels_and_a_small_one_is_the_point() {
+        let t = checker(256, 4);
+        let uv = Vec2::new(0.3, 0.6);
+        // Within a texel: the point lookup, bit for bit (near textures keep their detail).
+        assert_eq!(t.color_over(DVec3::ZERO, uv, 0.5 / 256.0), t.color(DVec3::ZERO, uv));
+        // Wider than the checks: their mean, 0.5.
+        let wide = t.color_over(DVec3::ZERO, uv, 32.0 / 256.0);
+        assert!((wide.x - 0.5).abs() < 1e-3, "{wide}");
+        // Between levels 1 and 2, trilinear: the levels' values blended by the fraction.
+        let Texture::Image { mips, sampling, .. } = &t else { unreachable!() };
+        let (l1, l2) = (
+            lookup(mips.level(1).expect("1"), uv, sampling),
+            lookup(mips.level(2).expect("2"), uv, sampling),
+        );
+        let mid = t.color_over(DVec3::ZERO, uv, 2f32.powf(1.25) / 256.0);
+        assert!((mid - (l1 * 0.75 + l2 * 0.25)).abs().max_element() < 1e-5, "{mid} {l1} {l2}");
+    }
+
     #[test]
     fn images_wrap_and_v_runs_up() {
         let mut img = Image::new(2, 2);
         img.set(0, 0, Vec3::new(1.0, 0.0, 0.0)); // top left
         img.set(0, 1, Vec3::new(0.0, 1.0, 0.0)); // bottom left
-        let t = Texture::Image {
-            image: Arc::new(img),
-            repeat: Vec2::ONE,
-            transform: None,
-            sampling: Sampling::default(),
-        };
+        let t = Texture::image(Arc::new(img), Vec2::ONE, None, Sampling::default());
         // Pixel centres: (0.25, 0.75) is the top-left pixel, (0.25, 0.25) the bottom-left.
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.75)), Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(t.color(DVec3::ZERO, Vec2::new(0.25, 0.25)), Vec3::new(0.0, 1.0, 0.0));

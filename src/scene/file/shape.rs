@@ -348,12 +348,12 @@ pub(super) fn add(
                                 let image = read_image(t).map_err(|e| {
                                     SceneError::new(ctx.path, line, format!("mesh `{file}`: {key}: {e}"))
                                 })?;
-                                out.textures.push(crate::scene::texture::Texture::Image {
+                                out.textures.push(crate::scene::texture::Texture::image(
                                     image,
-                                    repeat: Vec2::ONE,
-                                    transform: None,
-                                    sampling: Default::default(),
-                                });
+                                    Vec2::ONE,
+                                    None,
+                                    Default::default(),
+                                ));
                                 out.libraries.push(t.clone());
                                 let k = out.textures_before + out.textures.len() as u32 - 1;
                                 images.insert((t.clone(), read), k);

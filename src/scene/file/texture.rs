@@ -163,7 +163,7 @@ fn texture(ctx: &Ctx, dir: &Path, t: &Table<TextureKind>) -> Result<Texture, Sce
             if repeat.min_element() <= 0.0 {
                 return ctx.err(span, "`repeat` must be positive");
             }
-            return Ok(Texture::Image { image, repeat, transform: None, sampling: Default::default() });
+            return Ok(Texture::image(image, repeat, None, Default::default()));
         }
         TextureKind::Perlin(n) => (Pattern::Perlin, n),
         TextureKind::Fbm(n) => (Pattern::Fbm, n),

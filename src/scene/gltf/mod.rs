@@ -1089,14 +1089,19 @@ pub fn place(
     diffuse_from: f32,
     object: &mut dyn FnMut(&str) -> u32,
 ) -> Placed {
+    // Each image's mipmaps made once, however many textures read it.
+    let mut mips: HashMap<usize, crate::scene::texture::Mips> = HashMap::new();
     let textures = g
         .textures
         .iter()
-        .map(|&(i, transform, sampling)| Texture::Image {
-            image: g.images[i].clone(),
-            repeat: Vec2::ONE,
-            transform,
-            sampling,
+        .map(|&(i, transform, sampling)| {
+            let mips = match sampling.nearest {
+                true => Default::default(),
+                false => {
+                    mips.entry(i).or_insert_with(|| crate::scene::texture::Mips::of(&g.images[i])).clone()
+                }
+            };
+            Texture::Image { image: g.images[i].clone(), repeat: Vec2::ONE, transform, sampling, mips }
         })
         .collect();
     let mut out = Placed { textures, ..Placed::default() };
