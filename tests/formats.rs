@@ -961,14 +961,13 @@ fn quantized_meshes_read_as_their_floats() {
     assert!(e.to_string().contains("KHR_mesh_quantization"), "{e}");
 }
 
-/// A file that requires a compression lightsplit does not decode is refused by the extension's
-/// name, with what to do instead (exit status 2).
+/// A file that requires a compression lightsplit does not decode (Draco, BasisU) is refused by
+/// the extension's name, with what to do instead (exit status 2).
 #[test]
 fn compressed_gltf_files_are_refused_by_name_with_what_to_do() {
     let dir = tempfile::tempdir().expect("tempdir");
     for (extension, advice) in [
         ("KHR_draco_mesh_compression", "uncompressed meshes"),
-        ("EXT_meshopt_compression", "uncompressed meshes"),
         ("KHR_texture_basisu", "gltf-transform ktxdecompress"),
     ] {
         let mut doc = GltfDoc::quad();
@@ -1024,4 +1023,97 @@ fn a_gltf_camera_is_picked_by_index_or_name() {
     let e =
         scene::load_with_camera(std::path::Path::new("scenes/cornell.toml"), Some("0")).expect_err("refused");
     assert!(e.to_string().contains("not a glTF file"), "{e}");
+}
+
+/// `EXT_meshopt_compression`: a quad whose positions (floats), octahedral-filtered normals
+/// (bytes, `KHR_mesh_quantization`) and triangles are compressed by meshoptimizer's codecs
+/// (the `meshoptimizer-rs` encoders, the extension's vertex version 0), its views in a fallback
+/// buffer that holds nothing, loads to the same positions and triangles as the uncompressed
+/// quad, its normals within a byte's rounding; a stream cut short is one error naming the view.
+#[test]
+fn meshopt_compressed_meshes_are_decoded() {
+    use meshoptimizer_rs::codec::{
+        encode_filter_oct, encode_index_buffer, encode_vertex_buffer, IndexEncoding, VertexEncoding,
+    };
+    use meshoptimizer_rs::Workspace;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let positions: [f32; 12] = [-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0];
+    let indices: [u32; 6] = [0, 1, 2, 0, 2, 3];
+    let mut ws = Workspace::default();
+    let v0 = VertexEncoding::new(0, 0).expect("version 0");
+    let bytes: Vec<u8> = positions.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let p = encode_vertex_buffer(&bytes, 4, 12, v0, &mut ws).expect("positions");
+    let normals: Vec<f32> = [0.0, 0.0, 1.0, 0.0].repeat(4);
+    let n = encode_filter_oct(4, 4, 8, &normals, &mut ws).expect("oct filter");
+    let n = encode_vertex_buffer(&n, 4, 4, v0, &mut ws).expect("normals");
+    let i = encode_index_buffer(&indices, IndexEncoding::DEFAULT, &mut ws).expect("indices");
+    let mut bin = Vec::new();
+    let mut place = |stream: &[u8]| {
+        let at = bin.len();
+        bin.extend_from_slice(stream);
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        (at, stream.len())
+    };
+    let (p, n, i) = (place(&p), place(&n), place(&i));
+    let write = |name: &str, cut: usize| {
+        // A view of `count` elements of `stride` bytes, at `fallback_at` in the empty fallback
+        // buffer, decoded from `len` bytes (less `cut`) at `at` in the real one.
+        let view = |(at, len): (usize, usize),
+                    stride: usize,
+                    count: usize,
+                    mode: &str,
+                    filter: &str,
+                    fallback_at: usize| {
+            let mut v = json!({"buffer": 1, "byteOffset": fallback_at, "byteLength": stride * count,
+                "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": at, "byteLength": len - cut,
+                    "byteStride": stride, "count": count, "mode": mode, "filter": filter}}});
+            if mode == "ATTRIBUTES" {
+                v["byteStride"] = json!(stride);
+            }
+            v
+        };
+        let views = [
+            view(p, 12, 4, "ATTRIBUTES", "NONE", 0),
+            view(n, 4, 4, "ATTRIBUTES", "OCTAHEDRAL", 48),
+            view(i, 4, 6, "TRIANGLES", "NONE", 64),
+        ];
+        let doc = json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["EXT_meshopt_compression", "KHR_mesh_quantization"],
+            "extensionsRequired": ["EXT_meshopt_compression", "KHR_mesh_quantization"],
+            "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2}]}],
+            "buffers": [{"uri": "c.bin", "byteLength": bin.len()},
+                {"byteLength": 88, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}],
+            "bufferViews": views,
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 0.0]},
+                {"bufferView": 1, "componentType": 5120, "normalized": true, "count": 4, "type": "VEC3"},
+                {"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"}
+            ]
+        });
+        std::fs::write(dir.path().join("c.bin"), &bin).expect("write");
+        let path = dir.path().join(name);
+        std::fs::write(&path, serde_json::to_vec(&doc).expect("json")).expect("write");
+        path
+    };
+    let scene = scene::load(&write("c.gltf", 0)).expect("the compressed quad loads");
+    assert!(scene.notes.iter().all(|n| !n.contains("EXT_meshopt_compression")), "{:?}", scene.notes);
+    let lightsplit::scene::Geometry::Triangles(mesh) = &scene.shapes[0].geometry else { panic!("a mesh") };
+    let mut doc = GltfDoc::quad();
+    doc.node(json!({"mesh": 0}), true);
+    let plain = scene::load(&doc.write_gltf(dir.path(), "plain")).expect("loads");
+    let lightsplit::scene::Geometry::Triangles(want) = &plain.shapes[0].geometry else { panic!("a mesh") };
+    assert_eq!(mesh.positions, want.positions);
+    assert_eq!(mesh.indices, want.indices);
+    for n in mesh.normals.as_deref().expect("normals") {
+        assert!((*n - glam::Vec3::Z).length() < 2.0 / 127.0, "{n}");
+    }
+    let e = scene::load(&write("short.gltf", 3)).expect_err("a stream cut short");
+    assert!(
+        e.to_string().contains("buffer view") && e.to_string().contains("EXT_meshopt_compression"),
+        "{e}"
+    );
 }

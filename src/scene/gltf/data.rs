@@ -14,10 +14,16 @@ use json::accessor::{ComponentType, Type};
 use crate::scene::image::{srgb_to_linear, Image};
 use crate::scene::limits;
 
+/// The name of the meshopt compression extension.
+pub const MESHOPT: &str = "EXT_meshopt_compression";
+
 /// The loaded buffers of a glTF, by index, and the files they came from.
 pub struct Buffers<'a> {
     root: &'a json::Root,
     data: Vec<Cow<'a, [u8]>>,
+    /// The views `EXT_meshopt_compression` compresses, decoded, by view index (with their
+    /// stride).
+    decoded: Vec<Option<(Vec<u8>, usize)>>,
     base: PathBuf,
     /// The external files read (buffers, then images as they are decoded).
     pub files: Vec<PathBuf>,
@@ -164,12 +170,31 @@ impl<'a> Buffers<'a> {
     /// says, from the files beside the glTF in `base` or its `data:` URIs.
     pub fn load(root: &'a json::Root, blob: Option<Vec<u8>>, base: &Path) -> Result<Buffers<'a>, String> {
         let mut blob = blob;
-        let mut out = Buffers { root, data: Vec::new(), base: base.to_path_buf(), files: Vec::new() };
+        let mut out = Buffers {
+            root,
+            data: Vec::new(),
+            decoded: Vec::new(),
+            base: base.to_path_buf(),
+            files: Vec::new(),
+        };
         for (i, b) in root.buffers.iter().enumerate() {
             let here = |e: String| match &b.uri {
                 Some(uri) => format!("buffer {i} `{}`: {e}", uri),
                 None => format!("buffer {i}: {e}"),
             };
+            // A meshopt file's fallback buffer need hold nothing: its views are decoded from
+            // another buffer.
+            let fallback = b
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get(MESHOPT))
+                .and_then(|m| m.get("fallback"))
+                .and_then(|f| f.as_bool())
+                .unwrap_or(false);
+            if fallback && b.uri.is_none() {
+                out.data.push(Cow::Owned(Vec::new()));
+                continue;
+            }
             let bytes = match &b.uri {
                 Some(uri) => {
                     let (bytes, file) = resolve(base, uri).and_then(read).map_err(here)?;
@@ -184,11 +209,65 @@ impl<'a> Buffers<'a> {
             }
             out.data.push(Cow::Owned(bytes));
         }
+        out.decoded = (0..root.buffer_views.len()).map(|v| out.meshopt_view(v)).collect::<Result<_, _>>()?;
         Ok(out)
+    }
+
+    /// Buffer view `v` decoded, when `EXT_meshopt_compression` compresses it: its compressed
+    /// bytes (in the extension's buffer) through the extension's mode and filter, by the
+    /// `meshoptimizer-rs` crate, into `count` elements of `byteStride` bytes.
+    fn meshopt_view(&self, v: usize) -> Result<Option<(Vec<u8>, usize)>, String> {
+        let Some(view) = self.root.buffer_views.get(v) else { return Ok(None) };
+        let Some(ext) = view.extensions.as_ref().and_then(|e| e.others.get(MESHOPT)) else { return Ok(None) };
+        let bad = |what: &str| format!("buffer view {v}: {MESHOPT}: {what}");
+        let number = |key: &str| ext.get(key).and_then(|x| x.as_u64());
+        let (Some(buffer), Some(length), Some(stride), Some(count)) =
+            (number("buffer"), number("byteLength"), number("byteStride"), number("count"))
+        else {
+            return Err(bad("it needs `buffer`, `byteLength`, `byteStride` and `count`"));
+        };
+        let offset = number("byteOffset").unwrap_or(0);
+        let source = self.data.get(buffer as usize).ok_or_else(|| bad(&format!("no buffer {buffer}")))?;
+        let end = offset.checked_add(length).filter(|&e| e <= source.len() as u64).ok_or_else(|| {
+            bad(&format!(
+                "{length} bytes at {offset} run past the end of buffer {buffer} ({} bytes)",
+                source.len()
+            ))
+        })?;
+        if count > limits::MAX_ELEMENTS || stride > 256 {
+            return Err(bad(&format!(
+                "{count} elements of {stride} bytes, over the {} elements of at most 256 bytes it may hold",
+                limits::MAX_ELEMENTS
+            )));
+        }
+        use meshoptimizer_rs::codec::{Filter, Mode};
+        let mode = Mode::parse(ext.get("mode").and_then(|m| m.as_str()).unwrap_or(""))
+            .map_err(|_| bad("its `mode` is not ATTRIBUTES, TRIANGLES or INDICES"))?;
+        let filter = match ext.get("filter").and_then(|f| f.as_str()).unwrap_or("NONE") {
+            "NONE" => Filter::None,
+            "OCTAHEDRAL" => Filter::Octahedral,
+            "QUATERNION" => Filter::Quaternion,
+            "EXPONENTIAL" => Filter::Exponential,
+            other => return Err(bad(&format!("a filter `{other}` it does not know"))),
+        };
+        let compressed = &source[offset as usize..end as usize];
+        let decoded = meshoptimizer_rs::codec::decode_buffer_view(
+            mode,
+            filter,
+            count as usize,
+            stride as usize,
+            compressed,
+            &mut meshoptimizer_rs::Workspace::default(),
+        )
+        .map_err(|e| bad(&format!("cannot decode it: {e:?}")))?;
+        Ok(Some((decoded, stride as usize)))
     }
 
     /// The bytes of buffer view `v`, checked to lie inside its buffer.
     fn view(&self, v: usize) -> Result<(&[u8], Option<usize>), String> {
+        if let Some(Some((bytes, stride))) = self.decoded.get(v) {
+            return Ok((bytes, Some(*stride)));
+        }
         let view = self.root.buffer_views.get(v).ok_or_else(|| format!("no buffer view {v}"))?;
         let buffer =
             self.data.get(view.buffer.value()).ok_or_else(|| format!("buffer view {v}: no buffer"))?;

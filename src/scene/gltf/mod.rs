@@ -261,6 +261,7 @@ fn sampling(texture: &gltf::Texture, set: u32, notes: &mut Vec<String>) -> Sampl
 const READ_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
     "KHR_materials_clearcoat",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
@@ -281,7 +282,7 @@ const READ_RAW: &[&str] = &["KHR_materials_clearcoat", "KHR_materials_sheen"];
 /// do instead; `None` for any other extension.
 fn compressed_refusal(extension: &str) -> Option<String> {
     let (what, instead) = match extension {
-        "KHR_draco_mesh_compression" | "EXT_meshopt_compression" => (
+        "KHR_draco_mesh_compression" => (
             "compressed meshes",
             "write it with uncompressed meshes first (Blender's glTF importer reads it; export it again without compression)",
         ),
@@ -309,7 +310,8 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
     if let Some(refusal) = json.extensions_required.iter().find_map(|e| compressed_refusal(e)) {
         return Err(refusal);
     }
-    json.extensions_required.retain(|e| !READ_RAW.contains(&e.as_str()) && e != "KHR_mesh_quantization");
+    json.extensions_required
+        .retain(|e| !READ_RAW.contains(&e.as_str()) && e != "KHR_mesh_quantization" && e != data::MESHOPT);
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (k, primitive) in mesh.primitives.iter().enumerate() {
             for (semantic, a) in &primitive.attributes {
