@@ -223,3 +223,64 @@ fn obj_d_and_map_d_cut_and_blend() {
         assert!(se > 0.0 && (seen - 0.7).abs() < 5.0 * se, "{accel}: d 0.3: {seen} (standard error {se})");
     }
 }
+
+/// An emitter with a cut-out emits only where it is not cut, by light sampling as by rays that
+/// hit it: the floor beside an emitting quad whose left half is cut (MASK, an emissive factor)
+/// is as bright, within the noise, as beside an opaque quad whose left half emits nothing (an
+/// emissive texture black there). Light samples on the cut half would make it brighter.
+#[test]
+fn a_cut_out_emitter_emits_only_where_it_is_not_cut() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut png = Vec::new();
+    let mut image = image::RgbaImage::new(2, 1);
+    image.put_pixel(0, 0, image::Rgba([0, 0, 0, 0]));
+    image.put_pixel(1, 0, image::Rgba([255, 255, 255, 255]));
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
+    let write = |name: &str, material: serde_json::Value| {
+        let mut doc = GltfDoc::quad();
+        let texture = doc.texture(&png);
+        doc.json["samplers"] = json!([{"magFilter": 9728, "minFilter": 9728}]);
+        doc.json["textures"][texture]["sampler"] = json!(0);
+        let mut m = json!({"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0.0}});
+        for (k, v) in material.as_object().expect("keys") {
+            m[k] = v.clone();
+        }
+        doc.json["materials"] = json!([m]);
+        doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+        doc.node(json!({"mesh": 0}), true);
+        doc.write_gltf(dir.path(), name);
+    };
+    write(
+        "cut",
+        json!({"alphaMode": "MASK", "emissiveFactor": [1, 1, 1],
+            "pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "baseColorTexture": {"index": 0}, "metallicFactor": 0.0}}),
+    );
+    write("dark", json!({"emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": 0}}));
+    let floor = |accel: Backend, emitter: &str| {
+        let text = format!(
+            "[camera]\nposition = [0, 5, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, -1]\northographic = 4\n\
+             [[shape]]\ntype = \"quad\"\nvertices = [[-3, 0, -3], [-3, 0, 3], [3, 0, 3], [3, 0, -3]]\n\
+             [[shape]]\ntype = \"gltf\"\nfile = \"{emitter}.gltf\"\ntransform = {{ rotate = [90, 0, 0], translate = [0, 0.5, 0] }}\n"
+        );
+        let path = dir.path().join(format!("{emitter}.toml"));
+        std::fs::write(&path, text).expect("write");
+        let film = rendered(&lightsplit::scene::load(&path).expect("loads"), accel, 64);
+        // The floor from x = 0.75 to 1.75 (columns 44 to 60), beside the emitter.
+        (24..40u32)
+            .flat_map(|y| (44..60u32).map(move |x| (x, y)))
+            .map(|(x, y)| film.raw.get(x, y).x as f64)
+            .collect::<Vec<f64>>()
+    };
+    for accel in [Backend::Embree, Backend::Bvh] {
+        let (cut, dark) = (floor(accel, "cut"), floor(accel, "dark"));
+        // Pixel by pixel, so that the floor's falloff cancels and only the noise is left.
+        let differences: Vec<f64> = cut.iter().zip(&dark).map(|(a, b)| a - b).collect();
+        let (difference, se) = crate::common::mean_and_standard_error_of(&differences);
+        let lit = dark.iter().sum::<f64>() / dark.len() as f64;
+        assert!(lit > 0.0 && se > 0.0, "{accel}: the floor is lit");
+        assert!(
+            difference.abs() < 5.0 * se,
+            "{accel}: {difference} brighter beside the cut emitter than the half-dark one's {lit} (se {se})"
+        );
+    }
+}

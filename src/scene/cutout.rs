@@ -141,11 +141,18 @@ impl Cutouts {
         }
     }
 
-    /// The alpha of shape `shape` at a hit (1 for a shape without a cut-out): what a surface
-    /// is seen through, for emission sampled on it and for tests.
-    pub fn alpha(&self, shape: u32, prim: u32, u: f32, v: f32) -> f32 {
+    /// The fraction of rays that stop at this point of shape `shape` (1 for a shape without a
+    /// cut-out): a mask's 0 or 1, a blend's alpha. Light sampled on a cut-out emitter is
+    /// weighted by it, so that it agrees with what rays that hit the emitter see.
+    pub fn coverage(&self, shape: u32, prim: u32, u: f32, v: f32) -> f32 {
         match self.shapes.get(shape as usize) {
-            Some(Some(cut)) => cut.alpha(prim, u, v),
+            Some(Some(cut)) => {
+                let alpha = cut.alpha(prim, u, v);
+                match cut.mode {
+                    AlphaMode::Mask(cutoff) => f32::from(u8::from(alpha >= cutoff)),
+                    AlphaMode::Blend => alpha.clamp(0.0, 1.0),
+                }
+            }
             _ => 1.0,
         }
     }

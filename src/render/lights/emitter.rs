@@ -63,6 +63,9 @@ pub enum Emitter {
         triangles: Distribution1D,
         area: f32,
         emission: Vec3,
+        /// The scene's cut-outs, when this shape has one: a point sampled on it emits times
+        /// its coverage there ([`Cutouts::coverage`]), what a ray finding it sees on average.
+        cutouts: Option<std::sync::Arc<crate::scene::cutout::Cutouts>>,
     },
     Sphere {
         shape: u32,
@@ -153,13 +156,14 @@ impl Emitter {
                     light,
                 })
             }
-            Emitter::Mesh { shape, triangles, area, emission } => {
+            Emitter::Mesh { shape, triangles, area, emission, cutouts } => {
                 let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
                     return None;
                 };
                 // u.x picks the triangle, then, rescaled, the point within it.
                 let (t, _, ux) = triangles.sample_reuse(u.x);
                 let (q, n, magnitude, bary) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
+                let shape_index = *shape;
                 let shape = &scene.shapes[*shape as usize];
                 let radiance = match scene.maps(shape.material).emission {
                     Some(texture) => {
@@ -169,6 +173,10 @@ impl Emitter {
                         }
                     }
                     None => *emission,
+                };
+                let radiance = match cutouts {
+                    Some(c) => radiance * c.coverage(shape_index, t as u32, bary.x, bary.y),
+                    None => radiance,
                 };
                 area_sample(p, q, n, magnitude, radiance, select / area, light)
             }

@@ -41,6 +41,7 @@ impl Lights {
         let disc = PI * radius * radius;
         let mut lights = Lights { shape_light: vec![NONE; scene.shapes.len()], ..Default::default() };
         let mut power = Vec::new();
+        let cutouts = crate::scene::cutout::Cutouts::new(scene).map(std::sync::Arc::new);
 
         for light in &scene.lights {
             let (emitter, phi, diffuse_source) = match *light {
@@ -109,8 +110,9 @@ impl Lights {
                     let Some(triangles) = Distribution1D::new(&areas) else {
                         continue;
                     };
+                    let cutouts = cutouts.clone().filter(|c| c.cuts(i as u32));
                     let emitter =
-                        Emitter::Mesh { shape: i as u32, triangles, area, emission: shape.emission };
+                        Emitter::Mesh { shape: i as u32, triangles, area, emission: shape.emission, cutouts };
                     (emitter, area)
                 }
                 Geometry::Sphere { center, radius } => {
