@@ -67,6 +67,8 @@ fn a_mask_cuts_camera_rays_where_alpha_is_under_the_cutoff() {
     for accel in [Backend::Embree, Backend::Bvh] {
         let path = quad(dir.path(), "mask", json!({"alphaMode": "MASK"}), &[0, 255], true);
         let scene = lightsplit::scene::load(&path).expect("loads");
+        // `info` counts the shape as cut out.
+        assert_eq!(lightsplit::scene::analysis::Analysis::of(&scene).cut_outs, 1);
         let film = rendered(&scene, accel, 4);
         let (left, right) = (mean(&film.raw, 17..31, 17..47), mean(&film.raw, 33..47, 17..47));
         assert!(left > 0.99 && right < 0.2, "{accel}: left {left}, right {right}");

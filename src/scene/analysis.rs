@@ -81,6 +81,8 @@ pub struct Analysis {
     pub spheres: usize,
     /// Shapes (Embree geometries).
     pub shapes: usize,
+    /// Shapes with a cut-out (alpha), whose hits both backends test.
+    pub cut_outs: usize,
 }
 
 impl Analysis {
@@ -104,6 +106,8 @@ impl Analysis {
             shared_meshes: 0,
             spheres: 0,
             shapes: scene.shapes.len(),
+            cut_outs: super::cutout::Cutouts::new(scene)
+                .map_or(0, |c| (0..scene.shapes.len() as u32).filter(|&s| c.cuts(s)).count()),
         };
         let mut shared = std::collections::HashSet::new();
         for shape in &scene.shapes {
@@ -219,6 +223,9 @@ impl fmt::Display for Analysis {
                 " ({} instances of {} shared meshes; {} triangles stored)",
                 self.instances, self.shared_meshes, self.stored_triangles
             )?;
+        }
+        if self.cut_outs > 0 {
+            write!(f, "; {} shapes with cut-outs (alpha-tested hits)", self.cut_outs)?;
         }
         writeln!(f)?;
         writeln!(
