@@ -9,6 +9,7 @@ pub mod file;
 pub mod gltf;
 pub mod image;
 pub mod limits;
+pub mod mitsuba;
 pub mod noise;
 pub mod obj;
 pub mod ply;

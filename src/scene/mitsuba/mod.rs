@@ -1,0 +1,4 @@
+//! Mitsuba 3 scene XML (issue 38, in progress): [`xml`] reads a file into a tree of objects;
+//! turning that tree into a [`crate::scene::Scene`] is next.
+
+pub mod xml;
