@@ -48,32 +48,24 @@ impl PinholeCamera {
         }
     }
 
-    /// Whether rays leave a lens (and so draw two numbers for the point on it).
-    pub fn has_lens(&self) -> bool {
-        self.lens.is_some()
-    }
-
     /// The ray of a path sample through pixel `(x, y)`: its position in the pixel from
-    /// `sampler`, and with a lens the point on the lens too.
+    /// `sampler`, and with a lens the point on the lens too (two more numbers).
     #[inline]
     pub fn generate(&self, x: u32, y: u32, sampler: &mut crate::render::sampler::Sampler) -> Ray {
         let offset = sampler.pixel_2d();
         match self.lens {
             None => self.ray(x, y, offset),
-            Some(_) => self.lens_ray(x, y, offset, sampler.lens_2d()),
+            Some(lens) => self.lens_ray(self.ray(x, y, offset), lens, sampler.lens_2d()),
         }
     }
 
-    /// The ray through the film position `pixel + offset` that leaves the lens at `lens` (in
-    /// [0, 1)^2, mapped to the disc by Shirley and Chiu's concentric map): it passes where the
-    /// pinhole ray meets the plane of focus, so that plane is sharp (pbrt's thin lens).
-    pub fn lens_ray(&self, x: u32, y: u32, offset: Vec2, lens: Vec2) -> Ray {
-        let pinhole = self.ray(x, y, offset);
-        let Some((across, up, focus)) = self.lens else { return pinhole };
+    /// The pinhole ray `pinhole` as it leaves `lens` (the vectors across it, its focus distance)
+    /// at `u` (in [0, 1)^2, mapped to the disc by Shirley and Chiu's concentric map): it passes
+    /// where the pinhole ray meets the plane of focus, so that plane is sharp (pbrt's thin lens).
+    fn lens_ray(&self, pinhole: Ray, (across, up, focus): (Vec3, Vec3, f32), u: Vec2) -> Ray {
         // The pinhole ray's point on the plane of focus, `focus` along the view.
-        let t = focus / pinhole.dir.dot(self.forward);
-        let target = pinhole.at(t);
-        let d = crate::math::concentric_disk(lens);
+        let target = pinhole.at(focus / pinhole.dir.dot(self.forward));
+        let d = crate::math::concentric_disk(u);
         let origin = pinhole.origin + across * d.x + up * d.y;
         Ray::new(origin, (target - origin).normalize())
     }

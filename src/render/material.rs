@@ -27,8 +27,9 @@ pub struct Shading<'a> {
     shape: &'a Shape,
     s: &'a Surface,
     maps: &'a Maps,
-    /// The width across the surface (scene units) that an image lookup covers: 0 for a point.
-    footprint: f32,
+    /// The width that an image lookup covers in each set of texture coordinates (0 and 1): 0
+    /// for a point.
+    footprint: [f32; 2],
 }
 
 impl<'a> Shading<'a> {
@@ -37,37 +38,35 @@ impl<'a> Shading<'a> {
     #[inline(always)]
     pub fn new(scene: &'a Scene, shape: &'a Shape, s: &'a Surface, textured: bool) -> Self {
         let maps = if textured { scene.maps(shape.material) } else { &Maps::NONE };
-        Shading { scene, shape, s, maps, footprint: 0.0 }
+        Shading { scene, shape, s, maps, footprint: [0.0; 2] }
     }
 
     /// Image lookups cover `width` (scene units) across the surface, filtered by their mipmaps
-    /// (as a path's cone sees it: [`crate::render::integrator::Cone`]).
+    /// (as a path's cone sees it: [`crate::render::integrator::Cone`]): in each set of texture
+    /// coordinates, the width times the triangle's coordinates per unit length (the square root
+    /// of its area in (u, v) over its area in the scene), once for every lookup of the hit; 0 on
+    /// a sphere or without coordinates (point lookups).
     #[inline(always)]
     pub fn set_footprint(&mut self, width: f32) {
-        self.footprint = width;
-    }
-
-    /// The footprint in texture `t`'s coordinates: the width across the surface times the
-    /// triangle's texture coordinates per unit length (the square root of its area in (u, v)
-    /// over its area in the scene); 0 on a sphere or without coordinates (a point lookup).
-    fn uv_width(&self, t: &Texture) -> f32 {
-        if self.footprint <= 0.0 {
-            return 0.0;
+        // A material that reads no texture makes no lookup.
+        if *self.maps == Maps::NONE {
+            return;
         }
-        let crate::scene::Geometry::Triangles(mesh) = &self.shape.geometry else { return 0.0 };
-        let (Some(uvs), Some(&[ia, ib, ic])) = (mesh.uvs(t.set()), mesh.indices.get(self.s.prim as usize))
-        else {
-            return 0.0;
-        };
-        let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO);
-        let (a, b, c) = (uv(ia), uv(ib), uv(ic));
-        let uv_area = (b - a).perp_dot(c - a).abs();
+        let crate::scene::Geometry::Triangles(mesh) = &self.shape.geometry else { return };
+        let Some(&[ia, ib, ic]) = mesh.indices.get(self.s.prim as usize) else { return };
         let [p, q, r] = mesh.triangle(self.s.prim);
         let area = (q - p).cross(r - p).length();
-        if area > 0.0 && uv_area.is_finite() {
-            self.footprint * (uv_area / area).sqrt()
-        } else {
-            0.0
+        if !(width > 0.0 && area > 0.0) {
+            return;
+        }
+        for (set, out) in self.footprint.iter_mut().enumerate() {
+            let Some(uvs) = mesh.uvs(set as u8) else { continue };
+            let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO);
+            let (a, b, c) = (uv(ia), uv(ib), uv(ic));
+            let uv_area = (b - a).perp_dot(c - a).abs();
+            if uv_area.is_finite() {
+                *out = width * (uv_area / area).sqrt();
+            }
         }
     }
 
@@ -99,8 +98,9 @@ impl<'a> Shading<'a> {
     #[inline(always)]
     fn read(&self, t: u32) -> Vec3 {
         let texture = self.texture(t);
-        match self.footprint > 0.0 && matches!(texture, Texture::Image { .. }) {
-            true => texture.color_over(self.point(texture), self.uv(texture), self.uv_width(texture)),
+        let width = self.footprint[usize::from(texture.set() == 1)];
+        match width > 0.0 && matches!(texture, Texture::Image { .. }) {
+            true => texture.color_over(self.point(texture), self.uv(texture), width),
             false => texture.color(self.point(texture), self.uv(texture)),
         }
     }
