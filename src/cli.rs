@@ -78,6 +78,15 @@ pub struct RunArgs {
     pub json: bool,
 }
 
+/// `-D name=value`: a Mitsuba XML scene's parameters, as Mitsuba's own `-D`. Shared by the
+/// commands that read a scene.
+#[derive(clap::Args, Clone, Default)]
+pub struct Defines {
+    /// Set the Mitsuba XML scene's parameter `$NAME` (over its `<default>`); repeatable.
+    #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = define)]
+    pub define: Vec<(String, String)>,
+}
+
 /// `bench-features`.
 #[derive(clap::Args)]
 pub struct BenchFeaturesArgs {
@@ -99,6 +108,9 @@ pub struct BenchFeaturesArgs {
     /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
     pub run: RunArgs,
+    /// `-D name=value`.
+    #[command(flatten)]
+    pub defines: Defines,
 }
 
 /// `info`.
@@ -112,6 +124,9 @@ pub struct InfoArgs {
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
+    /// `-D name=value`.
+    #[command(flatten)]
+    pub defines: Defines,
 }
 
 /// `stress`.
@@ -182,6 +197,9 @@ pub struct ConvergeArgs {
     /// The output directory.
     #[arg(long)]
     pub out: PathBuf,
+    /// `-D name=value`.
+    #[command(flatten)]
+    pub defines: Defines,
 }
 
 /// How to filter: shared by `render` and `filter`.
@@ -389,6 +407,9 @@ pub struct RenderArgs {
     /// hierarchy) or its name (the camera's, else its node's); the first by default.
     #[arg(long, value_name = "NAME|INDEX")]
     pub camera: Option<String>,
+    /// `-D name=value`.
+    #[command(flatten)]
+    pub defines: Defines,
     /// Print each dropped non-finite sample (the first 20): its pixel, sample index and path.
     #[arg(long)]
     pub debug_nonfinite: bool,
@@ -468,6 +489,15 @@ where
     T::Err: Display,
 {
     number(text, |n| n >= T::from(1), "at least 1")
+}
+
+/// `NAME=VALUE` of `-D`: a parameter name as Mitsuba's (letters, digits, `_`), any value.
+fn define(text: &str) -> Result<(String, String), String> {
+    let (name, value) = text.split_once('=').ok_or("expected NAME=VALUE")?;
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return Err(format!("`{name}` is not a parameter name (letters, digits and _)"));
+    }
+    Ok((name.to_owned(), value.to_owned()))
 }
 
 /// An image side: 1 to [`limits::MAX_SIZE`] pixels, as in a scene file.

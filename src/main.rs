@@ -163,19 +163,32 @@ fn progress_bar(total: u64, quiet: bool) -> ProgressBar {
 }
 
 /// Loads a scene and the filter setting its `[filter]` section asks for: a bad section is a bad
-/// scene, whether or not the command filters.
-fn load_scene(path: &Path) -> Result<(scene::Scene, Setting), Failure> {
-    load_scene_with_camera(path, None)
+/// scene, whether or not the command filters. `defines` are `-D`'s parameters.
+fn load_scene(path: &Path, defines: &cli::Defines) -> Result<(scene::Scene, Setting), Failure> {
+    load_scene_with(path, &scene::LoadOptions { camera: None, defines: defines.define.clone() })
 }
 
-/// [`load_scene`] through a glTF file's camera `camera` (`render --camera`).
-fn load_scene_with_camera(path: &Path, camera: Option<&str>) -> Result<(scene::Scene, Setting), Failure> {
-    let scene = scene::load_with_camera(path, camera)?;
+/// [`load_scene`] with the command line's choices (`render --camera`, `-D`).
+fn load_scene_with(path: &Path, options: &scene::LoadOptions) -> Result<(scene::Scene, Setting), Failure> {
+    let scene = scene::load_with(path, options)?;
     for note in &scene.notes {
-        eprintln!("note: {}: {note}", path.display());
+        // A note that begins with its own place (a Mitsuba file's "file:line: ...") keeps it.
+        match begins_with_place(note) {
+            true => eprintln!("note: {note}"),
+            false => eprintln!("note: {}: {note}", path.display()),
+        }
     }
     let filter = Setting::of_scene(&scene)?;
     Ok((scene, filter))
+}
+
+/// Whether `note` begins "file:line: ", its first word (up to a space) ending in ":<digits>:".
+fn begins_with_place(note: &str) -> bool {
+    let head = note.split(' ').next().unwrap_or("");
+    let Some(rest) = head.strip_suffix(':') else { return false };
+    rest.rsplit_once(':').is_some_and(|(file, line)| {
+        !file.is_empty() && !line.is_empty() && line.bytes().all(|b| b.is_ascii_digit())
+    })
 }
 
 /// The output of a render of `scene` when none is named: its stem, as an EXR, here.

@@ -7,7 +7,7 @@ use crate::cli::InfoArgs;
 use crate::{default_output, load_scene, Failure};
 
 pub fn info_command(args: InfoArgs) -> Result<(), Failure> {
-    let (scene, scene_filter) = load_scene(&args.scene)?;
+    let (scene, scene_filter) = load_scene(&args.scene, &args.defines)?;
     let output = args.output.clone().unwrap_or_else(|| default_output(&args.scene));
     let format = film::check_output(&output)?;
     let setting = args.out.check(&scene_filter, format)?;

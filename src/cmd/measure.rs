@@ -19,7 +19,7 @@ pub fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     // Every scene loads before anything is measured, so a bad file costs no waiting.
     let mut scenes = Vec::new();
     for path in &args.scenes {
-        scenes.push(load_scene(path)?.0);
+        scenes.push(load_scene(path, &crate::cli::Defines::default())?.0);
     }
     let options = lightsplit::bench::BenchAccelOptions {
         rays: args.rays,
@@ -75,7 +75,7 @@ pub fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     use lightsplit::bench::features;
     // Every scene is loaded before any is measured, so a bad file fails at once.
     let scenes =
-        args.scenes.iter().map(|p| load_scene(p).map(|(s, f)| (p, s, f))).collect::<Result<Vec<_>, _>>()?;
+        args.scenes.iter().map(|p| load_scene(p, &args.defines).map(|(s, f)| (p, s, f))).collect::<Result<Vec<_>, _>>()?;
     let options = features::BenchFeaturesOptions {
         width: args.width,
         height: args.height,
@@ -145,7 +145,7 @@ pub fn stress_command(args: StressArgs) -> Result<(), Failure> {
 
 pub fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     use lightsplit::converge::{self, Event, Plan};
-    let (scene, _) = load_scene(&args.scene)?;
+    let (scene, _) = load_scene(&args.scene, &args.defines)?;
     if args.diff_spp.is_some_and(|d| !args.spp.contains(&d)) {
         return Err(Failure::input("--diff-spp must be one of the --spp values"));
     }

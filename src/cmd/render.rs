@@ -4,13 +4,16 @@
 use std::sync::atomic::Ordering;
 
 use lightsplit::job::{Job, Request};
-use lightsplit::{film, output};
+use lightsplit::{film, output, scene};
 
 use crate::cli::RenderArgs;
-use crate::{default_output, load_scene_with_camera, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
+use crate::{default_output, load_scene_with, progress_bar, Failure, GRACEFUL, STOP, STOPPED_BY};
 
 pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
-    let (mut scene, scene_filter) = load_scene_with_camera(&args.scene, args.camera.as_deref())?;
+    let (mut scene, scene_filter) = load_scene_with(
+        &args.scene,
+        &scene::LoadOptions { camera: args.camera.clone(), defines: args.defines.define.clone() },
+    )?;
     if let Some(environment) = &args.environment {
         scene.set_environment(environment)?;
     }

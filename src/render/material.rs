@@ -6,8 +6,10 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
+use super::bsdf::microfacet::Microfacet;
 use super::bsdf::{
-    alpha, dielectric_f0, Bsdf, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr, Principled, SheenLobe,
+    alpha, dielectric_f0, Black, Bsdf, Conductor, Dielectric, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr,
+    Plastic, Principled, SheenLobe,
 };
 use super::surface::{apply_height, apply_normal_map, valid_reflection, Surface};
 use crate::math::Frame;
@@ -142,6 +144,28 @@ impl<'a> Shading<'a> {
         apply_normal_map(ns, self.s.dpdu, self.s.dpdv, Vec3::new(c.x * scale, c.y * scale, c.z))
     }
 
+    /// The shading frame at normal `n`: along the surface's u direction where the material is
+    /// anisotropic (Mitsuba's frame, its s axis along dp/du), any frame otherwise.
+    #[inline(always)]
+    fn frame(&self, n: Vec3, aligned: bool) -> Frame {
+        let s = self.s.dpdu - n * n.dot(self.s.dpdu);
+        match aligned && s.length_squared() > 0.0 {
+            true => {
+                let s = s.normalize();
+                Frame { s, t: n.cross(s), n }
+            }
+            false => Frame::new(n),
+        }
+    }
+
+    /// Whether a microfacet lobe is wide enough to count as a D vertex in the split: as wide as
+    /// a glossy lobe of the scene's diffuse roughness ([`crate::scene::DIFFUSE_ROUGHNESS`],
+    /// alpha being roughness squared).
+    #[inline(always)]
+    fn counts_diffuse(&self, f: Microfacet) -> bool {
+        f.alpha_u.max(f.alpha_v).sqrt() >= crate::scene::DIFFUSE_ROUGHNESS
+    }
+
     /// The material's colour: its texture's where it has one, else `constant`; times the
     /// vertex colour.
     #[inline(always)]
@@ -172,9 +196,56 @@ impl<'a> Shading<'a> {
     /// the geometric normal points to).
     #[inline(always)]
     pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, bent: Vec3, wo: Vec3, entering: bool, u: U) -> U::Output {
+        self.material_bsdf(&self.scene.materials[self.shape.material as usize], n, bent, wo, entering, u)
+    }
+
+    /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps).
+    #[inline(always)]
+    fn material_bsdf<U: UseBsdf>(
+        &self,
+        material: &Material,
+        n: Vec3,
+        bent: Vec3,
+        wo: Vec3,
+        entering: bool,
+        u: U,
+    ) -> U::Output {
         // (Made only for the materials with a diffuse base under glossy lobes.)
         let base_frame = || (bent != n).then(|| Frame::new(bent));
-        match &self.scene.materials[self.shape.material as usize] {
+        match material {
+            Material::Front(inner) => match entering {
+                true => self.material_bsdf(inner, n, bent, wo, entering, u),
+                false => u.with(&Black),
+            },
+            Material::Conductor(c) => u.with(&Conductor {
+                frame: self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
+                eta: c.eta,
+                k: c.k,
+                specular: c.specular,
+                facets: c.facets,
+                rough: c.facets.is_some_and(|f| self.counts_diffuse(f)),
+            }),
+            Material::Dielectric(d) => u.with(&Dielectric {
+                eta: d.eta,
+                reflectance: d.reflectance,
+                transmittance: d.transmittance,
+                n,
+                entering,
+                thin: d.thin,
+            }),
+            Material::Plastic(p) => {
+                let diffuse = self.color(p.diffuse);
+                let internal = if p.nonlinear { diffuse * p.internal } else { Vec3::splat(p.internal) };
+                u.with(&Plastic {
+                    frame: Frame::new(n),
+                    eta: p.eta,
+                    diffuse: diffuse / (Vec3::ONE - internal).max(Vec3::splat(1e-6)),
+                    specular: p.specular,
+                    specular_weight: p.specular_weight,
+                    facets: p.facets.as_ref().map(|(f, table)| (*f, table.as_ref())),
+                    rough: p.facets.as_ref().is_some_and(|(f, _)| self.counts_diffuse(*f)),
+                })
+            }
             &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
             &Material::Mirror { color } => u.with(&Mirror { color, n }),
             &Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),

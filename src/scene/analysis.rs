@@ -149,7 +149,25 @@ impl Analysis {
             if !used[m] {
                 continue;
             }
+            let mut material = material;
+            while let Material::Front(inner) = material {
+                material = inner;
+            }
             match material {
+                Material::Front(_) => {}
+                Material::Conductor(c) => match c.facets {
+                    Some(_) => a.lobes.glossy = true,
+                    None => a.lobes.mirror = true,
+                },
+                Material::Dielectric(_) => a.lobes.glass = true,
+                Material::Plastic(p) => {
+                    a.lobes.diffuse = true;
+                    a.lobes.glossy_base = true;
+                    match p.facets {
+                        Some(_) => a.lobes.glossy = true,
+                        None => a.lobes.mirror = true,
+                    }
+                }
                 Material::Diffuse { .. } => a.lobes.diffuse = true,
                 Material::Mirror { .. } => a.lobes.mirror = true,
                 Material::Glass { .. } => a.lobes.glass = true,

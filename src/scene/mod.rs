@@ -25,6 +25,7 @@ use std::sync::Arc;
 use glam::{Affine3A, DVec3, Mat3A, Vec2, Vec3, Vec3A};
 
 pub use file::{FilterSection, KernelSpec};
+pub use mitsuba::materials::{ConductorMaterial, DielectricMaterial, PlasticMaterial};
 
 /// Loads a scene: a glTF file (`.gltf`, `.glb`) as a whole scene, any other as a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -34,17 +35,40 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// [`load`], a glTF file rendered through the camera `camera` names (its index from 0, or its
 /// name); any other file refuses the choice.
 pub fn load_with_camera(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
+    load_with(path, &LoadOptions { camera: camera.map(str::to_owned), defines: Vec::new() })
+}
+
+/// What the command line adds to a scene file: a glTF file's camera (`--camera`) and a Mitsuba
+/// file's parameters (`-D name=value`). Each is refused by a file of another kind.
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// A glTF file's camera: its index from 0 or its name.
+    pub camera: Option<String>,
+    /// A Mitsuba XML file's `$name` parameters, which take precedence over its `<default>`s.
+    pub defines: Vec<(String, String)>,
+}
+
+/// [`load`] with the command line's [`LoadOptions`].
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if let (Some(choice), false) = (camera, matches!(ext.as_deref(), Some("gltf" | "glb"))) {
+    if let (Some(choice), false) = (&options.camera, matches!(ext.as_deref(), Some("gltf" | "glb"))) {
         return Err(SceneError::new(
             path,
             None,
             format!("--camera `{choice}` picks one of a glTF file's cameras; this is not a glTF file"),
         ));
     }
+    if let (Some((name, _)), false) = (options.defines.first(), ext.as_deref() == Some("xml")) {
+        return Err(SceneError::new(
+            path,
+            None,
+            format!("-D {name}=... sets a parameter of a Mitsuba XML scene; this is not an XML file"),
+        ));
+    }
     match ext.as_deref() {
-        Some("gltf" | "glb") => gltf::scene(path, camera),
+        Some("gltf" | "glb") => gltf::scene(path, options.camera.as_deref()),
         Some("obj" | "ply") => file::mesh_scene(path),
+        Some("xml") => mitsuba::scene(path, &options.defines),
         _ => file::load(path),
     }
     .and_then(|scene| scene.check_extent().map(|()| scene))
@@ -215,6 +239,15 @@ pub enum Material {
     /// glTF's metallic-roughness material with its layers (specular, ior, transmission,
     /// clearcoat, sheen): [`crate::render::bsdf::Principled`].
     Layered(Box<Layered>),
+    /// Mitsuba's `conductor` and `roughconductor` ([`crate::render::bsdf::Conductor`]).
+    Conductor(Box<ConductorMaterial>),
+    /// Mitsuba's `dielectric` and `thindielectric` ([`crate::render::bsdf::Dielectric`]).
+    Dielectric(Box<DielectricMaterial>),
+    /// Mitsuba's `plastic` and `roughplastic` ([`crate::render::bsdf::Plastic`]).
+    Plastic(Box<PlasticMaterial>),
+    /// A material that scatters from its front only (the side the geometric normal points
+    /// to) and is black from behind: a Mitsuba BSDF outside a `twosided`.
+    Front(Box<Material>),
 }
 
 /// glTF's layered material: metallic-roughness and the layers of its material extensions.

@@ -8,23 +8,30 @@
 //! Directions are in world space, unit, pointing away from the surface; a BSDF is built at one
 //! shading point with its shading normal already on the side the path arrived from.
 
+mod conductor;
+mod dielectric;
 mod diffuse;
 mod ggx;
 mod glass;
 mod glossy;
+pub mod microfacet;
 mod mirror;
 mod pbr;
+pub mod plastic;
 mod principled;
 mod sheen;
 #[cfg(test)]
 mod tests;
 
+pub use conductor::Conductor;
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use ggx::{GlossyLobes, SpecularAlbedo};
 pub use glass::Glass;
 pub use glossy::Glossy;
 pub use mirror::Mirror;
 pub use pbr::Pbr;
+pub use plastic::Plastic;
 pub use principled::{dielectric_f0, InsideAlbedo, Principled};
 pub use sheen::SheenLobe;
 
@@ -113,6 +120,28 @@ pub trait Bsdf {
         let mut pdf = 0.0;
         self.eval_lobes(wo, wi, |_, _, lobe_pdf| pdf += lobe_pdf);
         pdf
+    }
+}
+
+/// Nothing: the back of a one-sided material, where a path ends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Black;
+
+impl Bsdf for Black {
+    fn lobe(&self) -> Option<Lobe> {
+        Some(Lobe::Diffuse)
+    }
+
+    fn scatters(&self, _wo: Vec3) -> bool {
+        false
+    }
+
+    fn albedo(&self, _: Lobe) -> Vec3 {
+        Vec3::ZERO
+    }
+
+    fn sample(&self, _wo: Vec3, _u: &mut Sampler) -> Option<BsdfSample> {
+        None
     }
 }
 

@@ -91,21 +91,43 @@ impl Object {
 const PROPERTY_TAGS: &[&str] =
     &["float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector"];
 
+/// Where a scene's relative file names are looked for, as Mitsuba's file resolver: the
+/// directory of the scene file first (for the files its includes name too, wherever those
+/// are), then each `<path value="..."/>` in the order given.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Resolver {
+    dirs: Vec<PathBuf>,
+}
+
+impl Resolver {
+    /// The first directory holding `name`, else the scene's own (so that the error names it).
+    pub fn resolve(&self, name: &str) -> PathBuf {
+        let name = Path::new(name);
+        if name.is_absolute() {
+            return name.to_path_buf();
+        }
+        let found = self.dirs.iter().map(|d| d.join(name)).find(|p| p.exists());
+        found.unwrap_or_else(|| self.dirs[0].join(name))
+    }
+}
+
 /// Reads `path` as a scene: its root object (`<scene>`), with `overrides` (`-D name=value`)
-/// taking precedence over its `<default>`s.
-pub fn read(path: &Path, overrides: &[(String, String)]) -> Result<Object, String> {
+/// taking precedence over its `<default>`s, and where its files are looked for.
+pub fn read(path: &Path, overrides: &[(String, String)]) -> Result<(Object, Resolver), String> {
     let mut params: HashMap<String, String> = overrides.iter().cloned().collect();
-    let mut reader = Reader { params: &mut params, depth: 0 };
+    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
+    let mut reader = Reader { params: &mut params, depth: 0, resolver: Resolver { dirs: vec![dir] } };
     let root = reader.file(path)?;
     if root.tag != "scene" {
         return Err(format!("{}: the root element is <{}>, not <scene>", root.at, root.tag));
     }
-    Ok(root)
+    Ok((root, reader.resolver))
 }
 
 struct Reader<'a> {
     params: &'a mut HashMap<String, String>,
     depth: usize,
+    resolver: Resolver,
 }
 
 impl Reader<'_> {
@@ -162,7 +184,7 @@ impl Reader<'_> {
                         ));
                     }
                     let name = self.required(file, child, "filename")?;
-                    let path = file.path.parent().unwrap_or(Path::new(".")).join(&name);
+                    let path = self.resolver.resolve(&name);
                     self.depth += 1;
                     let included =
                         self.file(&path).map_err(|e| format!("{}: include `{name}`: {e}", file.place(child)));
@@ -174,6 +196,10 @@ impl Reader<'_> {
                     } else {
                         object.children.push(Child::Object(included));
                     }
+                }
+                "path" => {
+                    let dir = self.resolver.resolve(&self.required(file, child, "value")?);
+                    self.resolver.dirs.push(dir);
                 }
                 "ref" => object.children.push(Child::Ref {
                     id: self.required(file, child, "id")?,
@@ -461,7 +487,7 @@ mod tests {
   <film type="hdrfilm"><integer name="width" value="$res$res"/><string name="cost" value="\$5"/></film>
 </scene>"#,
         );
-        let root = read(&p, &[("res".into(), "2".into())]).expect("reads");
+        let (root, _) = read(&p, &[("res".into(), "2".into())]).expect("reads");
         let kids: Vec<&Object> = root
             .children
             .iter()
@@ -489,7 +515,7 @@ mod tests {
 <shape type="cube"><transform name="to_world"><matrix value="1 0 0 5  0 1 0 6  0 0 1 7  0 0 0 1"/></transform></shape>
 </scene>"#,
         );
-        let root = read(&p, &[]).expect("reads");
+        let (root, _) = read(&p, &[]).expect("reads");
         let m = |k: usize| match &root.children[k] {
             Child::Object(o) => match o.get("to_world").map(|p| &p.value) {
                 Some(Value::Transform(m)) => *m,
@@ -523,7 +549,7 @@ mod tests {
             "main.xml",
             r#"<scene version="3.0.0"><include filename="part.xml"/><shape type="cube"><ref id="white"/></shape></scene>"#,
         );
-        let root = read(&p, &[]).expect("reads");
+        let (root, _) = read(&p, &[]).expect("reads");
         assert!(matches!(&root.children[0], Child::Object(o) if o.id.as_deref() == Some("white")));
         assert!(
             matches!(&root.children[1], Child::Object(o) if matches!(&o.children[0], Child::Ref { id, .. } if id == "white"))
@@ -542,7 +568,7 @@ mod tests {
             r#"<scene version="0.5.0"><bsdf type="dielectric"><float name="intIOR" value="1.5"/></bsdf>
 <sensor type="perspective"><transform name="toWorld"><lookAt origin="0 0 0" target="0 0 -1" up="0 1 0"/></transform></sensor></scene>"#,
         );
-        let root = read(&p, &[]).expect("reads");
+        let (root, _) = read(&p, &[]).expect("reads");
         let names: Vec<String> = root
             .children
             .iter()
