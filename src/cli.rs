@@ -324,6 +324,10 @@ pub struct CompareArgs {
     /// repeatable.
     #[arg(long = "region", value_name = "NAME=IDS")]
     pub regions: Vec<String>,
+    /// Also give how two renders of one scene agree: the channel means of both, and the worst
+    /// block of N x N pixels (its mean's largest relative difference in a channel).
+    #[arg(long, value_name = "N", value_parser = count::<u32>)]
+    pub blocks: Option<u32>,
     /// The EXR whose object-ID layer says which object each pixel shows (default: the test
     /// image), for --by-object and --region.
     #[arg(long, value_name = "EXR")]

@@ -67,6 +67,7 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         let image = metrics::difference_image(&test, &reference);
         film::write(&image, diff, 0.0)?;
     }
+    let agreement = args.blocks.map(|n| metrics::agreement(&test, &reference, n));
     if args.json {
         /// The whole image's errors, in their order, then the regions'.
         #[derive(serde::Serialize)]
@@ -75,8 +76,10 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
             errors: &'a metrics::Errors,
             #[serde(skip_serializing_if = "Option::is_none")]
             regions: Option<&'a [metrics::regions::RegionErrors]>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            agreement: Option<&'a metrics::Agreement>,
         }
-        let json = WithRegions { errors: &errors, regions: by_region.as_deref() };
+        let json = WithRegions { errors: &errors, regions: by_region.as_deref(), agreement: agreement.as_ref() };
         say!("{}", serde_json::to_string(&json).map_err(Failure::failed)?);
         return Ok(());
     }
@@ -90,6 +93,19 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         errors.rmse_trimmed,
         errors.relmse_trimmed
     );
+    if let Some(a) = &agreement {
+        let rgb = |v: [f64; 3]| format!("{:.6} {:.6} {:.6}", v[0], v[1], v[2]);
+        say!(
+            "means: {} against {} (largest difference {:.3}%); worst {n}x{n} block at ({}, {}): {:.3}%",
+            rgb(a.test_means),
+            rgb(a.reference_means),
+            100.0 * a.means_difference,
+            a.worst_block_at.0,
+            a.worst_block_at.1,
+            100.0 * a.worst_block_difference,
+            n = a.block
+        );
+    }
     if let Some(rows) = by_region {
         let width = rows.iter().map(|r| r.name.len()).max().unwrap_or(0).max(6);
         say!(

@@ -144,9 +144,89 @@ fn differences(test: &Image, reference: &Image) -> Vec<f32> {
     test.pixels.iter().zip(&reference.pixels).map(|(a, b)| (*a - *b).abs().max_element()).collect()
 }
 
+/// How two renders of one scene by two programs agree: their channel means, and the worst
+/// block of `size` x `size` pixels (blocks tile the image from the top left; those at the right
+/// and bottom edges are what is left).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Agreement {
+    /// The test image's mean R, G, B.
+    pub test_means: [f64; 3],
+    /// The reference's.
+    pub reference_means: [f64; 3],
+    /// The largest |test / reference - 1| of the three channel means.
+    pub means_difference: f64,
+    /// The block side.
+    pub block: u32,
+    /// The worst block's top-left pixel.
+    pub worst_block_at: (u32, u32),
+    /// Its difference: the largest over channels of |mean_t - mean_r| / (mean_r + floor),
+    /// where the floor is 1% of the reference's mean of that channel over the whole image (so
+    /// a block that is nearly black does not count tiny values as large ratios).
+    pub worst_block_difference: f64,
+}
+
+/// [`Agreement`] of `test` with `reference` (the same size, checked by [`compare`] first).
+pub fn agreement(test: &Image, reference: &Image, block: u32) -> Agreement {
+    let mean = |image: &Image, x0: u32, y0: u32, w: u32, h: u32| -> glam::DVec3 {
+        let mut sum = glam::DVec3::ZERO;
+        for y in y0..y0 + h {
+            for x in x0..x0 + w {
+                sum += image.pixels[(y * image.width + x) as usize].as_dvec3();
+            }
+        }
+        sum / (w as f64 * h as f64).max(1.0)
+    };
+    let (w, h) = (test.width, test.height);
+    let (t, r) = (mean(test, 0, 0, w, h), mean(reference, 0, 0, w, h));
+    let ratio = |a: f64, b: f64| if b > 0.0 { (a / b - 1.0).abs() } else if a == 0.0 { 0.0 } else { f64::INFINITY };
+    let means_difference = ratio(t.x, r.x).max(ratio(t.y, r.y)).max(ratio(t.z, r.z));
+    let floor = 0.01 * r;
+    let block = block.max(1);
+    let (mut worst, mut at) = (0.0f64, (0, 0));
+    for y0 in (0..h).step_by(block as usize) {
+        for x0 in (0..w).step_by(block as usize) {
+            let (bw, bh) = (block.min(w - x0), block.min(h - y0));
+            let (bt, br) = (mean(test, x0, y0, bw, bh), mean(reference, x0, y0, bw, bh));
+            let d = (bt - br).abs() / (br + floor).max(glam::DVec3::splat(f64::MIN_POSITIVE));
+            if d.max_element() > worst {
+                (worst, at) = (d.max_element(), (x0, y0));
+            }
+        }
+    }
+    Agreement {
+        test_means: t.to_array(),
+        reference_means: r.to_array(),
+        means_difference,
+        block,
+        worst_block_at: at,
+        worst_block_difference: worst,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One block 10% brighter in red is the worst, at its place; the means move by its share.
+    #[test]
+    fn agreement_finds_the_worst_block() {
+        let mut reference = Image::new(64, 48);
+        for p in &mut reference.pixels {
+            *p = Vec3::new(0.5, 0.25, 1.0);
+        }
+        let mut test = reference.clone();
+        for y in 32..48 {
+            for x in 32..64 {
+                test.pixels[y * 64 + x].x *= 1.1;
+            }
+        }
+        let a = agreement(&test, &reference, 32);
+        assert_eq!(a.worst_block_at, (32, 32));
+        assert!((a.worst_block_difference - 0.1 / 1.01).abs() < 1e-6, "{a:?}");
+        // 512 of 3072 pixels 10% brighter.
+        assert!((a.means_difference - 0.1 * 512.0 / 3072.0).abs() < 1e-6, "{a:?}");
+        assert_eq!(agreement(&reference, &reference, 32).worst_block_difference, 0.0);
+    }
 
     #[test]
     fn metrics_of_a_known_difference() {

@@ -21,6 +21,10 @@ impl RunKey {
         for path in &scene.inputs {
             key.file(path)?;
         }
+        for (name, value) in &scene.parameters {
+            key.bytes(format!("{}={}\0", name.len(), name).as_bytes());
+            key.bytes(value.as_bytes());
+        }
         Ok(key)
     }
 

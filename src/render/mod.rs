@@ -615,7 +615,7 @@ fn render_features<A: Accel, const F: u8>(
     let (split, guides) = (F & features::SPLIT != 0, F & features::GUIDES != 0);
     let start = Instant::now();
     let (width, height) = (options.width, options.height);
-    let camera = PinholeCamera::new(&scene.camera, width, height);
+    let camera = PinholeCamera::of_film(&scene.camera, &scene.film, width, height);
     let lights = Lights::new(scene);
     let faces = surface::FaceNormals::new(scene);
     let integrator: Integrator<'_, A, F> = Integrator {

@@ -159,12 +159,111 @@ impl Lens {
     }
 }
 
-/// Image size and samples per pixel.
+/// Image size, samples per pixel, the reconstruction filter and the crop window.
 #[derive(Clone, Copy, Debug)]
 pub struct FilmSettings {
     pub width: u32,
     pub height: u32,
     pub spp: u32,
+    /// How a pixel weighs the film around it.
+    pub pixel_filter: PixelFilter,
+    /// The film this image is a window of (a Mitsuba film's crop), when it is one.
+    pub window: Option<Window>,
+}
+
+impl FilmSettings {
+    /// `width` x `height` at `spp`, each sample in its own pixel (a box), no crop.
+    pub fn new(width: u32, height: u32, spp: u32) -> Self {
+        FilmSettings { width, height, spp, pixel_filter: PixelFilter::default(), window: None }
+    }
+}
+
+/// A crop: the image is the window of `width` x `height` pixels at (`x`, `y`) (from the top
+/// left) of a film of `film_width` x `film_height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub film_width: u32,
+    pub film_height: u32,
+    pub x: u32,
+    pub y: u32,
+}
+
+/// Steps of a filter across its radius ([`PixelFilter::eval`]): Mitsuba's `MI_FILTER_RESOLUTION`.
+pub const FILTER_STEPS: usize = 31;
+
+/// The reconstruction filter: the weight of a film position at offset `x` (in pixels, along one
+/// axis; the filter is separable, as Mitsuba's) from the pixel's centre. lightsplit draws each
+/// sample's position from the filter itself (filter importance sampling, as pbrt-v4), so a
+/// sample still counts in its own pixel with weight 1: sample-split parts, checkpoints and
+/// adaptive sampling are unchanged and merge exactly, and the image's expectation is the
+/// filtered one (each pixel's positions restricted to the image, as Mitsuba's film has no
+/// samples beyond its edge). Neighbouring pixels' noise stays independent, where a splatting
+/// film correlates it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PixelFilter {
+    /// Weight 1 within `radius`: 0.5 (the default) is each sample in its own pixel.
+    Box { radius: f32 },
+    /// `max(0, 1 - |x| / radius)`; Mitsuba's default radius is 1.
+    Tent { radius: f32 },
+    /// `exp(-x^2 / (2 stddev^2))` less its value at the radius, 4 stddev; Mitsuba's default
+    /// stddev is 0.5 (and the filter is its `hdrfilm`'s default).
+    Gaussian { stddev: f32 },
+}
+
+impl Default for PixelFilter {
+    fn default() -> Self {
+        PixelFilter::Box { radius: 0.5 }
+    }
+}
+
+impl PixelFilter {
+    /// How far from a pixel's centre its samples fall, in pixels.
+    pub fn radius(&self) -> f32 {
+        match *self {
+            PixelFilter::Box { radius } | PixelFilter::Tent { radius } => radius,
+            PixelFilter::Gaussian { stddev } => 4.0 * stddev,
+        }
+    }
+
+    /// The weight at offset `x` along one axis (not normalised), as Mitsuba's scalar variants
+    /// evaluate their filters: the value at the nearer end of the step holding `|x|`, of
+    /// [`FILTER_STEPS`] steps across the radius (`eval_discretized`), so that an image
+    /// compares with Mitsuba's pixel for pixel.
+    pub fn eval(&self, x: f64) -> f64 {
+        let r = self.radius() as f64;
+        if x.abs() >= r {
+            return 0.0;
+        }
+        let step = (x.abs() / r * FILTER_STEPS as f64).floor() * r / FILTER_STEPS as f64;
+        self.eval_exact(step)
+    }
+
+    /// The filter's own formula at `x` (`x` within the radius).
+    fn eval_exact(&self, x: f64) -> f64 {
+        match *self {
+            PixelFilter::Box { .. } => 1.0,
+            PixelFilter::Tent { radius } => (1.0 - x.abs() / radius as f64).max(0.0),
+            PixelFilter::Gaussian { stddev } => {
+                let r = self.radius() as f64;
+                let a = -0.5 / (stddev as f64 * stddev as f64);
+                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+            }
+        }
+    }
+
+    /// Whether this is the default: each sample uniform in its own pixel.
+    pub fn is_pixel_box(&self) -> bool {
+        *self == PixelFilter::default()
+    }
+
+    /// The filter's name and parameter, as `info` and the docs write it.
+    pub fn describe(&self) -> String {
+        match *self {
+            PixelFilter::Box { radius } => format!("box, radius {radius}"),
+            PixelFilter::Tent { radius } => format!("tent, radius {radius}"),
+            PixelFilter::Gaussian { stddev } => format!("gaussian, stddev {stddev}"),
+        }
+    }
 }
 
 /// The roughness from which a metallic-roughness material's GGX lobe counts as a D vertex in the
@@ -597,6 +696,9 @@ pub struct Scene {
     /// What a user should know of how the scene was read (what was left out, what was assumed),
     /// one line each: the commands print them.
     pub notes: Vec<String>,
+    /// The parameters the file was read with (`-D name=value` of a Mitsuba file), which a run
+    /// key counts as the files are.
+    pub parameters: Vec<(String, String)>,
 }
 
 /// The textures a material reads instead of its constants.

@@ -20,7 +20,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
             orthographic: None,
             lens: None,
         },
-        film: FilmSettings { width: 1, height: 1, spp: 1 },
+        film: FilmSettings::new(1, 1, 1),
         render: RenderSettings { max_depth: 1, seed: 0, sampler: Default::default() },
         materials: vec![Material::Diffuse { albedo: Vec3::ONE }],
         shapes: shapes
@@ -40,6 +40,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
         textures: vec![],
         maps: vec![],
         notes: vec![],
+        parameters: vec![],
     }
 }
 

@@ -268,6 +268,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         lights,
         objects: builder.objects,
         notes: builder.notes,
+        parameters: Vec::new(),
     })
 }
 

@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 
 use super::{dv3, v3, Ctx, F, V3};
 use crate::scene::SamplerKind;
-use crate::scene::{limits, Camera, FilmSettings, Lens, RenderSettings, SceneError};
+use crate::scene::{limits, Camera, FilmSettings, Lens, PixelFilter, RenderSettings, SceneError};
 
 /// `[camera]` as written.
 #[derive(Deserialize)]
@@ -35,6 +35,9 @@ pub(super) struct FileFilm {
     width: Option<Spanned<u32>>,
     height: Option<Spanned<u32>>,
     spp: Option<Spanned<u32>>,
+    pixel_filter: Option<Spanned<String>>,
+    pixel_filter_radius: Option<Spanned<f64>>,
+    pixel_filter_stddev: Option<Spanned<f64>>,
 }
 
 /// `[render]` as written.
@@ -161,6 +164,43 @@ pub(super) fn film(ctx: &Ctx, f: Option<&FileFilm>) -> Result<FilmSettings, Scen
         width: get(f.and_then(|f| f.width.as_ref()), "width", 256, limits::MAX_SIZE)?,
         height: get(f.and_then(|f| f.height.as_ref()), "height", 256, limits::MAX_SIZE)?,
         spp: get(f.and_then(|f| f.spp.as_ref()), "spp", 16, limits::MAX_SPP)?,
+        pixel_filter: match f {
+            Some(f) => pixel_filter(ctx, f)?,
+            None => PixelFilter::default(),
+        },
+        window: None,
+    })
+}
+
+/// `pixel_filter` with its `pixel_filter_radius` (box, tent) or `pixel_filter_stddev`
+/// (gaussian), Mitsuba's defaults: a box of radius 0.5 (each sample in its own pixel), a tent
+/// of radius 1, a Gaussian of stddev 0.5.
+fn pixel_filter(ctx: &Ctx, f: &FileFilm) -> Result<PixelFilter, SceneError> {
+    let value = |v: &Option<Spanned<f64>>, name: &str, default: f64| -> Result<f32, SceneError> {
+        match v {
+            Some(v) if !(*v.get_ref() > 0.0 && *v.get_ref() <= 16.0) => {
+                ctx.err(v.span(), format!("`{name}` must lie in (0, 16] pixels"))
+            }
+            Some(v) => Ok(*v.get_ref() as f32),
+            None => Ok(default as f32),
+        }
+    };
+    let kind = f.pixel_filter.as_ref().map(|k| (k.get_ref().as_str(), k.span()));
+    let (radius, stddev) = (&f.pixel_filter_radius, &f.pixel_filter_stddev);
+    let misplaced = match kind.as_ref().map(|k| k.0) {
+        Some("gaussian") => radius.as_ref().map(|r| (r.span(), "pixel_filter_radius", "a gaussian takes `pixel_filter_stddev`")),
+        _ => stddev.as_ref().map(|s| (s.span(), "pixel_filter_stddev", "only a gaussian takes it")),
+    };
+    if let Some((span, name, why)) = misplaced {
+        return ctx.err(span, format!("`{name}` does not apply here: {why}"));
+    }
+    Ok(match kind {
+        None | Some(("box", _)) => PixelFilter::Box { radius: value(radius, "pixel_filter_radius", 0.5)? },
+        Some(("tent", _)) => PixelFilter::Tent { radius: value(radius, "pixel_filter_radius", 1.0)? },
+        Some(("gaussian", _)) => PixelFilter::Gaussian { stddev: value(stddev, "pixel_filter_stddev", 0.5)? },
+        Some((other, span)) => {
+            return ctx.err(span, format!("unknown pixel_filter `{other}`: use box, tent or gaussian"))
+        }
     })
 }
 

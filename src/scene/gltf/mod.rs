@@ -1366,7 +1366,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             orthographic: camera.orthographic.map(|h| h as f32),
             lens: None,
         },
-        film: FilmSettings { width: WIDTH, height, spp: 16 },
+        film: FilmSettings::new(WIDTH, height, 16),
         render: RenderSettings { max_depth: 8, seed: 0, sampler: Default::default() },
         materials: placed.materials,
         shapes: placed.shapes,
@@ -1376,6 +1376,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
         textures: placed.textures,
         maps,
         notes,
+        parameters: Vec::new(),
     })
 }
 

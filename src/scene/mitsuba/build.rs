@@ -21,14 +21,16 @@ use crate::scene::environment::EnvironmentMap;
 use crate::scene::image::Image;
 use crate::scene::texture::{Sampling, Texture, Wrap};
 use crate::scene::{
-    Camera, FilmSettings, Geometry, Instance, Lens, Light, Maps, Material, Mesh, RenderSettings, Scene,
+    Camera, FilmSettings, PixelFilter, Window, Geometry, Instance, Lens, Light, Maps, Material, Mesh, RenderSettings, Scene,
     SceneError, Shape,
 };
 
 /// Reads Mitsuba scene `path`, `-D` `overrides` first.
 pub fn scene(path: &Path, overrides: &[(String, String)]) -> Result<Scene, SceneError> {
     let (root, resolver) = super::xml::read(path, overrides).map_err(|e| error(path, &e))?;
-    Builder::new(path, &root, resolver).and_then(|b| b.build()).map_err(|e| error(path, &e))
+    let mut scene = Builder::new(path, &root, resolver).and_then(|b| b.build()).map_err(|e| error(path, &e))?;
+    scene.parameters = overrides.to_vec();
+    Ok(scene)
 }
 
 /// A message "file:line: what" as a scene error of that file and line.
@@ -94,13 +96,14 @@ impl<'o> Builder<'o> {
     fn new(path: &Path, root: &'o Object, resolver: Resolver) -> Result<Self, String> {
         let mut ids = HashMap::new();
         collect_ids(root, &mut ids)?;
+        let inputs = resolver.files.clone();
         Ok(Builder {
             path: path.to_path_buf(),
             resolver,
             root,
             ids,
             notes: Vec::new(),
-            inputs: vec![path.to_path_buf()],
+            inputs,
             materials: Vec::new(),
             maps: Vec::new(),
             textures: Vec::new(),
@@ -226,6 +229,7 @@ impl<'o> Builder<'o> {
             textures: self.textures,
             maps,
             notes: self.notes,
+            parameters: Vec::new(),
         })
     }
 
@@ -240,10 +244,15 @@ impl<'o> Builder<'o> {
             ));
         }
         let films = self.children_tagged(s, "film")?;
-        let (width, height) = match films.first() {
+        let film = match films.first() {
             Some(f) => self.film(f)?,
-            None => DEFAULT_FILM,
+            None => FilmSettings {
+                pixel_filter: PixelFilter::Gaussian { stddev: 0.5 },
+                ..FilmSettings::new(DEFAULT_FILM.0, DEFAULT_FILM.1, 1)
+            },
         };
+        // The view is the whole film's, whatever part of it the image is.
+        let (width, height) = film.window.map_or((film.width, film.height), |w| (w.film_width, w.film_height));
         let samplers = self.children_tagged(s, "sampler")?;
         let (spp, seed) = match samplers.first() {
             Some(o) => {
@@ -287,7 +296,7 @@ impl<'o> Builder<'o> {
                 let d = (36.0f64 * 36.0 + 24.0 * 24.0).sqrt();
                 p.skip("fov_axis");
                 let diag = 2.0 * (d / (2.0 * f)).atan();
-                return self.camera_of(s, &p, position, forward, up, vertical_fov(diag.to_degrees(), "diagonal", aspect), (width, height), spp, seed);
+                return self.camera_of(s, &p, position, forward, up, vertical_fov(diag.to_degrees(), "diagonal", aspect), film, spp, seed);
             }
         };
         if !(fov > 0.0 && fov < 180.0) {
@@ -298,7 +307,7 @@ impl<'o> Builder<'o> {
             return Err(format!("{}: `fov_axis` `{axis}` is not x, y, diagonal, smaller or larger", s.at));
         }
         let vfov = vertical_fov(fov, axis, aspect);
-        self.camera_of(s, &p, position, forward, up, vfov, (width, height), spp, seed)
+        self.camera_of(s, &p, position, forward, up, vfov, film, spp, seed)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -310,7 +319,7 @@ impl<'o> Builder<'o> {
         forward: DVec3,
         up: DVec3,
         vfov: f64,
-        (width, height): (u32, u32),
+        film: FilmSettings,
         spp: u32,
         seed: u64,
     ) -> Result<(Camera, FilmSettings, u64, u32), String> {
@@ -340,10 +349,12 @@ impl<'o> Builder<'o> {
             orthographic: None,
             lens,
         };
-        Ok((camera, FilmSettings { width, height, spp }, seed, spp))
+        Ok((camera, FilmSettings { spp, ..film }, seed, spp))
     }
 
-    fn film(&mut self, f: &'o Object) -> Result<(u32, u32), String> {
+    /// The film: its size, its reconstruction filter (Mitsuba's default a Gaussian), and its
+    /// crop window; the samples per pixel are the sampler's.
+    fn film(&mut self, f: &'o Object) -> Result<FilmSettings, String> {
         let p = Props::new(f);
         if f.kind != "hdrfilm" {
             self.note(&f.at, format!("<film type=\"{}\"> is read as an hdrfilm", f.kind));
@@ -351,25 +362,53 @@ impl<'o> Builder<'o> {
         let w = p.integer("width", DEFAULT_FILM.0 as i64)?;
         let h = p.integer("height", DEFAULT_FILM.1 as i64)?;
         let size = |v: i64, name: &str| {
-            u32::try_from(v).ok().filter(|&v| v >= 1).ok_or_else(|| format!("{}: `{name}` must be at least 1, not {v}", f.at))
+            u32::try_from(v)
+                .ok()
+                .filter(|&v| (1..=crate::scene::limits::MAX_SIZE).contains(&v))
+                .ok_or_else(|| format!("{}: `{name}` must lie between 1 and {}, not {v}", f.at, crate::scene::limits::MAX_SIZE))
         };
         let (w, h) = (size(w, "width")?, size(h, "height")?);
+        let mut film = FilmSettings::new(w, h, 1);
         if ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"].iter().any(|k| p.has(k)) {
-            self.note(&f.at, "the film's crop window is not read: the whole film is rendered");
-            for k in ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"] {
-                p.skip(k);
+            let (x, y) = (p.integer("crop_offset_x", 0)?, p.integer("crop_offset_y", 0)?);
+            let (cw, ch) = (p.integer("crop_width", w as i64)?, p.integer("crop_height", h as i64)?);
+            if x < 0 || y < 0 || cw < 1 || ch < 1 || x + cw > w as i64 || y + ch > h as i64 {
+                return Err(format!("{}: the crop window {cw} x {ch} at ({x}, {y}) does not lie within the {w} x {h} film", f.at));
             }
+            film.width = cw as u32;
+            film.height = ch as u32;
+            film.window = Some(Window { film_width: w, film_height: h, x: x as u32, y: y as u32 });
         }
         for k in ["file_format", "pixel_format", "component_format", "banner", "high_quality_edges", "sample_border", "compensate", "rfilter"] {
             p.skip(k);
         }
-        for r in self.children_tagged(f, "rfilter")? {
-            if r.kind != "box" {
-                self.note(&r.at, format!("the `{}` reconstruction filter is not read: each sample counts in its own pixel (a box filter)", r.kind));
+        let filters = self.children_tagged(f, "rfilter")?;
+        film.pixel_filter = match filters.first() {
+            None => PixelFilter::Gaussian { stddev: 0.5 },
+            Some(r) => {
+                let rp = Props::new(r);
+                let positive = |v: f64, name: &str| match v > 0.0 && v <= 16.0 {
+                    true => Ok(v as f32),
+                    false => Err(format!("{}: the filter's `{name}` must lie in (0, 16], not {v}", r.at)),
+                };
+                let filter = match r.kind.as_str() {
+                    "box" => PixelFilter::Box { radius: positive(rp.float("radius", 0.5)?, "radius")? },
+                    "tent" => PixelFilter::Tent { radius: positive(rp.float("radius", 1.0)?, "radius")? },
+                    "gaussian" => PixelFilter::Gaussian { stddev: positive(rp.float("stddev", 0.5)?, "stddev")? },
+                    other => {
+                        self.note(&r.at, format!("the `{other}` reconstruction filter is not read: a Gaussian (stddev 0.5) stands in"));
+                        for k in ["b", "c", "lobes", "radius", "stddev"] {
+                            rp.skip(k);
+                        }
+                        PixelFilter::Gaussian { stddev: 0.5 }
+                    }
+                };
+                self.unread(&rp);
+                filter
             }
-        }
+        };
         self.unread(&p);
-        Ok((w, h))
+        Ok(film)
     }
 
     /// lightsplit's path length: Mitsuba's `max_depth` counts the camera ray's segment too.

@@ -97,6 +97,8 @@ const PROPERTY_TAGS: &[&str] =
 #[derive(Clone, Debug, PartialEq)]
 pub struct Resolver {
     dirs: Vec<PathBuf>,
+    /// The XML files read: the scene file and every file it includes.
+    pub files: Vec<PathBuf>,
 }
 
 impl Resolver {
@@ -116,7 +118,7 @@ impl Resolver {
 pub fn read(path: &Path, overrides: &[(String, String)]) -> Result<(Object, Resolver), String> {
     let mut params: HashMap<String, String> = overrides.iter().cloned().collect();
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut reader = Reader { params: &mut params, depth: 0, resolver: Resolver { dirs: vec![dir] } };
+    let mut reader = Reader { params: &mut params, depth: 0, resolver: Resolver { dirs: vec![dir], files: Vec::new() } };
     let root = reader.file(path)?;
     if root.tag != "scene" {
         return Err(format!("{}: the root element is <{}>, not <scene>", root.at, root.tag));
@@ -132,6 +134,9 @@ struct Reader<'a> {
 
 impl Reader<'_> {
     fn file(&mut self, path: &Path) -> Result<Object, String> {
+        if !self.resolver.files.iter().any(|f| f == path) {
+            self.resolver.files.push(path.to_path_buf());
+        }
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let doc = roxmltree::Document::parse(&text).map_err(|e| {
             let pos = e.pos();
