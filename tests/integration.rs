@@ -21,6 +21,7 @@ mod hardening;
 mod hostile_parts;
 mod hostile_scenes;
 mod instancing;
+mod mitsuba;
 mod nonfinite;
 mod parts;
 mod properties;

@@ -8,8 +8,8 @@ use glam::{DVec3, Vec2, Vec3};
 
 use super::bsdf::microfacet::Microfacet;
 use super::bsdf::{
-    alpha, dielectric_f0, Black, Bsdf, Conductor, Dielectric, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr,
-    Plastic, Principled, SheenLobe,
+    alpha, dielectric_f0, Black, Bsdf, Dielectric, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr,
+    Principled, SheenLobe,
 };
 use super::surface::{apply_height, apply_normal_map, valid_reflection, Surface};
 use crate::math::Frame;
@@ -217,14 +217,10 @@ impl<'a> Shading<'a> {
                 true => self.material_bsdf(inner, n, bent, wo, entering, u),
                 false => u.with(&Black),
             },
-            Material::Conductor(c) => u.with(&Conductor {
-                frame: self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
-                eta: c.eta,
-                k: c.k,
-                specular: c.specular,
-                facets: c.facets,
-                rough: c.facets.is_some_and(|f| self.counts_diffuse(f)),
-            }),
+            Material::Conductor(c) => u.with(&c.bsdf(
+                self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
+                c.facets.is_some_and(|f| self.counts_diffuse(f)),
+            )),
             Material::Dielectric(d) => u.with(&Dielectric {
                 eta: d.eta,
                 reflectance: d.reflectance,
@@ -233,19 +229,11 @@ impl<'a> Shading<'a> {
                 entering,
                 thin: d.thin,
             }),
-            Material::Plastic(p) => {
-                let diffuse = self.color(p.diffuse);
-                let internal = if p.nonlinear { diffuse * p.internal } else { Vec3::splat(p.internal) };
-                u.with(&Plastic {
-                    frame: Frame::new(n),
-                    eta: p.eta,
-                    diffuse: diffuse / (Vec3::ONE - internal).max(Vec3::splat(1e-6)),
-                    specular: p.specular,
-                    specular_weight: p.specular_weight,
-                    facets: p.facets.as_ref().map(|(f, table)| (*f, table.as_ref())),
-                    rough: p.facets.as_ref().is_some_and(|(f, _)| self.counts_diffuse(*f)),
-                })
-            }
+            Material::Plastic(p) => u.with(&p.bsdf(
+                self.color(p.diffuse),
+                Frame::new(n),
+                p.facets.as_ref().is_some_and(|(f, _)| self.counts_diffuse(*f)),
+            )),
             &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
             &Material::Mirror { color } => u.with(&Mirror { color, n }),
             &Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),

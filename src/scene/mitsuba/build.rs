@@ -14,8 +14,7 @@ use super::materials::{ConductorMaterial, DielectricMaterial, PlasticMaterial};
 use super::props::Props;
 use super::shapes::{self, RawMesh};
 use super::xml::{Child, Object, Place, Resolver};
-use crate::render::bsdf::microfacet::{fresnel_diffuse_reflectance, Distribution, Microfacet};
-use crate::render::bsdf::plastic::CoatingTable;
+use crate::render::bsdf::microfacet::{Distribution, Microfacet};
 use crate::scene::cutout::{Alpha, AlphaMode};
 use crate::scene::environment::EnvironmentMap;
 use crate::scene::image::Image;
@@ -667,26 +666,11 @@ impl<'o> Builder<'o> {
                     Some(Texture::Image { image, .. }) => image.mean().element_sum() / 3.0,
                     _ => diffuse.element_sum() / 3.0,
                 };
-                let s_mean = specular.element_sum() / 3.0;
-                let specular_weight = if d_mean + s_mean > 0.0 { s_mean / (d_mean + s_mean) } else { 1.0 };
-                let (facets, internal) = match b.kind.as_str() {
-                    "roughplastic" => {
-                        let f = self.microfacet(b, &p, false)?;
-                        let table = CoatingTable::new(&f, eta);
-                        let internal = table.internal_reflectance;
-                        (Some((f, Arc::new(table))), internal)
-                    }
-                    _ => (None, fresnel_diffuse_reflectance(1.0 / eta)),
+                let facets = match b.kind.as_str() {
+                    "roughplastic" => Some(self.microfacet(b, &p, false)?),
+                    _ => None,
                 };
-                one_sided(Material::Plastic(Box::new(PlasticMaterial {
-                    eta,
-                    diffuse,
-                    specular,
-                    internal,
-                    nonlinear,
-                    specular_weight,
-                    facets,
-                })))
+                one_sided(Material::Plastic(Box::new(PlasticMaterial::new(eta, diffuse, d_mean, specular, nonlinear, facets))))
             }
             other => {
                 self.note(&b.at, format!("<bsdf type=\"{other}\"> is not read: diffuse, reflectance 0.5"));
@@ -739,13 +723,7 @@ impl<'o> Builder<'o> {
             return Ok((eta, k));
         }
         let name = material.unwrap_or("none");
-        if name == "none" {
-            return Ok((Vec3::ZERO, Vec3::ONE));
-        }
-        match CONDUCTORS.iter().find(|(n, _, _)| *n == name) {
-            Some((_, eta, k)) => Ok((Vec3::from_array(*eta), Vec3::from_array(*k))),
-            None => Err(format!("{}: `{name}` is not one of Mitsuba's conductors", b.at)),
-        }
+        named_conductor(name).ok_or_else(|| format!("{}: `{name}` is not one of Mitsuba's conductors", b.at))
     }
 
     /// A colour that must be a value (no texture).
@@ -1165,6 +1143,16 @@ const IORS: &[(&str, f64)] = &[
 
 /// Mitsuba 3's conductors: the complex index (eta, k) its `scalar_rgb` variant makes of each
 /// tabulated spectrum (`scripts/mitsuba/conductors.py` prints them from Mitsuba 3.9.1).
+/// The index of refraction `eta + i k` of one of Mitsuba's named conductors (`Au`, `Cu`, ...,
+/// and `none`), reduced to RGB as its `scalar_rgb` variant does.
+pub fn named_conductor(name: &str) -> Option<(Vec3, Vec3)> {
+    // `none`: a perfect mirror (Fresnel 1 at every angle), Mitsuba's default.
+    if name == "none" {
+        return Some((Vec3::ZERO, Vec3::ONE));
+    }
+    CONDUCTORS.iter().find(|(n, _, _)| *n == name).map(|(_, eta, k)| (Vec3::from_array(*eta), Vec3::from_array(*k)))
+}
+
 const CONDUCTORS: &[(&str, [f32; 3], [f32; 3])] = &[
     ("a-C", [2.94405, 2.22714, 1.96816], [0.887465, 0.799299, 0.81529]),
     ("Ag", [0.155276, 0.116728, 0.138388], [4.82835, 3.12222, 2.1469]),

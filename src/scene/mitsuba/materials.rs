@@ -6,8 +6,10 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use crate::render::bsdf::microfacet::Microfacet;
-use crate::render::bsdf::plastic::CoatingTable;
+use crate::math::Frame;
+use crate::render::bsdf::microfacet::{fresnel_diffuse_reflectance, Microfacet};
+use crate::render::bsdf::plastic::{CoatingTable, Plastic};
+use crate::render::bsdf::Conductor;
 
 /// Mitsuba's `conductor` (no `facets`) and `roughconductor`.
 #[derive(Clone, Debug, PartialEq)]
@@ -16,6 +18,14 @@ pub struct ConductorMaterial {
     pub k: Vec3,
     pub specular: Vec3,
     pub facets: Option<Microfacet>,
+}
+
+impl ConductorMaterial {
+    /// The BSDF about `frame` (along the surface's first tangent when anisotropic); its rough
+    /// lobe counted diffuse in the split when `rough`.
+    pub fn bsdf(&self, frame: Frame, rough: bool) -> Conductor {
+        Conductor { frame, eta: self.eta, k: self.k, specular: self.specular, facets: self.facets, rough }
+    }
 }
 
 /// Mitsuba's `dielectric` and `thindielectric`: `eta` the interior's index over the
@@ -42,4 +52,40 @@ pub struct PlasticMaterial {
     /// mean over it and the diffuse reflectance's (the texture's mean where it has one).
     pub specular_weight: f32,
     pub facets: Option<(Microfacet, Arc<CoatingTable>)>,
+}
+
+impl PlasticMaterial {
+    /// A plastic of relative index `eta`, diffuse reflectance `diffuse` (its mean `diffuse_mean`:
+    /// a texture's, where it has one) and coating tint `specular`, smooth without `facets`, as
+    /// Mitsuba makes one: the coating's internal reflectance (the rough one's tabulated with its
+    /// transmittance), and the share of samples the coating gets.
+    pub fn new(eta: f32, diffuse: Vec3, diffuse_mean: f32, specular: Vec3, nonlinear: bool, facets: Option<Microfacet>) -> Self {
+        let s_mean = specular.element_sum() / 3.0;
+        let specular_weight =
+            if diffuse_mean + s_mean > 0.0 { s_mean / (diffuse_mean + s_mean) } else { 1.0 };
+        let (facets, internal) = match facets {
+            Some(f) => {
+                let table = CoatingTable::new(&f, eta);
+                let internal = table.internal_reflectance;
+                (Some((f, Arc::new(table))), internal)
+            }
+            None => (None, fresnel_diffuse_reflectance(1.0 / eta)),
+        };
+        PlasticMaterial { eta, diffuse, specular, internal, nonlinear, specular_weight, facets }
+    }
+
+    /// The BSDF about `frame` for the base colour `diffuse` (the material's, or its texture's
+    /// value here); the rough coating counted diffuse in the split when `rough`.
+    pub fn bsdf(&self, diffuse: Vec3, frame: Frame, rough: bool) -> Plastic<'_> {
+        let internal = if self.nonlinear { diffuse * self.internal } else { Vec3::splat(self.internal) };
+        Plastic {
+            frame,
+            eta: self.eta,
+            diffuse: diffuse / (Vec3::ONE - internal).max(Vec3::splat(1e-6)),
+            specular: self.specular,
+            specular_weight: self.specular_weight,
+            facets: self.facets.as_ref().map(|(f, table)| (*f, table.as_ref())),
+            rough,
+        }
+    }
 }

@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""Prints Mitsuba 3's own values (scalar_rgb) of the BSDFs lightsplit reads from Mitsuba files,
+for the test `mitsuba_bsdfs_agree_with_mitsubas_own_values` in src/render/bsdf/tests.rs: each
+case's f(wi, wo) cos(wo) at a handful of direction pairs, as Rust literals to paste there.
+
+    python3 scripts/mitsuba/bsdf_values.py      (with Mitsuba installed: pip install mitsuba)
+
+Directions are local (z the normal). Mitsuba's si.wi is lightsplit's `wo` (towards the viewer)
+and Mitsuba's `wo` is lightsplit's `wi` (towards the light).
+"""
+
+import math
+
+import mitsuba as mi
+
+mi.set_variant("scalar_rgb")
+
+CASES = [
+    ("ggx_conductor", {"type": "roughconductor", "distribution": "ggx", "alpha": 0.3,
+                       "eta": {"type": "rgb", "value": [0.2, 0.9, 1.1]},
+                       "k": {"type": "rgb", "value": [3.9, 2.4, 2.2]}}),
+    ("beckmann_anisotropic", {"type": "roughconductor", "distribution": "beckmann",
+                              "alpha_u": 0.1, "alpha_v": 0.4, "material": "Au"}),
+    ("rough_plastic", {"type": "roughplastic", "distribution": "ggx", "alpha": 0.2, "int_ior": 1.5,
+                       "diffuse_reflectance": {"type": "rgb", "value": [0.5, 0.3, 0.1]}}),
+    ("smooth_plastic", {"type": "plastic", "int_ior": 1.6,
+                        "diffuse_reflectance": {"type": "rgb", "value": [0.2, 0.6, 0.4]}}),
+]
+
+
+def direction(theta, phi):
+    t, p = math.radians(theta), math.radians(phi)
+    return [math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)]
+
+
+PAIRS = [((10, 0), (15, 180)), ((40, 30), (50, 200)), ((70, 90), (20, 270)), ((30, 0), (60, 100)), ((5, 0), (80, 45))]
+
+for name, spec in CASES:
+    bsdf = mi.load_dict(spec)
+    ctx = mi.BSDFContext()
+    print(f"// {name}")
+    for (a, b) in PAIRS:
+        si = mi.SurfaceInteraction3f()
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        si.wi = mi.Vector3f(*direction(*a))
+        v = bsdf.eval(ctx, si, mi.Vector3f(*direction(*b)))
+        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.7e}, {v[1]:.7e}, {v[2]:.7e}]),")
+
+# White furnaces: the mean sample weight (with its standard error) of the white rough
+# conductors (`none`: eta 0, k 1) at view angles 0, 45 and 80 degrees, azimuth 10, for
+# `mitsuba_bsdfs_sample_their_density_are_reciprocal_and_keep_energy`.
+import random
+
+random.seed(1)
+FURNACES = [
+    ("white_rough_ggx", {"type": "roughconductor", "distribution": "ggx", "alpha": 0.5}),
+    ("white_rough_beckmann", {"type": "roughconductor", "distribution": "beckmann", "alpha_u": 0.2, "alpha_v": 0.6}),
+]
+for name, spec in FURNACES:
+    bsdf = mi.load_dict(spec)
+    ctx = mi.BSDFContext()
+    row = []
+    for theta in (0.0, 45.0, 80.0):
+        si = mi.SurfaceInteraction3f()
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        si.wi = mi.Vector3f(*direction(theta, 10.0))
+        n, s, s2 = 100000, 0.0, 0.0
+        for _ in range(n):
+            _, w = bsdf.sample(ctx, si, random.random(), mi.Point2f(random.random(), random.random()))
+            s += w[0]
+            s2 += w[0] * w[0]
+        mean = s / n
+        row.append(f"({mean:.5f}, {math.sqrt(max(s2 / n - mean * mean, 0.0) / n):.5f})")
+    print(f'("{name}", [{", ".join(row)}]),')
