@@ -10,7 +10,8 @@ Run by scripts/compare-mitsuba.sh (which makes the virtual environment); by hand
 For each scene a copy of the file is written beside it (`.compare-NAME.xml`, removed at the end,
 so that its relative paths resolve as the original's do), its includes inlined and its
 parameters substituted, with only these changes: the film's size scaled to --size pixels on
-its longer side (the aspect kept), and the sampler's type and count. Both programs render that copy. Everything else (camera, filter, integrator and its
+its longer side (the aspect kept), the sampler's type and count, and the film's
+`high_quality_edges` (a Mitsuba 2 property that Mitsuba 3 refuses) left out. Both programs render that copy. Everything else (camera, filter, integrator and its
 max_depth, materials) is the scene's own.
 
 - References: lightsplit at --reference-spp with its default sampler, Mitsuba at --reference-spp
@@ -22,8 +23,8 @@ max_depth, materials) is the scene's own.
 - Equal-error time: each program renders at each of --spp (lightsplit with its default
   sampler; Mitsuba with each of `independent`, `stratified` and `multijitter`), timed: the
   render alone, no scene loading (lightsplit's own "in S s", Mitsuba's mi.render). The relative
-  RMSE (RMSE over the reference's mean) against its own reference is measured with
-  `lightsplit compare`; the time to reach the target error is read off the log-log line
+  RMSE (the square root of the per-pixel relative MSE, so that a few bright pixels do not
+  decide it) against its own reference is measured with `lightsplit compare`; the time to reach the target error is read off the log-log line
   through the measured points (extended with slope -1/2 past the ends). The target is the
   error Mitsuba's best sampler reaches at the middle of --spp. Rounds alternate the programs.
 
@@ -102,6 +103,9 @@ def scaled_copy(scene, size, sampler, spp):
     film = sensor.find("film")
     if film is None:
         film = ET.SubElement(sensor, "film", {"type": "hdrfilm"})
+    # Mitsuba 2's film property that Mitsuba 3 refuses as unreferenced (Bitterli's files have it).
+    for node in film.findall("boolean[@name='high_quality_edges']"):
+        film.remove(node)
     dims = {}
     for name in ("width", "height"):
         node = film.find(f"integer[@name='{name}']")
@@ -152,8 +156,11 @@ def compare(binary, test, reference, blocks=None):
     return json.loads(r.stdout)
 
 
-def relative_rmse(binary, test, reference, reference_mean):
-    return compare(binary, test, reference)["rmse"] / reference_mean
+def relative_rmse(binary, test, reference):
+    """The relative RMSE: the square root of `lightsplit compare`'s relMSE, the mean over
+    pixels and channels of (x - y)^2 / (y^2 + 0.01), so every pixel counts by its own
+    brightness rather than the brightest ones deciding."""
+    return math.sqrt(compare(binary, test, reference)["relmse"])
 
 
 def time_to(points, target):
@@ -231,19 +238,17 @@ def main():
                 block_noise(mi, np, lref, agree["worst_block_at"], 32),
                 block_noise(mi, np, mref, agree["worst_block_at"], 32),
             )
-            lmean = sum(agree["test_means"]) / 3.0
-            mmean = sum(agree["reference_means"]) / 3.0
             points = {"lightsplit": []}
             points.update({s: [] for s in MITSUBA_SAMPLERS})
             for r in range(a.rounds):
                 for spp in spps:
                     out = os.path.join(a.out, f"{name}-lightsplit-{spp}.exr")
                     t = lightsplit_render(a.lightsplit, copies["independent"], spp, out, a.threads)
-                    points["lightsplit"].append((t, relative_rmse(a.lightsplit, out, lref, lmean)))
+                    points["lightsplit"].append((t, relative_rmse(a.lightsplit, out, lref)))
                     for s in MITSUBA_SAMPLERS:
                         out = os.path.join(a.out, f"{name}-mitsuba-{s}-{spp}.exr")
                         t = mitsuba_render(mi, copies[s], spp, out, seed=r + 1)
-                        points[s].append((t, relative_rmse(a.lightsplit, out, mref, mmean)))
+                        points[s].append((t, relative_rmse(a.lightsplit, out, mref)))
                 note(f"{name}: round {r + 1} of {a.rounds} done")
         finally:
             for c in copies.values():
