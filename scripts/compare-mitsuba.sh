@@ -21,6 +21,7 @@
 #   --spp LIST           the sample counts timed, commas (default 4,16,64)
 #   --rounds N           timed rounds, alternating the programs (default 1)
 #   --threads N          threads for both programs (default: nproc)
+#   --keep DIR           keep the renders (EXR) and the measured points (rows.json) in DIR
 #   --no-write           print the table only; leave docs/RESULTS.md alone
 # Environment:
 #   LIGHTSPLIT=BIN       use this binary instead of building with `cargo build --profile dist`
@@ -39,15 +40,15 @@ bad_usage() { echo "compare-mitsuba: $*" >&2; echo "usage: scripts/compare-mitsu
 fail() { echo "compare-mitsuba: error: $*" >&2; exit 1; }
 note() { echo "compare-mitsuba: $*" >&2; }
 
-size=256 reference_spp=1024 spp=4,16,64 rounds=1 threads=$(nproc) write=1
+size=256 reference_spp=1024 spp=4,16,64 rounds=1 threads=$(nproc) write=1 keep=
 scenes=()
 while [ $# -gt 0 ]; do
     case $1 in
-        --size | --reference-spp | --spp | --rounds | --threads)
+        --size | --reference-spp | --spp | --rounds | --threads | --keep)
             [ $# -ge 2 ] || bad_usage "$1 needs a value"
             case $1 in
                 --size) size=$2 ;; --reference-spp) reference_spp=$2 ;; --spp) spp=$2 ;;
-                --rounds) rounds=$2 ;; --threads) threads=$2 ;;
+                --rounds) rounds=$2 ;; --threads) threads=$2 ;; --keep) keep=$2 ;;
             esac
             shift 2 ;;
         --no-write) write=0; shift ;;
@@ -91,7 +92,7 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
 
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/compare-mitsuba.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
-"$venv/bin/python" "$root/scripts/mitsuba/compare.py" --lightsplit "$lightsplit" --out "$tmp/out" \
+"$venv/bin/python" "$root/scripts/mitsuba/compare.py" --lightsplit "$lightsplit" --out "${keep:-$tmp/out}" \
     --size "$size" --reference-spp "$reference_spp" --spp "$spp" --rounds "$rounds" --threads "$threads" \
     --table "$tmp/table.md" "${scenes[@]}"
 [ "$write" = 1 ] || exit 0

@@ -222,15 +222,17 @@ def main():
     dr.set_thread_count(a.threads)
     os.makedirs(a.out, exist_ok=True)
     rows = []
+    # Each scene by its path from the directory the scenes share (two files may share a name).
+    paths = [os.path.abspath(s) for s in a.scenes]
+    common = os.path.commonpath([os.path.dirname(p) for p in paths])
     for scene in a.scenes:
-        name = os.path.splitext(os.path.basename(scene))[0]
-        if name == "scene":
-            name = os.path.basename(os.path.dirname(os.path.abspath(scene)))
+        name = os.path.relpath(os.path.abspath(scene), common)
+        stem = name.replace(os.sep, "-").removesuffix(".xml")
         copies = {s: scaled_copy(scene, a.size, s, a.reference_spp) for s in MITSUBA_SAMPLERS}
         try:
             note(f"{name}: references at {a.reference_spp} spp")
-            lref = os.path.join(a.out, f"{name}-lightsplit-ref.exr")
-            mref = os.path.join(a.out, f"{name}-mitsuba-ref.exr")
+            lref = os.path.join(a.out, f"{stem}-lightsplit-ref.exr")
+            mref = os.path.join(a.out, f"{stem}-mitsuba-ref.exr")
             lt_ref = lightsplit_render(a.lightsplit, copies["independent"], a.reference_spp, lref, a.threads)
             mt_ref = mitsuba_render(mi, copies["independent"], a.reference_spp, mref, seed=1000)
             agree = compare(a.lightsplit, lref, mref, blocks=32)["agreement"]
@@ -242,11 +244,11 @@ def main():
             points.update({s: [] for s in MITSUBA_SAMPLERS})
             for r in range(a.rounds):
                 for spp in spps:
-                    out = os.path.join(a.out, f"{name}-lightsplit-{spp}.exr")
+                    out = os.path.join(a.out, f"{stem}-lightsplit-{spp}.exr")
                     t = lightsplit_render(a.lightsplit, copies["independent"], spp, out, a.threads)
                     points["lightsplit"].append((t, relative_rmse(a.lightsplit, out, lref)))
                     for s in MITSUBA_SAMPLERS:
-                        out = os.path.join(a.out, f"{name}-mitsuba-{s}-{spp}.exr")
+                        out = os.path.join(a.out, f"{stem}-mitsuba-{s}-{spp}.exr")
                         t = mitsuba_render(mi, copies[s], spp, out, seed=r + 1)
                         points[s].append((t, relative_rmse(a.lightsplit, out, mref)))
                 note(f"{name}: round {r + 1} of {a.rounds} done")

@@ -13,6 +13,11 @@ pub fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let setting = args.out.check(&scene_filter, format)?;
     let analysis = scene::analysis::Analysis::of(&scene);
     say!("{}", args.scene.display());
+    let film = &scene.film;
+    let crop = film.window.map_or(String::new(), |w| {
+        format!(", the window at ({}, {}) of a {}x{} film", w.x, w.y, w.film_width, w.film_height)
+    });
+    say!("film: {}x{} at {} spp, pixel filter {}{crop}", film.width, film.height, film.spp, film.pixel_filter.describe());
     say!("{}", analysis.to_string().trim_end_matches('\n'));
     let Outputs { split, guides } = args.out.layer.reads(format, &setting);
     say!(

@@ -9,7 +9,7 @@ use glam::{DVec3, Vec2, Vec3};
 use super::bsdf::microfacet::Microfacet;
 use super::bsdf::{
     alpha, dielectric_f0, Black, Bsdf, Dielectric, Diffuse, Glass, Glossy, GlossyLobes, Mirror, Pbr,
-    Principled, SheenLobe,
+    Principled, RoughDielectric, SheenLobe,
 };
 use super::surface::{apply_height, apply_normal_map, valid_reflection, Surface};
 use crate::math::Frame;
@@ -221,14 +221,25 @@ impl<'a> Shading<'a> {
                 self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
                 c.facets.is_some_and(|f| self.counts_diffuse(f)),
             )),
-            Material::Dielectric(d) => u.with(&Dielectric {
-                eta: d.eta,
-                reflectance: d.reflectance,
-                transmittance: d.transmittance,
-                n,
-                entering,
-                thin: d.thin,
-            }),
+            Material::Dielectric(d) => match d.facets {
+                Some(facets) => u.with(&RoughDielectric {
+                    frame: self.frame(n, !facets.is_isotropic()),
+                    eta: d.eta,
+                    reflectance: d.reflectance,
+                    transmittance: d.transmittance,
+                    facets,
+                    entering,
+                    rough: self.counts_diffuse(facets),
+                }),
+                None => u.with(&Dielectric {
+                    eta: d.eta,
+                    reflectance: d.reflectance,
+                    transmittance: d.transmittance,
+                    n,
+                    entering,
+                    thin: d.thin,
+                }),
+            },
             Material::Plastic(p) => u.with(&p.bsdf(
                 self.color(p.diffuse),
                 Frame::new(n),

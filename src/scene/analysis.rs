@@ -159,7 +159,10 @@ impl Analysis {
                     Some(_) => a.lobes.glossy = true,
                     None => a.lobes.mirror = true,
                 },
-                Material::Dielectric(_) => a.lobes.glass = true,
+                Material::Dielectric(d) => {
+                    a.lobes.glass = true;
+                    a.lobes.glossy |= d.facets.is_some();
+                }
                 Material::Plastic(p) => {
                     a.lobes.diffuse = true;
                     a.lobes.glossy_base = true;

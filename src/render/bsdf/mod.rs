@@ -18,6 +18,7 @@ pub mod microfacet;
 mod mirror;
 mod pbr;
 pub mod plastic;
+mod rough_dielectric;
 mod principled;
 mod sheen;
 #[cfg(test)]
@@ -30,6 +31,7 @@ pub use ggx::{GlossyLobes, SpecularAlbedo};
 pub use glass::Glass;
 pub use glossy::Glossy;
 pub use mirror::Mirror;
+pub use rough_dielectric::RoughDielectric;
 pub use pbr::Pbr;
 pub use plastic::Plastic;
 pub use principled::{dielectric_f0, InsideAlbedo, Principled};

@@ -638,17 +638,16 @@ impl<'o> Builder<'o> {
                 }
                 let reflectance = self.plain_color(b, &p, "specular_reflectance", 1.0)?;
                 let transmittance = self.plain_color(b, &p, "specular_transmittance", 1.0)?;
-                if b.kind == "roughdielectric" {
-                    self.note(&b.at, "a roughdielectric is read as a smooth dielectric (its roughness is not read)");
-                    for k in ["distribution", "alpha", "alpha_u", "alpha_v", "sample_visible"] {
-                        p.skip(k);
-                    }
-                }
+                let facets = match b.kind.as_str() {
+                    "roughdielectric" => Some(self.microfacet(b, &p, true)?),
+                    _ => None,
+                };
                 Material::Dielectric(Box::new(DielectricMaterial {
                     eta: (int / ext) as f32,
                     reflectance,
                     transmittance,
                     thin: b.kind == "thindielectric",
+                    facets,
                 }))
             }
             "plastic" | "roughplastic" => {

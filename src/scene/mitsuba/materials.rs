@@ -28,14 +28,15 @@ impl ConductorMaterial {
     }
 }
 
-/// Mitsuba's `dielectric` and `thindielectric`: `eta` the interior's index over the
-/// exterior's.
+/// Mitsuba's `dielectric`, `thindielectric` and `roughdielectric` (with `facets`): `eta` the
+/// interior's index over the exterior's.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DielectricMaterial {
     pub eta: f32,
     pub reflectance: Vec3,
     pub transmittance: Vec3,
     pub thin: bool,
+    pub facets: Option<Microfacet>,
 }
 
 /// Mitsuba's `plastic` (no `facets`) and `roughplastic`.
