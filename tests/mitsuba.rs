@@ -64,7 +64,11 @@ fn a_diffuse_sphere_under_a_constant_sky_is_half_as_bright() {
     let (mean, se) = mean_and_standard_error_of(&centre);
     assert!((mean - 0.5).abs() < 4.0 * se + 1e-4, "sphere {mean} +- {se}");
     for (x, y) in [(0, 0), (31, 0), (0, 31), (31, 31)] {
-        assert!((image.get(x, y) - glam::Vec3::ONE).abs().max_element() < 1e-5, "corner {:?}", image.get(x, y));
+        assert!(
+            (image.get(x, y) - glam::Vec3::ONE).abs().max_element() < 1e-5,
+            "corner {:?}",
+            image.get(x, y)
+        );
     }
 }
 
@@ -90,7 +94,16 @@ fn parameters_and_crops_set_the_image() {
     assert_eq!((loaded.film.width, loaded.film.height), (12, 12));
     assert_eq!(scene::load(&path).expect("loads").film.width, 8);
     let out = dir.path().join("o.exr");
-    let o = lightsplit(&["render", path.to_str().unwrap(), "-D", "res=10", "--spp", "1", "-o", out.to_str().unwrap()]);
+    let o = lightsplit(&[
+        "render",
+        path.to_str().unwrap(),
+        "-D",
+        "res=10",
+        "--spp",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let image = lightsplit::film::read_image(&out).expect("reads");
     assert_eq!((image.width, image.height), (10, 10));
@@ -179,11 +192,31 @@ fn bad_files_are_one_error_with_file_and_line() {
     write(d, "a.xml", "<scene version=\"3.0.0\">\n<include filename=\"b.xml\"/>\n</scene>");
     write(d, "b.xml", "<scene version=\"3.0.0\">\n<include filename=\"a.xml\"/>\n</scene>");
     for (name, text, needles) in [
-        ("unclosed.xml", "<scene version=\"3.0.0\">\n<shape type=\"sphere\">\n</scene>".to_string(), vec!["unclosed.xml:", "not valid XML"]),
-        ("ref.xml", body("<shape type=\"sphere\"><ref id=\"nowhere\"/></shape>"), vec!["ref.xml:11:", "nowhere"]),
-        ("mesh.xml", body("<shape type=\"obj\"><string name=\"filename\" value=\"gone.obj\"/></shape>"), vec!["mesh.xml:11:", "gone.obj"]),
-        ("cycle.xml", "<scene version=\"3.0.0\">\n<include filename=\"a.xml\"/>\n</scene>".to_string(), vec!["cycle.xml:2:", "a cycle"]),
-        ("value.xml", body("<shape type=\"sphere\"><float name=\"radius\" value=\"wide\"/></shape>"), vec!["value.xml:11:", "wide"]),
+        (
+            "unclosed.xml",
+            "<scene version=\"3.0.0\">\n<shape type=\"sphere\">\n</scene>".to_string(),
+            vec!["unclosed.xml:", "not valid XML"],
+        ),
+        (
+            "ref.xml",
+            body("<shape type=\"sphere\"><ref id=\"nowhere\"/></shape>"),
+            vec!["ref.xml:11:", "nowhere"],
+        ),
+        (
+            "mesh.xml",
+            body("<shape type=\"obj\"><string name=\"filename\" value=\"gone.obj\"/></shape>"),
+            vec!["mesh.xml:11:", "gone.obj"],
+        ),
+        (
+            "cycle.xml",
+            "<scene version=\"3.0.0\">\n<include filename=\"a.xml\"/>\n</scene>".to_string(),
+            vec!["cycle.xml:2:", "a cycle"],
+        ),
+        (
+            "value.xml",
+            body("<shape type=\"sphere\"><float name=\"radius\" value=\"wide\"/></shape>"),
+            vec!["value.xml:11:", "wide"],
+        ),
     ] {
         let path = write(d, name, &text);
         let o = lightsplit(&["render", path.to_str().unwrap(), "-o", d.join("o.png").to_str().unwrap()]);
@@ -201,7 +234,9 @@ fn bad_files_are_one_error_with_file_and_line() {
 #[test]
 fn toml_pixel_filters() {
     let base = "[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[[shape]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
-    let with = |film: &str| scene::file::parse(Path::new("t.toml"), &format!("{base}[film]\nwidth = 8\nheight = 8\n{film}"));
+    let with = |film: &str| {
+        scene::file::parse(Path::new("t.toml"), &format!("{base}[film]\nwidth = 8\nheight = 8\n{film}"))
+    };
     assert_eq!(with("").expect("parses").film.pixel_filter, scene::PixelFilter::Box { radius: 0.5 });
     let tent = with("pixel_filter = \"tent\"\npixel_filter_radius = 1.5").expect("parses");
     assert_eq!(tent.film.pixel_filter, scene::PixelFilter::Tent { radius: 1.5 });
@@ -215,4 +250,38 @@ fn toml_pixel_filters() {
         let e = with(bad).expect_err(bad);
         assert!(e.to_string().contains(needle), "{bad}: {e}");
     }
+}
+
+/// A `mask`'s opacity from a colour bitmap is its luminance, its alpha channel dropped, as
+/// Mitsuba's `eval_1` reads it: a pure red RGBA image (alpha 1) is opacity 0.2127, so a black
+/// masked rectangle before a sky of radiance 1 shows 1 - 0.2127 of the sky (within 4
+/// standard errors of the pixels' spread), where its red channel or its alpha would hide all.
+#[test]
+fn a_mask_reads_a_colour_bitmap_by_its_luminance() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let red = image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 0, 0, 255]));
+    red.save(dir.path().join("red.png")).expect("png");
+    let text = format!(
+        r#"<scene version="3.0.0">
+    {}
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="3"/></transform>
+        <bsdf type="mask">
+            <texture type="bitmap" name="opacity"><string name="filename" value="red.png"/></texture>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+        </bsdf>
+    </shape>
+</scene>"#,
+        sensor("16", r#"<rfilter type="box"/>"#)
+    );
+    let path = write(dir.path(), "mask.xml", &text);
+    let scene = scene::load(&path).expect("loads");
+    let mut options = RenderOptions::from_scene(&scene);
+    options.spp = 64;
+    let out = render(&scene, &options, &|_| {}).expect("renders");
+    let values: Vec<f64> = out.film.raw.pixels.iter().map(|p| p.y as f64).collect();
+    let (mean, se) = mean_and_standard_error_of(&values);
+    let want = 1.0 - 0.212671;
+    assert!((mean - want).abs() < 4.0 * se + 1e-3, "{mean} +- {se}, want {want}");
 }

@@ -55,7 +55,7 @@ for name, spec in CASES:
         si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
         si.wi = mi.Vector3f(*direction(*a))
         v = bsdf.eval(ctx, si, mi.Vector3f(*direction(*b)))
-        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.7e}, {v[1]:.7e}, {v[2]:.7e}]),")
+        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.5e}, {v[1]:.5e}, {v[2]:.5e}]),")
 
 for name, pairs in GLASS_PAIRS.items():
     bsdf = mi.load_dict(GLASS)
@@ -66,7 +66,7 @@ for name, pairs in GLASS_PAIRS.items():
         si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
         si.wi = mi.Vector3f(*direction(*a))
         v = bsdf.eval(ctx, si, mi.Vector3f(*direction(*b)))
-        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.7e}, {v[1]:.7e}, {v[2]:.7e}]),")
+        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.5e}, {v[1]:.5e}, {v[2]:.5e}]),")
 
 # White furnaces: the mean sample weight (with its standard error) of the white rough
 # conductors (`none`: eta 0, k 1) at view angles 0, 45 and 80 degrees, azimuth 10, for

@@ -231,7 +231,7 @@ def main():
         copies = {s: scaled_copy(scene, a.size, s, a.reference_spp) for s in MITSUBA_SAMPLERS}
         try:
             note(f"{name}: references at {a.reference_spp} spp")
-            lref = os.path.join(a.out, f"{stem}-lightsplit-ref.exr")
+            lref = os.path.join(a.out, f"{stem}-lightsplit-ref.pfm")
             mref = os.path.join(a.out, f"{stem}-mitsuba-ref.exr")
             lt_ref = lightsplit_render(a.lightsplit, copies["independent"], a.reference_spp, lref, a.threads)
             mt_ref = mitsuba_render(mi, copies["independent"], a.reference_spp, mref, seed=1000)
@@ -244,7 +244,7 @@ def main():
             points.update({s: [] for s in MITSUBA_SAMPLERS})
             for r in range(a.rounds):
                 for spp in spps:
-                    out = os.path.join(a.out, f"{stem}-lightsplit-{spp}.exr")
+                    out = os.path.join(a.out, f"{stem}-lightsplit-{spp}.pfm")
                     t = lightsplit_render(a.lightsplit, copies["independent"], spp, out, a.threads)
                     points["lightsplit"].append((t, relative_rmse(a.lightsplit, out, lref)))
                     for s in MITSUBA_SAMPLERS:

@@ -79,7 +79,8 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
             #[serde(skip_serializing_if = "Option::is_none")]
             agreement: Option<&'a metrics::Agreement>,
         }
-        let json = WithRegions { errors: &errors, regions: by_region.as_deref(), agreement: agreement.as_ref() };
+        let json =
+            WithRegions { errors: &errors, regions: by_region.as_deref(), agreement: agreement.as_ref() };
         say!("{}", serde_json::to_string(&json).map_err(Failure::failed)?);
         return Ok(());
     }

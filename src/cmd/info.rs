@@ -17,7 +17,13 @@ pub fn info_command(args: InfoArgs) -> Result<(), Failure> {
     let crop = film.window.map_or(String::new(), |w| {
         format!(", the window at ({}, {}) of a {}x{} film", w.x, w.y, w.film_width, w.film_height)
     });
-    say!("film: {}x{} at {} spp, pixel filter {}{crop}", film.width, film.height, film.spp, film.pixel_filter.describe());
+    say!(
+        "film: {}x{} at {} spp, pixel filter {}{crop}",
+        film.width,
+        film.height,
+        film.spp,
+        film.pixel_filter.describe()
+    );
     say!("{}", analysis.to_string().trim_end_matches('\n'));
     let Outputs { split, guides } = args.out.layer.reads(format, &setting);
     say!(

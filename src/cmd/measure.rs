@@ -74,8 +74,11 @@ pub fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
 pub fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
     use lightsplit::bench::features;
     // Every scene is loaded before any is measured, so a bad file fails at once.
-    let scenes =
-        args.scenes.iter().map(|p| load_scene(p, &args.defines).map(|(s, f)| (p, s, f))).collect::<Result<Vec<_>, _>>()?;
+    let scenes = args
+        .scenes
+        .iter()
+        .map(|p| load_scene(p, &args.defines).map(|(s, f)| (p, s, f)))
+        .collect::<Result<Vec<_>, _>>()?;
     let options = features::BenchFeaturesOptions {
         width: args.width,
         height: args.height,

@@ -178,7 +178,15 @@ pub fn agreement(test: &Image, reference: &Image, block: u32) -> Agreement {
     };
     let (w, h) = (test.width, test.height);
     let (t, r) = (mean(test, 0, 0, w, h), mean(reference, 0, 0, w, h));
-    let ratio = |a: f64, b: f64| if b > 0.0 { (a / b - 1.0).abs() } else if a == 0.0 { 0.0 } else { f64::INFINITY };
+    let ratio = |a: f64, b: f64| {
+        if b > 0.0 {
+            (a / b - 1.0).abs()
+        } else if a == 0.0 {
+            0.0
+        } else {
+            f64::INFINITY
+        }
+    };
     let means_difference = ratio(t.x, r.x).max(ratio(t.y, r.y)).max(ratio(t.z, r.z));
     let floor = 0.01 * r;
     let block = block.max(1);

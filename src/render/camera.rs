@@ -316,14 +316,19 @@ mod tests {
             }
             let integral = |a: f64, b: f64| {
                 let m = 2000;
-                (0..m).map(|i| filter.eval(a + (b - a) * (i as f64 + 0.5) / m as f64)).sum::<f64>() * (b - a) / m as f64
+                (0..m).map(|i| filter.eval(a + (b - a) * (i as f64 + 0.5) / m as f64)).sum::<f64>() * (b - a)
+                    / m as f64
             };
             let total = integral(-r, r);
             for (b, &c) in counts.iter().enumerate() {
                 let a = -r + 2.0 * r * b as f64 / bins as f64;
                 let p = integral(a, a + 2.0 * r / bins as f64) / total;
                 let sigma = (n as f64 * p * (1.0 - p)).sqrt().max(1.0);
-                assert!((c as f64 - n as f64 * p).abs() < 6.0 * sigma, "{filter:?} bin {b}: {c} for {}", n as f64 * p);
+                assert!(
+                    (c as f64 - n as f64 * p).abs() < 6.0 * sigma,
+                    "{filter:?} bin {b}: {c} for {}",
+                    n as f64 * p
+                );
             }
             for (pixel, size) in [(0u32, 100u32), (99, 100)] {
                 for k in 0..1000 {
@@ -338,7 +343,14 @@ mod tests {
     /// A crop's pixel looks where the same pixel of the whole film does.
     #[test]
     fn a_crop_window_is_part_of_the_film() {
-        let cam = Camera { position: Vec3::ZERO, look_at: Vec3::Z, up: Vec3::Y, fov: 60.0, orthographic: None, lens: None };
+        let cam = Camera {
+            position: Vec3::ZERO,
+            look_at: Vec3::Z,
+            up: Vec3::Y,
+            fov: 60.0,
+            orthographic: None,
+            lens: None,
+        };
         let mut film = FilmSettings::new(20, 10, 1);
         film.window = Some(crate::scene::Window { film_width: 64, film_height: 48, x: 30, y: 5 });
         let crop = PinholeCamera::of_film(&cam, &film, 20, 10);

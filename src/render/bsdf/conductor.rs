@@ -68,7 +68,7 @@ impl Bsdf for Conductor {
             return None;
         }
         let (f, pdf) = Self::lobe(facets, self, wo_l, wi_l);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample { wi: self.frame.to_world(wi_l), weight: f * (wi_l.z / pdf), pdf, lobe: self.tag() })

@@ -36,8 +36,11 @@ impl Bsdf for Dielectric {
             if r < 1.0 {
                 r += (1.0 - r) * (1.0 - r) * r / (1.0 - r * r);
             }
-            let (wi, weight) =
-                if u.get_1d(Dim::Lobe) < r { (reflect(wo, self.n), self.reflectance) } else { (-wo, self.transmittance) };
+            let (wi, weight) = if u.get_1d(Dim::Lobe) < r {
+                (reflect(wo, self.n), self.reflectance)
+            } else {
+                (-wo, self.transmittance)
+            };
             return Some(BsdfSample { wi, weight, pdf: 1.0, lobe: Lobe::Delta });
         }
         let eta = if self.entering { self.eta } else { 1.0 / self.eta };

@@ -18,8 +18,8 @@ pub mod microfacet;
 mod mirror;
 mod pbr;
 pub mod plastic;
-mod rough_dielectric;
 mod principled;
+mod rough_dielectric;
 mod sheen;
 #[cfg(test)]
 mod tests;
@@ -31,10 +31,10 @@ pub use ggx::{GlossyLobes, SpecularAlbedo};
 pub use glass::Glass;
 pub use glossy::Glossy;
 pub use mirror::Mirror;
-pub use rough_dielectric::RoughDielectric;
 pub use pbr::Pbr;
 pub use plastic::Plastic;
 pub use principled::{dielectric_f0, InsideAlbedo, Principled};
+pub use rough_dielectric::RoughDielectric;
 pub use sheen::SheenLobe;
 
 use glam::Vec3;

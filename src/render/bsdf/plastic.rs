@@ -58,7 +58,7 @@ fn coating_integral(facets: &Microfacet, mu: f32, eta: f32, reflected: bool) -> 
         let u = Vec2::new(((k % n) as f32 + 0.5) / n as f32, ((k / n) as f32 + 0.5) / n as f32);
         let Some(m) = facets.sample(wi, u) else { continue };
         let pdf = facets.pdf(wi, m);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             continue;
         }
         // The visible normals' density over the one sampled.
@@ -140,7 +140,8 @@ impl Plastic<'_> {
     fn coat(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let Some((facets, _)) = &self.facets else { return (Vec3::ZERO, 0.0) };
         let h = (wo + wi).normalize();
-        let f = fresnel_dielectric(wo.dot(h), self.eta) * facets.d(h) * facets.g(wi, wo, h) / (4.0 * wo.z * wi.z);
+        let f =
+            fresnel_dielectric(wo.dot(h), self.eta) * facets.d(h) * facets.g(wi, wo, h) / (4.0 * wo.z * wi.z);
         (self.specular * f, facets.pdf(wo, h) / (4.0 * wo.dot(h)))
     }
 }
@@ -173,7 +174,12 @@ impl Bsdf for Plastic<'_> {
         if coat && self.facets.is_none() {
             let f = fresnel_dielectric(wo_l.z, self.eta);
             let wi = reflect(wo, self.frame.n);
-            return Some(BsdfSample { wi, weight: self.specular * (f / p_coat), pdf: 1.0, lobe: Lobe::Delta });
+            return Some(BsdfSample {
+                wi,
+                weight: self.specular * (f / p_coat),
+                pdf: 1.0,
+                lobe: Lobe::Delta,
+            });
         }
         let (wi_l, lobe) = match (coat, &self.facets) {
             (true, Some((facets, _))) => (reflect(wo_l, facets.sample(wo_l, dir)?), self.coat_tag()),
@@ -190,7 +196,7 @@ impl Bsdf for Plastic<'_> {
             let (f, pdf) = self.coat(wo_l, wi_l);
             (f, p_coat * pdf)
         };
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample { wi: self.frame.to_world(wi_l), weight: f * (wi_l.z / pdf), pdf, lobe })

@@ -109,15 +109,20 @@ impl Bsdf for RoughDielectric {
         if u.get_1d(Dim::Lobe) < fresnel {
             let wi = reflect(wo_l, m);
             let (value, pdf) = self.reflection(wo_l, wi);
-            if !(pdf > 0.0) {
+            if pdf.is_nan() || pdf <= 0.0 {
                 return None;
             }
             let weight = value * (wi.z / pdf);
-            return Some(BsdfSample { wi: self.frame.to_world(wi), weight, pdf, lobe: self.reflection_tag() });
+            return Some(BsdfSample {
+                wi: self.frame.to_world(wi),
+                weight,
+                pdf,
+                lobe: self.reflection_tag(),
+            });
         }
         let wi = refract(wo_l, m, eta, om);
         let (value, pdf) = self.transmission(wo_l, wi);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         Some(BsdfSample { wi: self.frame.to_world(wi), weight: value / pdf, pdf, lobe: Lobe::Delta })

@@ -188,7 +188,9 @@ fn pixel_filter(ctx: &Ctx, f: &FileFilm) -> Result<PixelFilter, SceneError> {
     let kind = f.pixel_filter.as_ref().map(|k| (k.get_ref().as_str(), k.span()));
     let (radius, stddev) = (&f.pixel_filter_radius, &f.pixel_filter_stddev);
     let misplaced = match kind.as_ref().map(|k| k.0) {
-        Some("gaussian") => radius.as_ref().map(|r| (r.span(), "pixel_filter_radius", "a gaussian takes `pixel_filter_stddev`")),
+        Some("gaussian") => radius
+            .as_ref()
+            .map(|r| (r.span(), "pixel_filter_radius", "a gaussian takes `pixel_filter_stddev`")),
         _ => stddev.as_ref().map(|s| (s.span(), "pixel_filter_stddev", "only a gaussian takes it")),
     };
     if let Some((span, name, why)) = misplaced {

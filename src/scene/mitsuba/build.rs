@@ -20,14 +20,15 @@ use crate::scene::environment::EnvironmentMap;
 use crate::scene::image::Image;
 use crate::scene::texture::{Sampling, Texture, Wrap};
 use crate::scene::{
-    Camera, FilmSettings, PixelFilter, Window, Geometry, Instance, Lens, Light, Maps, Material, Mesh, RenderSettings, Scene,
-    SceneError, Shape,
+    Camera, FilmSettings, Geometry, Instance, Lens, Light, Maps, Material, Mesh, PixelFilter, RenderSettings,
+    Scene, SceneError, Shape, Window,
 };
 
 /// Reads Mitsuba scene `path`, `-D` `overrides` first.
 pub fn scene(path: &Path, overrides: &[(String, String)]) -> Result<Scene, SceneError> {
     let (root, resolver) = super::xml::read(path, overrides).map_err(|e| error(path, &e))?;
-    let mut scene = Builder::new(path, &root, resolver).and_then(|b| b.build()).map_err(|e| error(path, &e))?;
+    let mut scene =
+        Builder::new(path, &root, resolver).and_then(|b| b.build()).map_err(|e| error(path, &e))?;
     scene.parameters = overrides.to_vec();
     Ok(scene)
 }
@@ -59,11 +60,17 @@ const DEFAULT_FILM: (u32, u32) = (768, 576);
 /// this long, far past where Russian roulette ends them.
 const UNLIMITED_DEPTH: u32 = 64;
 
-/// How an image texture is read: as colour (8-bit images sRGB-decoded) or as data.
+/// Mitsuba's luminance of linear sRGB (its `luminance()`).
+const MITSUBA_LUMINANCE: Vec3 = Vec3::new(0.212671, 0.715160, 0.072169);
+
+/// How an image texture is read: as colour (8-bit images sRGB-decoded) or as data; and for a
+/// scalar (`opacity`, `alpha`), reduced to its luminance in every channel, as Mitsuba's
+/// `eval_1` reads a colour bitmap (its alpha channel dropped).
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
 enum Decode {
     Color,
     Data,
+    Luminance { raw: bool },
 }
 
 /// What a shape group holds, in its own coordinates.
@@ -166,9 +173,9 @@ impl<'o> Builder<'o> {
     }
 
     fn file(&mut self, props: &Props, name: &str) -> Result<PathBuf, String> {
-        let file = props
-            .string(name)?
-            .ok_or_else(|| format!("{}: <{} type=\"{}\"> has no `{name}`", props.at(), props.object.tag, props.object.kind))?;
+        let file = props.string(name)?.ok_or_else(|| {
+            format!("{}: <{} type=\"{}\"> has no `{name}`", props.at(), props.object.tag, props.object.kind)
+        })?;
         let path = self.resolver.resolve(file);
         if !path.is_file() {
             return Err(format!("{}: `{file}` is not a file (resolved as {})", props.at(), path.display()));
@@ -200,7 +207,8 @@ impl<'o> Builder<'o> {
                 "emitter" if o.kind == "area" && o.id.is_some() => {}
                 "emitter" => self.emitter(o)?,
                 "sensor" | "integrator" | "bsdf" | "texture" => {}
-                "medium" => self.note(&o.at, format!("<medium type=\"{}\"> is not read: no participating media", o.kind)),
+                "medium" => self
+                    .note(&o.at, format!("<medium type=\"{}\"> is not read: no participating media", o.kind)),
                 other => self.note(&o.at, format!("<{other}> is not read")),
             }
         }
@@ -251,23 +259,30 @@ impl<'o> Builder<'o> {
             },
         };
         // The view is the whole film's, whatever part of it the image is.
-        let (width, height) = film.window.map_or((film.width, film.height), |w| (w.film_width, w.film_height));
+        let (width, height) =
+            film.window.map_or((film.width, film.height), |w| (w.film_width, w.film_height));
         let samplers = self.children_tagged(s, "sampler")?;
         let (spp, seed) = match samplers.first() {
             Some(o) => {
                 let sp = Props::new(o);
                 let spp = sp.integer("sample_count", 4)?;
                 let seed = sp.integer("seed", 0)?;
-                if !matches!(o.kind.as_str(), "independent" | "stratified" | "multijitter" | "ldsampler" | "orthogonal")
-                {
-                    self.note(&o.at, format!("<sampler type=\"{}\"> is not known: lightsplit's own sampler", o.kind));
+                if !matches!(
+                    o.kind.as_str(),
+                    "independent" | "stratified" | "multijitter" | "ldsampler" | "orthogonal"
+                ) {
+                    self.note(
+                        &o.at,
+                        format!("<sampler type=\"{}\"> is not known: lightsplit's own sampler", o.kind),
+                    );
                 }
                 sp.skip("jitter");
                 sp.skip("dimension");
                 self.unread(&sp);
-                let spp = u32::try_from(spp).ok().filter(|&n| n >= 1).ok_or_else(|| {
-                    format!("{}: `sample_count` must be at least 1, not {spp}", o.at)
-                })?;
+                let spp = u32::try_from(spp)
+                    .ok()
+                    .filter(|&n| n >= 1)
+                    .ok_or_else(|| format!("{}: `sample_count` must be at least 1, not {spp}", o.at))?;
                 (spp, seed.unsigned_abs())
             }
             None => (4, 0),
@@ -288,14 +303,25 @@ impl<'o> Builder<'o> {
             (f, _) if !f.is_nan() => f,
             (_, focal) => {
                 let mm = focal.unwrap_or("50mm");
-                let f: f64 = mm.trim_end_matches("mm").trim().parse().map_err(|_| {
-                    format!("{}: `focal_length` `{mm}` is not a length in millimetres", s.at)
-                })?;
+                let f: f64 =
+                    mm.trim_end_matches("mm").trim().parse().map_err(|_| {
+                        format!("{}: `focal_length` `{mm}` is not a length in millimetres", s.at)
+                    })?;
                 // Mitsuba's: the diagonal of a 36 x 24 mm frame.
                 let d = (36.0f64 * 36.0 + 24.0 * 24.0).sqrt();
                 p.skip("fov_axis");
                 let diag = 2.0 * (d / (2.0 * f)).atan();
-                return self.camera_of(s, &p, position, forward, up, vertical_fov(diag.to_degrees(), "diagonal", aspect), film, spp, seed);
+                return self.camera_of(
+                    s,
+                    &p,
+                    position,
+                    forward,
+                    up,
+                    vertical_fov(diag.to_degrees(), "diagonal", aspect),
+                    film,
+                    spp,
+                    seed,
+                );
             }
         };
         if !(fov > 0.0 && fov < 180.0) {
@@ -361,10 +387,15 @@ impl<'o> Builder<'o> {
         let w = p.integer("width", DEFAULT_FILM.0 as i64)?;
         let h = p.integer("height", DEFAULT_FILM.1 as i64)?;
         let size = |v: i64, name: &str| {
-            u32::try_from(v)
-                .ok()
-                .filter(|&v| (1..=crate::scene::limits::MAX_SIZE).contains(&v))
-                .ok_or_else(|| format!("{}: `{name}` must lie between 1 and {}, not {v}", f.at, crate::scene::limits::MAX_SIZE))
+            u32::try_from(v).ok().filter(|&v| (1..=crate::scene::limits::MAX_SIZE).contains(&v)).ok_or_else(
+                || {
+                    format!(
+                        "{}: `{name}` must lie between 1 and {}, not {v}",
+                        f.at,
+                        crate::scene::limits::MAX_SIZE
+                    )
+                },
+            )
         };
         let (w, h) = (size(w, "width")?, size(h, "height")?);
         let mut film = FilmSettings::new(w, h, 1);
@@ -372,13 +403,25 @@ impl<'o> Builder<'o> {
             let (x, y) = (p.integer("crop_offset_x", 0)?, p.integer("crop_offset_y", 0)?);
             let (cw, ch) = (p.integer("crop_width", w as i64)?, p.integer("crop_height", h as i64)?);
             if x < 0 || y < 0 || cw < 1 || ch < 1 || x + cw > w as i64 || y + ch > h as i64 {
-                return Err(format!("{}: the crop window {cw} x {ch} at ({x}, {y}) does not lie within the {w} x {h} film", f.at));
+                return Err(format!(
+                    "{}: the crop window {cw} x {ch} at ({x}, {y}) does not lie within the {w} x {h} film",
+                    f.at
+                ));
             }
             film.width = cw as u32;
             film.height = ch as u32;
             film.window = Some(Window { film_width: w, film_height: h, x: x as u32, y: y as u32 });
         }
-        for k in ["file_format", "pixel_format", "component_format", "banner", "high_quality_edges", "sample_border", "compensate", "rfilter"] {
+        for k in [
+            "file_format",
+            "pixel_format",
+            "component_format",
+            "banner",
+            "high_quality_edges",
+            "sample_border",
+            "compensate",
+            "rfilter",
+        ] {
             p.skip(k);
         }
         let filters = self.children_tagged(f, "rfilter")?;
@@ -393,7 +436,9 @@ impl<'o> Builder<'o> {
                 let filter = match r.kind.as_str() {
                     "box" => PixelFilter::Box { radius: positive(rp.float("radius", 0.5)?, "radius")? },
                     "tent" => PixelFilter::Tent { radius: positive(rp.float("radius", 1.0)?, "radius")? },
-                    "gaussian" => PixelFilter::Gaussian { stddev: positive(rp.float("stddev", 0.5)?, "stddev")? },
+                    "gaussian" => {
+                        PixelFilter::Gaussian { stddev: positive(rp.float("stddev", 0.5)?, "stddev")? }
+                    }
                     other => {
                         self.note(&r.at, format!("the `{other}` reconstruction filter is not read: a Gaussian (stddev 0.5) stands in"));
                         for k in ["b", "c", "lobes", "radius", "stddev"] {
@@ -432,7 +477,12 @@ impl<'o> Builder<'o> {
                 match d {
                     -1 => UNLIMITED_DEPTH,
                     d if d >= 2 => (d - 1).min(UNLIMITED_DEPTH as i64) as u32,
-                    d => return Err(format!("{}: `max_depth` {d}: lightsplit renders paths of at least one bounce (max_depth 2)", i.at)),
+                    d => {
+                        return Err(format!(
+                        "{}: `max_depth` {d}: lightsplit renders paths of at least one bounce (max_depth 2)",
+                        i.at
+                    ))
+                    }
                 }
             }
             "direct" => {
@@ -503,7 +553,10 @@ impl<'o> Builder<'o> {
                 let about_y = (m * DVec3::Y - DVec3::Y).length() < 1e-6
                     && (m.transpose() * m - DMat3::IDENTITY).to_cols_array().iter().all(|v| v.abs() < 1e-6);
                 if !about_y {
-                    self.note(&e.at, "the envmap's `to_world` is not a turn about +y: read as its turn about +y alone");
+                    self.note(
+                        &e.at,
+                        "the envmap's `to_world` is not a turn about +y: read as its turn about +y alone",
+                    );
                 }
                 p.skip("filter_type");
                 let map = EnvironmentMap::load(&path, scale as f32, (beta - 90.0) as f32)?;
@@ -563,7 +616,10 @@ impl<'o> Builder<'o> {
             "twosided" => {
                 let inner = self.inner(b)?;
                 if inner.len() > 1 {
-                    self.note(&b.at, "a twosided BSDF's second (back) BSDF is not read: both sides scatter as the first");
+                    self.note(
+                        &b.at,
+                        "a twosided BSDF's second (back) BSDF is not read: both sides scatter as the first",
+                    );
                 }
                 return self.bsdf(inner[0], true, maps);
             }
@@ -604,10 +660,14 @@ impl<'o> Builder<'o> {
                 let (weight, texture) = self.scalar_texture(b, &p, "weight", 0.5)?;
                 let inner = self.inner(b)?;
                 let pick = if weight > 0.5 && inner.len() > 1 { 1 } else { 0 };
-                let textured = if texture.is_some() { " (its weight a texture, read as its factor)" } else { "" };
+                let textured =
+                    if texture.is_some() { " (its weight a texture, read as its factor)" } else { "" };
                 self.note(
                     &b.at,
-                    format!("a blendbsdf is read as its heavier BSDF alone, number {} of two{textured}", pick + 1),
+                    format!(
+                        "a blendbsdf is read as its heavier BSDF alone, number {} of two{textured}",
+                        pick + 1
+                    ),
                 );
                 self.unread(&p);
                 return self.bsdf(inner[pick], two_sided, maps);
@@ -634,7 +694,10 @@ impl<'o> Builder<'o> {
                 let int = ior(&p, "int_ior", "bk7")?;
                 let ext = ior(&p, "ext_ior", "air")?;
                 if int <= 0.0 || ext <= 0.0 || int == ext {
-                    return Err(format!("{}: the interior and exterior indices of refraction must be positive and differ", b.at));
+                    return Err(format!(
+                        "{}: the interior and exterior indices of refraction must be positive and differ",
+                        b.at
+                    ));
                 }
                 let reflectance = self.plain_color(b, &p, "specular_reflectance", 1.0)?;
                 let transmittance = self.plain_color(b, &p, "specular_transmittance", 1.0)?;
@@ -654,7 +717,10 @@ impl<'o> Builder<'o> {
                 let int = ior(&p, "int_ior", "polypropylene")?;
                 let ext = ior(&p, "ext_ior", "air")?;
                 if int <= 0.0 || ext <= 0.0 || int == ext {
-                    return Err(format!("{}: the interior and exterior indices of refraction must be positive and differ", b.at));
+                    return Err(format!(
+                        "{}: the interior and exterior indices of refraction must be positive and differ",
+                        b.at
+                    ));
                 }
                 let eta = (int / ext) as f32;
                 let (diffuse, texture) = self.color_texture(b, &p, "diffuse_reflectance", 0.5)?;
@@ -669,7 +735,9 @@ impl<'o> Builder<'o> {
                     "roughplastic" => Some(self.microfacet(b, &p, false)?),
                     _ => None,
                 };
-                one_sided(Material::Plastic(Box::new(PlasticMaterial::new(eta, diffuse, d_mean, specular, nonlinear, facets))))
+                one_sided(Material::Plastic(Box::new(PlasticMaterial::new(
+                    eta, diffuse, d_mean, specular, nonlinear, facets,
+                ))))
             }
             other => {
                 self.note(&b.at, format!("<bsdf type=\"{other}\"> is not read: diffuse, reflectance 0.5"));
@@ -715,7 +783,10 @@ impl<'o> Builder<'o> {
         let material = p.string("material")?;
         if p.has("eta") || p.has("k") {
             if material.is_some() {
-                return Err(format!("{}: give a conductor's `material` or its `eta` and `k`, not both", b.at));
+                return Err(format!(
+                    "{}: give a conductor's `material` or its `eta` and `k`, not both",
+                    b.at
+                ));
             }
             let eta = self.plain_color(b, p, "eta", 0.0)?;
             let k = self.plain_color(b, p, "k", 1.0)?;
@@ -736,7 +807,13 @@ impl<'o> Builder<'o> {
     }
 
     /// A colour parameter: its value, or a texture (then the value is 1).
-    fn color_texture(&mut self, b: &'o Object, p: &Props, name: &str, default: f64) -> Result<(Vec3, Option<u32>), String> {
+    fn color_texture(
+        &mut self,
+        b: &'o Object,
+        p: &Props,
+        name: &str,
+        default: f64,
+    ) -> Result<(Vec3, Option<u32>), String> {
         if let Some(c) = p.color(name)? {
             return Ok((c.as_vec3(), None));
         }
@@ -751,12 +828,20 @@ impl<'o> Builder<'o> {
     }
 
     /// A scalar parameter: a value, or a texture (as data) and the factor 1.
-    fn scalar_texture(&mut self, b: &'o Object, p: &Props, name: &str, default: f64) -> Result<(f32, Option<u32>), String> {
+    fn scalar_texture(
+        &mut self,
+        b: &'o Object,
+        p: &Props,
+        name: &str,
+        default: f64,
+    ) -> Result<(f32, Option<u32>), String> {
         if p.has(name) {
             return Ok((p.float(name, default)? as f32, None));
         }
         match self.named(b, name)? {
-            Some(t) if t.tag == "texture" => Ok((1.0, Some(self.texture(t, Decode::Data)?))),
+            Some(t) if t.tag == "texture" => {
+                Ok((1.0, Some(self.texture(t, Decode::Luminance { raw: false })?)))
+            }
             Some(o) => Err(format!("{}: `{name}` is a <{}>, not a texture", o.at, o.tag)),
             None => Ok((default as f32, None)),
         }
@@ -767,9 +852,15 @@ impl<'o> Builder<'o> {
             return Ok(i.clone());
         }
         let image = match decode {
-            Decode::Color => crate::scene::image::read(&path)?,
-            Decode::Data => crate::scene::image::read_linear(&path)?,
+            Decode::Color | Decode::Luminance { raw: false } => crate::scene::image::read(&path)?,
+            Decode::Data | Decode::Luminance { raw: true } => crate::scene::image::read_linear(&path)?,
         };
+        let mut image = image;
+        if let Decode::Luminance { .. } = decode {
+            for p in &mut image.pixels {
+                *p = Vec3::splat(MITSUBA_LUMINANCE.dot(*p));
+            }
+        }
         let image = Arc::new(image);
         self.images.insert((path, decode), image.clone());
         Ok(image)
@@ -782,17 +873,25 @@ impl<'o> Builder<'o> {
             "bitmap" => {
                 let path = self.file(&p, "filename")?;
                 let raw = p.boolean("raw", false)?;
-                let decode = if raw { Decode::Data } else { decode };
+                let decode = match decode {
+                    Decode::Luminance { .. } => Decode::Luminance { raw },
+                    _ if raw => Decode::Data,
+                    other => other,
+                };
                 let nearest = match p.string("filter_type")?.unwrap_or("bilinear") {
                     "bilinear" => false,
                     "nearest" => true,
-                    other => return Err(format!("{}: `filter_type` `{other}` is not bilinear or nearest", t.at)),
+                    other => {
+                        return Err(format!("{}: `filter_type` `{other}` is not bilinear or nearest", t.at))
+                    }
                 };
                 let wrap = match p.string("wrap_mode")?.unwrap_or("repeat") {
                     "repeat" => Wrap::Repeat,
                     "mirror" => Wrap::Mirror,
                     "clamp" => Wrap::Clamp,
-                    other => return Err(format!("{}: `wrap_mode` `{other}` is not repeat, mirror or clamp", t.at)),
+                    other => {
+                        return Err(format!("{}: `wrap_mode` `{other}` is not repeat, mirror or clamp", t.at))
+                    }
                 };
                 let image = self.image(path, decode)?;
                 Texture::image(image, Vec2::ONE, to_uv, Sampling { wrap: [wrap; 2], nearest, set: 0 })
@@ -855,9 +954,13 @@ impl<'o> Builder<'o> {
                 let radius = p.float("radius", 1.0)?;
                 let m = DMat3::from_mat4(t);
                 let scales = [m.x_axis.length(), m.y_axis.length(), m.z_axis.length()];
-                let uniform = (scales[0] - scales[1]).abs() < 1e-6 * scales[0] && (scales[0] - scales[2]).abs() < 1e-6 * scales[0];
+                let uniform = (scales[0] - scales[1]).abs() < 1e-6 * scales[0]
+                    && (scales[0] - scales[2]).abs() < 1e-6 * scales[0];
                 if !uniform {
-                    self.note(&s.at, "a sphere stretched by its `to_world` is read as a sphere of its mean scale");
+                    self.note(
+                        &s.at,
+                        "a sphere stretched by its `to_world` is read as a sphere of its mean scale",
+                    );
                 }
                 if flip && emission != Vec3::ZERO {
                     self.note(&s.at, "`flip_normals` on an emitting sphere is not read: it shines outward");
@@ -911,7 +1014,8 @@ impl<'o> Builder<'o> {
             "serialized" => {
                 let path = self.file(&p, "filename")?;
                 let index = p.integer("shape_index", 0)?;
-                let index = usize::try_from(index).map_err(|_| format!("{}: `shape_index` {index} is negative", s.at))?;
+                let index = usize::try_from(index)
+                    .map_err(|_| format!("{}: `shape_index` {index} is negative", s.at))?;
                 shapes::serialized(&path, index)?
             }
             "rectangle" => shapes::rectangle(),
@@ -928,7 +1032,12 @@ impl<'o> Builder<'o> {
                 }
                 let dir = axis / len;
                 let (x, y) = dir.any_orthonormal_pair();
-                let frame = DMat4::from_cols((x * r).extend(0.0), (y * r).extend(0.0), axis.extend(0.0), p0.extend(1.0));
+                let frame = DMat4::from_cols(
+                    (x * r).extend(0.0),
+                    (y * r).extend(0.0),
+                    axis.extend(0.0),
+                    p0.extend(1.0),
+                );
                 let mut m = shapes::cylinder();
                 for q in &mut m.positions {
                     *q = frame.transform_point3(*q);
@@ -959,7 +1068,14 @@ impl<'o> Builder<'o> {
         self.push(Geometry::Triangles(mesh), material, emission, name, group)
     }
 
-    fn push(&mut self, geometry: Geometry, material: u32, emission: Vec3, name: String, group: Option<&mut Group>) -> Result<(), String> {
+    fn push(
+        &mut self,
+        geometry: Geometry,
+        material: u32,
+        emission: Vec3,
+        name: String,
+        group: Option<&mut Group>,
+    ) -> Result<(), String> {
         match group {
             Some(g) => g.parts.push((geometry, material, emission, name)),
             None => {
@@ -998,7 +1114,8 @@ impl<'o> Builder<'o> {
         let base = s.id.clone().unwrap_or_else(|| format!("instance {}", self.shapes.len()));
         let world = DAffine3::from_mat4(t);
         let relative = DAffine3 { translation: world.translation - self.origin, ..world };
-        let affine = glam::Affine3A::from_mat3_translation(relative.matrix3.as_mat3(), relative.translation.as_vec3());
+        let affine =
+            glam::Affine3A::from_mat3_translation(relative.matrix3.as_mat3(), relative.translation.as_vec3());
         for (geometry, material, emission, name) in &g.parts {
             let name = format!("{base}/{name}");
             let geometry = match geometry {
@@ -1009,10 +1126,14 @@ impl<'o> Builder<'o> {
                         radius: (*radius as f64 * scale) as f32,
                     }
                 }
-                Geometry::Triangles(mesh) => match Instance::new(affine).filter(|_| *emission == Vec3::ZERO) {
-                    Some(instance) => Geometry::Triangles(Mesh { instance: Some(Box::new(instance)), ..mesh.clone() }),
-                    None => Geometry::Triangles(transformed(mesh, &t, self.origin)),
-                },
+                Geometry::Triangles(mesh) => {
+                    match Instance::new(affine).filter(|_| *emission == Vec3::ZERO) {
+                        Some(instance) => {
+                            Geometry::Triangles(Mesh { instance: Some(Box::new(instance)), ..mesh.clone() })
+                        }
+                        None => Geometry::Triangles(transformed(mesh, &t, self.origin)),
+                    }
+                }
             };
             self.push(geometry, *material, *emission, name, None)?;
         }
@@ -1059,7 +1180,8 @@ fn uv_transform(m: DMat4) -> Option<Affine2> {
 fn placed(raw: &RawMesh, t: &DMat4, origin: DVec3) -> Mesh {
     let m3 = DMat3::from_mat4(*t);
     let nm = m3.inverse().transpose();
-    let positions: Arc<[Vec3A]> = raw.positions.iter().map(|&q| (t.transform_point3(q) - origin).as_vec3a()).collect();
+    let positions: Arc<[Vec3A]> =
+        raw.positions.iter().map(|&q| (t.transform_point3(q) - origin).as_vec3a()).collect();
     let mut indices = raw.indices.clone();
     if m3.determinant() < 0.0 {
         indices.iter_mut().for_each(|t| t.swap(1, 2));
@@ -1101,11 +1223,9 @@ fn collect_ids<'o>(o: &'o Object, ids: &mut HashMap<&'o str, &'o Object>) -> Res
 /// An index of refraction: a number, or the name of one of Mitsuba's materials.
 fn ior(p: &Props, name: &str, default: &str) -> Result<f64, String> {
     if let Ok(Some(named)) = p.string(name) {
-        return IORS
-            .iter()
-            .find(|(n, _)| *n == named)
-            .map(|(_, v)| *v)
-            .ok_or_else(|| format!("{}: `{named}` is not one of Mitsuba's named indices of refraction", p.at()));
+        return IORS.iter().find(|(n, _)| *n == named).map(|(_, v)| *v).ok_or_else(|| {
+            format!("{}: `{named}` is not one of Mitsuba's named indices of refraction", p.at())
+        });
     }
     if p.has(name) {
         return p.float(name, 1.0);
@@ -1149,7 +1269,10 @@ pub fn named_conductor(name: &str) -> Option<(Vec3, Vec3)> {
     if name == "none" {
         return Some((Vec3::ZERO, Vec3::ONE));
     }
-    CONDUCTORS.iter().find(|(n, _, _)| *n == name).map(|(_, eta, k)| (Vec3::from_array(*eta), Vec3::from_array(*k)))
+    CONDUCTORS
+        .iter()
+        .find(|(n, _, _)| *n == name)
+        .map(|(_, eta, k)| (Vec3::from_array(*eta), Vec3::from_array(*k)))
 }
 
 const CONDUCTORS: &[(&str, [f32; 3], [f32; 3])] = &[

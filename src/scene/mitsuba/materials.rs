@@ -60,7 +60,14 @@ impl PlasticMaterial {
     /// a texture's, where it has one) and coating tint `specular`, smooth without `facets`, as
     /// Mitsuba makes one: the coating's internal reflectance (the rough one's tabulated with its
     /// transmittance), and the share of samples the coating gets.
-    pub fn new(eta: f32, diffuse: Vec3, diffuse_mean: f32, specular: Vec3, nonlinear: bool, facets: Option<Microfacet>) -> Self {
+    pub fn new(
+        eta: f32,
+        diffuse: Vec3,
+        diffuse_mean: f32,
+        specular: Vec3,
+        nonlinear: bool,
+        facets: Option<Microfacet>,
+    ) -> Self {
         let s_mean = specular.element_sum() / 3.0;
         let specular_weight =
             if diffuse_mean + s_mean > 0.0 { s_mean / (diffuse_mean + s_mean) } else { 1.0 };

@@ -54,7 +54,9 @@ impl<'o> Props<'o> {
         match self.value(name) {
             None => Ok(default),
             Some((Value::Integer(v), _)) => Ok(*v),
-            Some((Value::Float(v), at)) if v.fract() != 0.0 => Err(format!("{at}: `{name}` is not an integer")),
+            Some((Value::Float(v), at)) if v.fract() != 0.0 => {
+                Err(format!("{at}: `{name}` is not an integer"))
+            }
             Some((Value::Float(v), _)) => Ok(*v as i64),
             Some((_, at)) => Err(format!("{at}: `{name}` is not an integer")),
         }

@@ -31,7 +31,10 @@ impl RawMesh {
             let p = t.map(|i| self.positions.get(i as usize).copied().unwrap_or_default());
             let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
             for k in 0..3 {
-                let (a, b) = ((p[(k + 1) % 3] - p[k]).normalize_or_zero(), (p[(k + 2) % 3] - p[k]).normalize_or_zero());
+                let (a, b) = (
+                    (p[(k + 1) % 3] - p[k]).normalize_or_zero(),
+                    (p[(k + 2) % 3] - p[k]).normalize_or_zero(),
+                );
                 let angle = a.dot(b).clamp(-1.0, 1.0).acos();
                 if let Some(v) = normals.get_mut(t[k] as usize) {
                     *v += n * angle;
@@ -231,7 +234,9 @@ struct Stream<'a, R: Read> {
 impl<R: Read> Stream<'_, R> {
     fn bytes<const N: usize>(&mut self) -> Result<[u8; N], String> {
         let mut b = [0u8; N];
-        self.z.read_exact(&mut b).map_err(|e| format!("the compressed mesh ends early or is corrupt ({e})"))?;
+        self.z
+            .read_exact(&mut b)
+            .map_err(|e| format!("the compressed mesh ends early or is corrupt ({e})"))?;
         Ok(b)
     }
     fn u32(&mut self) -> Result<u32, String> {
@@ -305,7 +310,10 @@ pub mod tests {
             assert_eq!(r.indices, m.indices);
             assert_eq!(r.positions, m.positions);
             let uvs = r.uvs.unwrap();
-            assert!(uvs.iter().zip(m.uvs.as_ref().unwrap()).all(|(p, q)| (*p - *q).abs().max_element() < 1e-6));
+            assert!(uvs
+                .iter()
+                .zip(m.uvs.as_ref().unwrap())
+                .all(|(p, q)| (*p - *q).abs().max_element() < 1e-6));
         }
         let e = read_serialized(&bytes, 2).unwrap_err();
         assert!(e.contains("holds 2 meshes"), "{e}");
@@ -327,9 +335,12 @@ pub mod tests {
     #[test]
     fn analytic_shapes_have_their_areas_and_face_outward() {
         let pi = std::f64::consts::PI;
-        for (name, m, want) in
-            [("rectangle", rectangle(), 4.0), ("cube", cube(), 24.0), ("disk", disk(), pi), ("cylinder", cylinder(), 2.0 * pi)]
-        {
+        for (name, m, want) in [
+            ("rectangle", rectangle(), 4.0),
+            ("cube", cube(), 24.0),
+            ("disk", disk(), pi),
+            ("cylinder", cylinder(), 2.0 * pi),
+        ] {
             let a = area(&m);
             assert!((a / want - 1.0).abs() < 1e-4, "{name}: area {a}, want {want}");
             // Each triangle's winding agrees with its vertices' normals.

@@ -118,7 +118,8 @@ impl Resolver {
 pub fn read(path: &Path, overrides: &[(String, String)]) -> Result<(Object, Resolver), String> {
     let mut params: HashMap<String, String> = overrides.iter().cloned().collect();
     let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mut reader = Reader { params: &mut params, depth: 0, resolver: Resolver { dirs: vec![dir], files: Vec::new() } };
+    let mut reader =
+        Reader { params: &mut params, depth: 0, resolver: Resolver { dirs: vec![dir], files: Vec::new() } };
     let root = reader.file(path)?;
     if root.tag != "scene" {
         return Err(format!("{}: the root element is <{}>, not <scene>", root.at, root.tag));
