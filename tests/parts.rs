@@ -435,3 +435,72 @@ fn the_kubernetes_manifest_is_an_indexed_job_and_a_merge() {
     };
     assert_eq!(claim(parts), claim(merge), "one shared volume");
 }
+
+/// The Cornell box with Mitsuba's default filter, a Gaussian of stddev 0.5, splatted.
+fn cornell_gaussian() -> Scene {
+    let mut scene = cornell();
+    scene.film.pixel_filter = scene::PixelFilter::Gaussian { stddev: 0.5 };
+    scene
+}
+
+/// A splatted filter keeps every promise of the sums: parts merge to the whole (sums and
+/// weights, within the rounding of float sums in another order: each pixel's sums gather up to
+/// 25 splats a sample), through their files bit for bit; a resumed render gives the
+/// uninterrupted sums bit for bit; and one thread gives what two give.
+#[test]
+fn splatted_filters_merge_resume_and_stay_deterministic() {
+    let scene = cornell_gaussian();
+    let options = options(&scene, 12);
+    let whole = sums(&scene, &options, Part::default());
+    assert_eq!(whole.weights.len(), whole.samples.len(), "splatted: weights kept");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut merged: Option<Sums> = None;
+    for i in 0..3 {
+        let part = Part { index: i, count: 3 };
+        let s = sums(&scene, &options, part);
+        let path = dir.path().join(format!("g{i}.exr"));
+        let header = lightsplit::part::Header {
+            key: "k".into(),
+            part,
+            spp: 12,
+            adaptive: None,
+            complete: true,
+            meta: lightsplit::film::Metadata::default(),
+        };
+        lightsplit::part::write(&path, &s, &header).expect("part file");
+        let (_, back) = lightsplit::part::read(&path).expect("reads");
+        assert_eq!(back, s, "a part file holds splatted sums and weights bit for bit");
+        match &mut merged {
+            None => merged = Some(s),
+            Some(m) => m.add(&s).expect("adds"),
+        }
+    }
+    let merged = merged.expect("parts");
+    same_sums(&merged, &whole, 2.0 * gamma(25 * 12 + 8), "gaussian, 3 parts");
+    for (i, (a, b)) in merged.weights.iter().zip(&whole.weights).enumerate() {
+        assert!(
+            (a - b).abs() <= 2.0 * gamma(25 * 12 + 8) * a.max(*b),
+            "weight of pixel {i}: {a} against {b}"
+        );
+    }
+    let full_image = whole.clone().into_means().raw;
+    assert!(full_image.mean().x > 0.0);
+
+    let options = self::options(&scene, 40);
+    let full = sums(&scene, &options, Part::default());
+    let stop = AtomicBool::new(false);
+    let progress = |_n: u64| stop.store(true, Ordering::SeqCst);
+    let first =
+        render_controlled(&scene, &options, Control { stop: Some(&stop), ..Control::progress(&progress) })
+            .expect("renders");
+    let partial = first.sums.expect("an interrupted render keeps its sums");
+    let control = Control { resume: Some(partial), keep_sums: true, ..Control::progress(&|_| {}) };
+    let resumed = render_controlled(&scene, &options, control).expect("resumes");
+    assert_eq!(resumed.sums.expect("sums"), full, "a splatted render resumes bit for bit");
+
+    let on = |threads: usize| {
+        let o = RenderOptions { threads: Some(threads), ..self::options(&scene, 8) };
+        sums(&scene, &o, Part::default())
+    };
+    assert_eq!(on(1), on(2), "the same splats on one thread and on two");
+}

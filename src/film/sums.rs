@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use super::layers::{self, Mean};
+use super::layers::{self, Buffer, Mean};
 use super::{variance_of_mean, Film, Image};
 use crate::component::{Component, Split};
 
@@ -20,6 +20,11 @@ pub struct Sums {
     pub squares: Squares,
     /// The samples each pixel has taken.
     pub samples: Vec<u32>,
+    /// With a reconstruction filter wider than the pixel (splatted, as Mitsuba's film does):
+    /// each pixel's sum of the filter weights of the samples around it, by which its beauty
+    /// and components (then sums of weighted samples) are divided. Empty otherwise: the beauty
+    /// is the sum of the pixel's own samples, divided by their count.
+    pub weights: Vec<f32>,
 }
 
 /// Each pixel's sum of its squared sample luminances, of the beauty and of each component, from
@@ -63,8 +68,8 @@ impl Squares {
 }
 
 impl Sums {
-    /// Nothing yet: `film`'s buffers zeroed (the object unknown).
-    pub fn empty(width: u32, height: u32, split: bool, guides: bool) -> Sums {
+    /// Nothing yet: `film`'s buffers zeroed (the object unknown); with weights when `splat`.
+    pub fn empty(width: u32, height: u32, split: bool, guides: bool, splat: bool) -> Sums {
         let mut film = Film::with_buffers(width, height, split, guides);
         for layer in &layers::LAYERS {
             match (layer.mean, layer.rule) {
@@ -76,19 +81,23 @@ impl Sums {
             }
         }
         let n = width as usize * height as usize;
-        Sums { film, squares: Squares::zeros(n, split), samples: vec![0; n] }
+        let weights = if splat { vec![0.0; n] } else { Vec::new() };
+        Sums { film, squares: Squares::zeros(n, split), samples: vec![0; n], weights }
     }
 
     /// Bytes of its buffers.
     pub fn bytes(&self) -> u64 {
-        self.film.bytes() + self.squares.bytes() + (self.samples.capacity() * size_of::<u32>()) as u64
+        self.film.bytes()
+            + self.squares.bytes()
+            + (self.samples.capacity() * size_of::<u32>()) as u64
+            + (self.weights.capacity() * size_of::<f32>()) as u64
     }
 
     /// The film of means, with each pixel's variance of the mean from the sums of squares (at
     /// most the largest 32-bit float: a spread too wide for 32 bits is written as that, finite).
     /// Each layer's sums become values as its row says ([`layers::Mean`]).
     pub fn into_means(self) -> Film {
-        let Sums { mut film, squares, samples } = self;
+        let Sums { mut film, squares, samples, weights } = self;
         if !squares.is_empty() {
             // From the sums, before they become means.
             let variance = |n: u32, sum: Vec3, sum_sq: f64| {
@@ -109,12 +118,15 @@ impl Sums {
             }
         }
         let inv: Vec<f32> = samples.iter().map(|&n| if n > 0 { 1.0 / n as f32 } else { 0.0 }).collect();
+        let inv_weight: Vec<f32> = weights.iter().map(|&w| if w > 0.0 { 1.0 / w } else { 0.0 }).collect();
         for layer in &layers::LAYERS {
             let width = layer.width();
+            let splatted = matches!(layer.buffer, Buffer::Raw | Buffer::Component(_)) && !weights.is_empty();
             let values = film.values_mut(layer.buffer);
             match layer.mean {
                 Mean::Average => {
-                    for (pixel, &inv) in values.chunks_exact_mut(width).zip(&inv) {
+                    let inv = if splatted { &inv_weight } else { &inv };
+                    for (pixel, &inv) in values.chunks_exact_mut(width).zip(inv) {
                         pixel.iter_mut().for_each(|v| *v *= inv);
                     }
                 }
@@ -142,6 +154,9 @@ impl Sums {
             || self.squares.is_empty() != other.squares.is_empty()
         {
             return Err("one has the component split or the guide buffers and the other not".into());
+        }
+        if self.weights.is_empty() != other.weights.is_empty() {
+            return Err("one has splatted filter weights and the other not".into());
         }
         let width = a.width;
         for layer in &layers::LAYERS {
@@ -171,6 +186,9 @@ impl Sums {
         }
         for (n, m) in self.samples.iter_mut().zip(&other.samples) {
             *n += m;
+        }
+        for (w, v) in self.weights.iter_mut().zip(&other.weights) {
+            *w += v;
         }
         Ok(())
     }

@@ -14,6 +14,8 @@ use crate::scene::limits;
 const SUMS: &str = "sums.";
 /// The channel of each pixel's sample count.
 const SAMPLES: &str = "samples.N";
+/// The channel of each pixel's sum of filter weights, when the filter is splatted.
+const WEIGHTS: &str = "weights.W";
 
 /// What a part file's header says of it.
 #[derive(Clone, Debug, PartialEq)]
@@ -50,15 +52,20 @@ fn channels(sums: &Sums) -> (Channels, Words) {
     let film = &sums.film;
     // The means of the two layers shown, as [`Sums::into_means`] makes them.
     let inv: Vec<f32> = sums.samples.iter().map(|&n| if n > 0 { 1.0 / n as f32 } else { 0.0 }).collect();
+    let inv_weight: Vec<f32> = sums.weights.iter().map(|&w| if w > 0.0 { 1.0 / w } else { 0.0 }).collect();
+    let beauty_inv = if sums.weights.is_empty() { &inv } else { &inv_weight };
     let mut out: Channels = Vec::new();
     for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
-        out.push((name.into(), film.raw.pixels.iter().zip(&inv).map(|(p, i)| p[c] * i).collect()));
+        out.push((name.into(), film.raw.pixels.iter().zip(beauty_inv).map(|(p, i)| p[c] * i).collect()));
     }
     if film.has_guides() {
         out.push(("A".into(), film.alpha.iter().zip(&inv).map(|(a, i)| a * i).collect()));
     }
     out.extend(film::layer_channels(film, SUMS));
     out.push((SAMPLES.into(), sums.samples.iter().map(|&n| n as f32).collect()));
+    if !sums.weights.is_empty() {
+        out.push((WEIGHTS.into(), sums.weights.clone()));
+    }
     let mut words = Words::new();
     for (layer, squares) in squared_layers().zip(sums.squares.layers()).filter(|(_, s)| !s.is_empty()) {
         let name = squares_name(layer);
@@ -168,7 +175,12 @@ pub fn read(path: &Path) -> Result<(Header, Sums), String> {
         ));
     }
     let samples = samples.iter().map(|&s| s as u32).collect();
-    let sums = Sums { film, squares, samples };
+    let weights = match channels.iter().find(|(name, _)| name == WEIGHTS) {
+        Some((_, w)) if w.len() != n => return Err("channel sizes do not match the image".into()),
+        Some((_, w)) => w.clone(),
+        None => Vec::new(),
+    };
+    let sums = Sums { film, squares, samples, weights };
     check_sums(&header, &sums)?;
     Ok((header, sums))
 }
@@ -288,7 +300,12 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
             !(v[i].fract() == 0.0 && v[i] <= samples[i] as f32)
         })?;
     }
-    if !sums.squares.is_empty() {
+    let weights = &sums.weights;
+    refuse_any(WEIGHTS, "NaN, infinite or negative", weights.len(), w, |i| {
+        !(weights[i].is_finite() && weights[i] >= 0.0)
+    })?;
+    // Splatted sums are of the samples around a pixel, not of its own: no moments to fit.
+    if !sums.squares.is_empty() && weights.is_empty() {
         let light = std::iter::once(("raw", &f.raw)).chain(f.components.named().map(|(c, l)| (c.name(), l)));
         for ((name, image), sq) in light.zip(sums.squares.layers()) {
             let lum = |i: usize| crate::math::luminance(image.pixels[i]) as f64;

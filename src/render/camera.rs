@@ -1,12 +1,10 @@
 //! Primary rays of a pinhole or an orthographic camera. Pixel (0, 0) is the top-left corner of
 //! the image.
 
-use std::sync::Arc;
-
 use glam::{DMat4, DVec3, DVec4, Vec2, Vec3};
 
 use crate::accel::Ray;
-use crate::scene::{Camera, FilmSettings, PixelFilter, FILTER_STEPS};
+use crate::scene::{Camera, FilmSettings};
 
 /// A camera resolved for one image size.
 #[derive(Clone, Debug)]
@@ -23,12 +21,8 @@ pub struct PinholeCamera {
     /// A thin lens: the unit vectors across the view times its radius, and its focus
     /// distance.
     lens: Option<(Vec3, Vec3, f32)>,
-    /// A reconstruction filter other than the pixel's own box: each sample's position in the
-    /// film is drawn from it.
-    filter: Option<Arc<FilterTable>>,
-    /// A crop: where the image's top-left pixel lies on the film, and the image's size.
+    /// A crop: where the image's top-left pixel lies on the film.
     shift: Vec2,
-    image: (u32, u32),
 }
 
 impl PinholeCamera {
@@ -53,15 +47,12 @@ impl PinholeCamera {
             height: height as f32,
             orthographic: camera.orthographic.is_some(),
             lens: camera.lens.map(|l| (right * l.radius, up * l.radius, l.focus_distance)),
-            filter: None,
             shift: Vec2::ZERO,
-            image: (width, height),
         }
     }
 
-    /// The camera of `film`'s image rendered at `width` x `height`: its reconstruction filter,
-    /// and its crop window when the image has the film's own size (another size is the whole
-    /// film, resized).
+    /// The camera of `film`'s image rendered at `width` x `height`: its crop window when the
+    /// image has the film's own size (another size is the whole film, resized).
     pub fn of_film(camera: &Camera, film: &FilmSettings, width: u32, height: u32) -> Self {
         let window = film.window.filter(|_| (width, height) == (film.width, film.height));
         let mut c = match window {
@@ -71,10 +62,6 @@ impl PinholeCamera {
         if let Some(w) = window {
             c.shift = Vec2::new(w.x as f32, w.y as f32);
         }
-        c.image = (width, height);
-        if !film.pixel_filter.is_pixel_box() {
-            c.filter = Some(Arc::new(FilterTable::new(film.pixel_filter)));
-        }
         c
     }
 
@@ -82,14 +69,19 @@ impl PinholeCamera {
     /// `sampler`, and with a lens the point on the lens too (two more numbers).
     #[inline]
     pub fn generate(&self, x: u32, y: u32, sampler: &mut crate::render::sampler::Sampler) -> Ray {
-        let mut offset = sampler.pixel_2d();
-        if let Some(f) = &self.filter {
-            offset = Vec2::new(f.offset(offset.x, x, self.image.0), f.offset(offset.y, y, self.image.1));
-        }
-        match self.lens {
+        self.generate_at(x, y, sampler).0
+    }
+
+    /// [`PinholeCamera::generate`], and the sample's position in the pixel ([0, 1)^2), which a
+    /// splatted filter weighs.
+    #[inline]
+    pub fn generate_at(&self, x: u32, y: u32, sampler: &mut crate::render::sampler::Sampler) -> (Ray, Vec2) {
+        let offset = sampler.pixel_2d();
+        let ray = match self.lens {
             None => self.ray(x, y, offset),
             Some(lens) => self.lens_ray(self.ray(x, y, offset), lens, sampler.lens_2d()),
-        }
+        };
+        (ray, offset)
     }
 
     /// The pinhole ray `pinhole` as it leaves `lens` (the vectors across it, its focus distance)
@@ -103,8 +95,7 @@ impl PinholeCamera {
         Ray::new(origin, (target - origin).normalize())
     }
 
-    /// The ray through the film position `pixel + offset` (offset in [0, 1)^2 within the pixel;
-    /// a filter's reach beyond).
+    /// The ray through the film position `pixel + offset` (offset in [0, 1)^2 within the pixel).
     pub fn ray(&self, x: u32, y: u32, offset: Vec2) -> Ray {
         let sx = 2.0 * (x as f32 + self.shift.x + offset.x) / self.width - 1.0;
         let sy = 1.0 - 2.0 * (y as f32 + self.shift.y + offset.y) / self.height;
@@ -118,63 +109,6 @@ impl PinholeCamera {
     /// The unit view direction through the image centre.
     pub fn forward(&self) -> Vec3 {
         self.forward
-    }
-}
-
-/// Bins of a filter's distribution along one axis: its steps on either side of the centre.
-const FILTER_BINS: usize = 2 * FILTER_STEPS;
-
-/// A separable reconstruction filter tabulated for sampling along one axis: its distribution
-/// over [-radius, radius] as a cumulative table of its [`FILTER_BINS`] steps
-/// ([`PixelFilter::eval`] is constant on each), so a position drawn from it has the filter's
-/// density exactly.
-#[derive(Debug)]
-pub struct FilterTable {
-    radius: f32,
-    /// `cdf[i]`: the mass of bins `0..i`, `cdf[FILTER_BINS]` = 1.
-    cdf: Vec<f64>,
-}
-
-impl FilterTable {
-    pub fn new(filter: PixelFilter) -> Self {
-        let r = filter.radius() as f64;
-        let h = 2.0 * r / FILTER_BINS as f64;
-        let mut cdf = Vec::with_capacity(FILTER_BINS + 1);
-        let mut total = 0.0;
-        cdf.push(0.0);
-        for i in 0..FILTER_BINS {
-            total += filter.eval(-r + (i as f64 + 0.5) * h) * h;
-            cdf.push(total);
-        }
-        for c in &mut cdf {
-            *c /= total;
-        }
-        FilterTable { radius: filter.radius(), cdf }
-    }
-
-    /// The cumulative mass below offset `x` (clamped to the radius).
-    fn cdf_at(&self, x: f64) -> f64 {
-        let r = self.radius as f64;
-        let p = ((x + r) / (2.0 * r) * FILTER_BINS as f64).clamp(0.0, FILTER_BINS as f64);
-        let i = (p as usize).min(FILTER_BINS - 1);
-        self.cdf[i] + (p - i as f64) * (self.cdf[i + 1] - self.cdf[i])
-    }
-
-    /// The offset (from the pixel's corner, as [`PinholeCamera::ray`] takes it) of the
-    /// sample `u` in [0, 1) of pixel `pixel` of an image `size` pixels across: drawn from the
-    /// filter restricted to the image.
-    pub fn offset(&self, u: f32, pixel: u32, size: u32) -> f32 {
-        let centre = pixel as f64 + 0.5;
-        let (lo, hi) = (self.cdf_at(-centre), self.cdf_at(size as f64 - centre));
-        let t = lo + u as f64 * (hi - lo);
-        // The bin holding t (the last whose cdf is at most t), inverted linearly within it.
-        let i = self.cdf.partition_point(|&c| c <= t).clamp(1, FILTER_BINS) - 1;
-        let mass = self.cdf[i + 1] - self.cdf[i];
-        let within = if mass > 0.0 { ((t - self.cdf[i]) / mass).clamp(0.0, 1.0) } else { 0.5 };
-        let r = self.radius as f64;
-        let x = -r + 2.0 * r * (i as f64 + within) / FILTER_BINS as f64;
-        // Kept strictly inside the image, as a box sample is.
-        (0.5 + x).clamp(-centre + 1e-6, size as f64 - centre - 1e-6) as f32
     }
 }
 
@@ -289,53 +223,6 @@ mod tests {
                     "pixel ({x}, {y}): {nx} {ny}"
                 );
                 assert!(nz > 0.0 && nz < 1.0, "{nz}");
-            }
-        }
-    }
-
-    /// Positions drawn from a filter have its density: a histogram of many offsets against the
-    /// filter's own integral over each bin, within the binomial noise (6 standard deviations),
-    /// for a pixel far from the edges; at an edge pixel none falls outside the image.
-    #[test]
-    fn filter_offsets_follow_the_filter() {
-        for filter in [
-            PixelFilter::Tent { radius: 1.0 },
-            PixelFilter::Gaussian { stddev: 0.5 },
-            PixelFilter::Box { radius: 1.5 },
-        ] {
-            let table = FilterTable::new(filter);
-            let r = filter.radius() as f64;
-            let (n, bins) = (200_000u32, 16usize);
-            let mut counts = vec![0u32; bins];
-            for k in 0..n {
-                let u = (k as f32 + 0.5) / n as f32;
-                // Pixel 10 of 100: its offset from the centre.
-                let x = table.offset(u, 10, 100) as f64 - 0.5;
-                assert!(x.abs() <= r + 1e-6, "{filter:?}: {x}");
-                counts[(((x + r) / (2.0 * r) * bins as f64) as usize).min(bins - 1)] += 1;
-            }
-            let integral = |a: f64, b: f64| {
-                let m = 2000;
-                (0..m).map(|i| filter.eval(a + (b - a) * (i as f64 + 0.5) / m as f64)).sum::<f64>() * (b - a)
-                    / m as f64
-            };
-            let total = integral(-r, r);
-            for (b, &c) in counts.iter().enumerate() {
-                let a = -r + 2.0 * r * b as f64 / bins as f64;
-                let p = integral(a, a + 2.0 * r / bins as f64) / total;
-                let sigma = (n as f64 * p * (1.0 - p)).sqrt().max(1.0);
-                assert!(
-                    (c as f64 - n as f64 * p).abs() < 6.0 * sigma,
-                    "{filter:?} bin {b}: {c} for {}",
-                    n as f64 * p
-                );
-            }
-            for (pixel, size) in [(0u32, 100u32), (99, 100)] {
-                for k in 0..1000 {
-                    let o = table.offset((k as f32 + 0.5) / 1000.0, pixel, size);
-                    let at = pixel as f32 + o;
-                    assert!(at > 0.0 && at < size as f32, "{filter:?}: pixel {pixel} at {at}");
-                }
             }
         }
     }

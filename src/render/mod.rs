@@ -8,6 +8,7 @@ pub mod integrator;
 pub mod lights;
 pub mod material;
 pub mod sampler;
+pub mod splat;
 pub mod surface;
 
 use std::ops::Range;
@@ -349,10 +350,20 @@ struct Tile {
     converged: Vec<bool>,
     rays: u64,
     nonfinite: u64,
+    /// A splatted filter's sums of this pass over the tile and its margin.
+    splat: Option<splat::TileSplat>,
 }
 
 impl Tile {
-    fn new(x0: u32, y0: u32, w: u32, h: u32, adaptive: bool, done: u32) -> Tile {
+    fn new(
+        x0: u32,
+        y0: u32,
+        w: u32,
+        h: u32,
+        adaptive: bool,
+        done: u32,
+        splat: Option<splat::TileSplat>,
+    ) -> Tile {
         let n = (w * h) as usize;
         let some = if adaptive { n } else { 0 };
         Tile {
@@ -365,6 +376,7 @@ impl Tile {
             converged: vec![false; some],
             rays: 0,
             nonfinite: 0,
+            splat,
         }
     }
 
@@ -372,6 +384,7 @@ impl Tile {
         (self.n.capacity() * size_of::<u32>()
             + self.moments.capacity() * size_of::<[f64; 2]>()
             + self.converged.capacity()) as u64
+            + self.splat.as_ref().map_or(0, splat::TileSplat::bytes)
     }
 
     fn done(&self) -> bool {
@@ -395,6 +408,9 @@ struct TileSums {
     /// The sums of the squared sample luminances, of the beauty then of each component (with
     /// the split only), in f64 as [`film::Squares`] keeps them.
     squares: Vec<(f64, Split<f64>)>,
+    /// Whether the beauty and the components are splatted ([`splat`]): then a sample adds
+    /// them to its tile's splats, not to its pixel's sums here.
+    splatted: bool,
 }
 
 impl TileSums {
@@ -420,6 +436,7 @@ impl TileSums {
                     })
                     .collect()
             },
+            splatted: !sums.weights.is_empty(),
             guides: if film.has_guides() {
                 (0..n)
                     .map(|i| {
@@ -491,13 +508,15 @@ impl TileSums {
         if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
             return false;
         }
-        self.beauty[i] += s.beauty;
+        if !self.splatted {
+            self.beauty[i] += s.beauty;
+        }
         if let Some(m) = moments {
             let l = crate::math::luminance(s.beauty) as f64;
             m[0] += l;
             m[1] += l * l;
         }
-        if let Some(c) = self.components.get_mut(i) {
+        if let (Some(c), false) = (self.components.get_mut(i), self.splatted) {
             for (a, c) in c.iter_mut().zip(s.components) {
                 *a += c;
             }
@@ -636,9 +655,12 @@ fn render_features<A: Accel, const F: u8>(
     let range = options.part.samples(spp);
     // The film holds each pixel's sums (the coverage: how many samples saw the object) until
     // every pass is done, then their means.
+    // A filter wider than the pixel is splatted; the pixel's own box is not.
+    let weights =
+        (!scene.film.pixel_filter.is_pixel_box()).then(|| splat::Weights::new(scene.film.pixel_filter));
     let start_state = match &control.resume {
         Some(r) => r.clone(),
-        None => Sums::empty(width, height, split, guides),
+        None => Sums::empty(width, height, split, guides, weights.is_some()),
     };
     // Samples are taken in order: a resumed render has taken the first of its range.
     let done = range.start + start_state.samples.first().copied().unwrap_or(0);
@@ -646,7 +668,9 @@ fn render_features<A: Accel, const F: u8>(
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            Tile::new(x0, y0, w, h, adaptive.is_some(), done)
+            let splat =
+                weights.as_ref().map(|wt| splat::TileSplat::new((x0, y0, w, h), (width, height), wt, split));
+            Tile::new(x0, y0, w, h, adaptive.is_some(), done, splat)
         })
         .collect();
     // A part that does not start at sample 0 traces each pixel's sample 0 for the object it
@@ -716,8 +740,11 @@ fn render_features<A: Accel, const F: u8>(
                     let mut samplers: [Sampler; PACKET] =
                         std::array::from_fn(|j| if j == 0 || j >= n { first.clone() } else { stream(j) });
                     let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
-                    for (ray, sampler) in rays.iter_mut().zip(&mut samplers).take(n) {
-                        *ray = camera.generate(x, y, sampler);
+                    let mut offsets = [glam::Vec2::ZERO; PACKET];
+                    for ((ray, offset), sampler) in
+                        rays.iter_mut().zip(&mut offsets).zip(&mut samplers).take(n)
+                    {
+                        (*ray, *offset) = camera.generate_at(x, y, sampler);
                     }
                     let mut hits = [None; PACKET];
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);
@@ -726,6 +753,8 @@ fn render_features<A: Accel, const F: u8>(
                         if !sums.add(i, k + j as u32, &s, split, tile.moments.get_mut(i)) {
                             tile.nonfinite += 1;
                             report_nonfinite(x, y, k + j as u32);
+                        } else if let (Some(splats), Some(w)) = (tile.splat.as_mut(), &weights) {
+                            splats.add((x, y), offsets[j], w, s.beauty, split.then_some(&s.components));
                         }
                     }
                     k += n as u32;
@@ -743,6 +772,15 @@ fn render_features<A: Accel, const F: u8>(
             sums.store(tile, &mut lock());
             progress(taken);
         });
+        // The pass's splats, tile after tile in a fixed order: the same sums on any threads.
+        if weights.is_some() {
+            let mut state = lock();
+            for tile in &mut tiles {
+                if let Some(splats) = tile.splat.as_mut() {
+                    splats.flush(&mut state);
+                }
+            }
+        }
         from = to;
         if let Some((every, write)) = control.checkpoint {
             if last_checkpoint.elapsed().as_secs_f64() >= every && to < range.end {

@@ -192,13 +192,11 @@ pub struct Window {
 pub const FILTER_STEPS: usize = 31;
 
 /// The reconstruction filter: the weight of a film position at offset `x` (in pixels, along one
-/// axis; the filter is separable, as Mitsuba's) from the pixel's centre. lightsplit draws each
-/// sample's position from the filter itself (filter importance sampling, as pbrt-v4), so a
-/// sample still counts in its own pixel with weight 1: sample-split parts, checkpoints and
-/// adaptive sampling are unchanged and merge exactly, and the image's expectation is the
-/// filtered one (each pixel's positions restricted to the image, as Mitsuba's film has no
-/// samples beyond its edge). Neighbouring pixels' noise stays independent, where a splatting
-/// film correlates it.
+/// axis; the filter is separable, as Mitsuba's) from the pixel's centre. A filter wider than
+/// the pixel's own box is splatted, as Mitsuba's film splats it (`render::splat`): each sample,
+/// uniform in its pixel, adds its weighted value and its weight to every pixel within reach,
+/// and a pixel is the ratio. Parts split each pixel's samples, so each part splats into the
+/// whole image, and a merge adds the weighted sums and the weights as it adds any sum.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PixelFilter {
     /// Weight 1 within `radius`: 0.5 (the default) is each sample in its own pixel.
@@ -234,8 +232,16 @@ impl PixelFilter {
         if x.abs() >= r {
             return 0.0;
         }
-        let step = (x.abs() / r * FILTER_STEPS as f64).floor() * r / FILTER_STEPS as f64;
-        self.eval_exact(step)
+        self.step_value((x.abs() / r * FILTER_STEPS as f64) as usize)
+    }
+
+    /// The value on step `k` (from 0, at the centre): the formula at the step's nearer end,
+    /// `radius k / FILTER_STEPS`; 0 from the last step on.
+    pub fn step_value(&self, k: usize) -> f64 {
+        match k < FILTER_STEPS {
+            true => self.eval_exact(self.radius() as f64 * k as f64 / FILTER_STEPS as f64),
+            false => 0.0,
+        }
     }
 
     /// The filter's own formula at `x` (`x` within the radius).
