@@ -285,3 +285,40 @@ fn a_mask_reads_a_colour_bitmap_by_its_luminance() {
     let want = 1.0 - 0.212671;
     assert!((mean - want).abs() < 4.0 * se + 1e-3, "{mean} +- {se}, want {want}");
 }
+
+/// A `blendbsdf` is its two BSDFs mixed by its weight: a sphere blending black (weight 0.75)
+/// and a white diffuse of reflectance 0.8 (weight 0.25) under a sky of radiance 1 is 0.2 in
+/// expectation (a convex shape sees only the sky), within 4 standard errors of its pixels.
+#[test]
+fn a_blend_mixes_its_bsdfs_by_weight() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = format!(
+        r#"<scene version="3.0.0">
+    {}
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="sphere">
+        <bsdf type="blendbsdf">
+            <float name="weight" value="0.25"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.8"/></bsdf>
+        </bsdf>
+    </shape>
+</scene>"#,
+        sensor("32", r#"<rfilter type="box"/>"#)
+    );
+    let path = write(dir.path(), "blend.xml", &text);
+    let scene = scene::load(&path).expect("loads");
+    assert!(scene.notes.is_empty(), "{:?}", scene.notes);
+    let mut options = RenderOptions::from_scene(&scene);
+    options.spp = 64;
+    let out = render(&scene, &options, &|_| {}).expect("renders");
+    let centre: Vec<f64> = (12..20)
+        .flat_map(|y| (12..20).map(move |x| (x, y)))
+        .map(|(x, y)| out.film.raw.get(x, y).x as f64)
+        .collect();
+    let (mean, se) = mean_and_standard_error_of(&centre);
+    assert!((mean - 0.2).abs() < 4.0 * se + 1e-3, "{mean} +- {se}");
+    let bad = text.replace(r#"value="0.25""#, r#"value="1.5""#);
+    let e = scene::load(&write(dir.path(), "bad.xml", &bad)).expect_err("weight over 1");
+    assert!(e.to_string().contains("[0, 1]"), "{e}");
+}

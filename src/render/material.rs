@@ -217,6 +217,15 @@ impl<'a> Shading<'a> {
                 true => self.material_bsdf(inner, n, bent, wo, entering, u),
                 false => u.with(&Black),
             },
+            Material::Blend(blend) => {
+                // Of the hit point's bits (a sphere's hits have no barycentrics), keyed by the
+                // material with its top bit set, as no cut-out is keyed.
+                let p = self.s.p;
+                let key = self.shape.material | 0x8000_0000;
+                let pick = crate::scene::cutout::hit_hash(key, self.s.prim ^ p.x.to_bits(), p.y, p.z);
+                let chosen = if pick < blend.weight { &blend.b } else { &blend.a };
+                self.material_bsdf(chosen, n, bent, wo, entering, u)
+            }
             Material::Conductor(c) => u.with(&c.bsdf(
                 self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
                 c.facets.is_some_and(|f| self.counts_diffuse(f)),

@@ -149,46 +149,48 @@ impl Analysis {
             if !used[m] {
                 continue;
             }
-            let mut material = material;
-            while let Material::Front(inner) = material {
-                material = inner;
-            }
-            match material {
-                Material::Front(_) => {}
-                Material::Conductor(c) => match c.facets {
-                    Some(_) => a.lobes.glossy = true,
-                    None => a.lobes.mirror = true,
-                },
-                Material::Dielectric(d) => {
-                    a.lobes.glass = true;
-                    a.lobes.glossy |= d.facets.is_some();
-                }
-                Material::Plastic(p) => {
-                    a.lobes.diffuse = true;
-                    a.lobes.glossy_base = true;
-                    match p.facets {
+            // A one-sided material is its inner one; a blend both of its own.
+            let mut stack = vec![material];
+            while let Some(material) = stack.pop() {
+                match material {
+                    Material::Front(inner) => stack.push(inner),
+                    Material::Blend(b) => stack.extend([&b.a, &b.b]),
+                    Material::Conductor(c) => match c.facets {
                         Some(_) => a.lobes.glossy = true,
                         None => a.lobes.mirror = true,
+                    },
+                    Material::Dielectric(d) => {
+                        a.lobes.glass = true;
+                        a.lobes.glossy |= d.facets.is_some();
                     }
-                }
-                Material::Diffuse { .. } => a.lobes.diffuse = true,
-                Material::Mirror { .. } => a.lobes.mirror = true,
-                Material::Glass { .. } => a.lobes.glass = true,
-                Material::Pbr { .. } => {
-                    // Its lobes depend on textures and roughness: all of them, conservatively.
-                    a.lobes.glossy = true;
-                    a.lobes.glossy_base = true;
-                    a.lobes.diffuse = true;
-                }
-                Material::Layered(l) => {
-                    a.lobes.glossy = true;
-                    a.lobes.glossy_base = true;
-                    a.lobes.diffuse = true;
-                    a.lobes.glass |= l.layers.transmission > 0.0;
-                }
-                Material::Glossy { base, .. } => {
-                    a.lobes.glossy = true;
-                    a.lobes.glossy_base |= base.max_element() > 0.0 || scene.maps(m as u32).color.is_some();
+                    Material::Plastic(p) => {
+                        a.lobes.diffuse = true;
+                        a.lobes.glossy_base = true;
+                        match p.facets {
+                            Some(_) => a.lobes.glossy = true,
+                            None => a.lobes.mirror = true,
+                        }
+                    }
+                    Material::Diffuse { .. } => a.lobes.diffuse = true,
+                    Material::Mirror { .. } => a.lobes.mirror = true,
+                    Material::Glass { .. } => a.lobes.glass = true,
+                    Material::Pbr { .. } => {
+                        // Its lobes depend on textures and roughness: all of them, conservatively.
+                        a.lobes.glossy = true;
+                        a.lobes.glossy_base = true;
+                        a.lobes.diffuse = true;
+                    }
+                    Material::Layered(l) => {
+                        a.lobes.glossy = true;
+                        a.lobes.glossy_base = true;
+                        a.lobes.diffuse = true;
+                        a.lobes.glass |= l.layers.transmission > 0.0;
+                    }
+                    Material::Glossy { base, .. } => {
+                        a.lobes.glossy = true;
+                        a.lobes.glossy_base |=
+                            base.max_element() > 0.0 || scene.maps(m as u32).color.is_some();
+                    }
                 }
             }
             let maps = scene.maps(m as u32);

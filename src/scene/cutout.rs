@@ -159,9 +159,10 @@ impl Cutouts {
 }
 
 /// A number in [0, 1) from a hit: the shape, triangle and the bits of its barycentrics, mixed
-/// by the finaliser of MurmurHash3 (every input bit reaches every output bit).
+/// by the finaliser of MurmurHash3 (every input bit reaches every output bit). A ray's hit
+/// falls at its own barycentrics, so over the rays through a region the numbers are uniform.
 #[inline]
-fn hit_hash(shape: u32, prim: u32, u: f32, v: f32) -> f32 {
+pub fn hit_hash(shape: u32, prim: u32, u: f32, v: f32) -> f32 {
     let mut h = (shape as u64) << 32 | prim as u64;
     h ^= (u.to_bits() as u64) << 32 | v.to_bits() as u64;
     h = h.wrapping_add(0x9e37_79b9_7f4a_7c15);

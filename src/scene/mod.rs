@@ -25,7 +25,7 @@ use std::sync::Arc;
 use glam::{Affine3A, DVec3, Mat3A, Vec2, Vec3, Vec3A};
 
 pub use file::{FilterSection, KernelSpec};
-pub use mitsuba::materials::{ConductorMaterial, DielectricMaterial, PlasticMaterial};
+pub use mitsuba::materials::{BlendMaterial, ConductorMaterial, DielectricMaterial, PlasticMaterial};
 
 /// Loads a scene: a glTF file (`.gltf`, `.glb`) as a whole scene, any other as a scene file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -353,6 +353,10 @@ pub enum Material {
     /// A material that scatters from its front only (the side the geometric normal points
     /// to) and is black from behind: a Mitsuba BSDF outside a `twosided`.
     Front(Box<Material>),
+    /// Mitsuba's `blendbsdf`: `(1 - weight) a + weight b`, one of the two chosen at each hit
+    /// with those probabilities (as a blend cut-out chooses: by a hash of the hit), which is
+    /// the blend in expectation.
+    Blend(Box<BlendMaterial>),
 }
 
 /// glTF's layered material: metallic-roughness and the layers of its material extensions.

@@ -823,3 +823,47 @@ fn mitsuba_bsdfs_sample_their_density_are_reciprocal_and_keep_energy() {
         }
     }
 }
+
+/// Mitsuba's smooth `dielectric` and `thindielectric`, white: every sample keeps all the light
+/// (refraction counted back by eta^2, a sheet's light passing straight through), and the share
+/// reflected is the Fresnel reflectance (the sheet's, 2R / (1 + R), with its internal
+/// bounces), within 4 binomial standard errors, from outside and from inside.
+#[test]
+fn white_smooth_dielectrics_keep_all_the_light_and_reflect_their_fresnel_share() {
+    for (thin, entering) in [(false, true), (false, false), (true, true)] {
+        let b = Dielectric {
+            eta: 1.5,
+            reflectance: Vec3::ONE,
+            transmittance: Vec3::ONE,
+            n: Vec3::Z,
+            entering,
+            thin,
+        };
+        for theta in [0.0f32, 30.0, 60.0, 85.0] {
+            let wo = polar(theta, 20.0);
+            let eta = if entering { 1.5f32 } else { 1.0 / 1.5 };
+            let r = fresnel_dielectric(wo.z, if thin { 1.5 } else { eta });
+            let want = if thin && r < 1.0 { 2.0 * r / (1.0 + r) } else { r };
+            let mut s = crate::render::sampler::Sampler::new(9, 3, 1);
+            let n = 20_000;
+            let mut reflected = 0u32;
+            for _ in 0..n {
+                let bs = b.sample(wo, &mut s).expect("a smooth boundary always scatters");
+                let through = bs.wi.z < 0.0;
+                reflected += (!through) as u32;
+                let kept = if through && !thin { bs.weight.x * eta * eta } else { bs.weight.x };
+                assert!((kept - 1.0).abs() < 1e-5, "thin {thin}, entering {entering}, {theta}: {kept}");
+                if thin && through {
+                    assert!((bs.wi + wo).length() < 1e-6, "a sheet passes light straight through");
+                }
+            }
+            let p = want as f64;
+            let sigma = (p * (1.0 - p) / n as f64).sqrt().max(1e-4);
+            let share = reflected as f64 / n as f64;
+            assert!(
+                (share - p).abs() < 4.0 * sigma,
+                "thin {thin}, entering {entering}, {theta}: {share} vs {p}"
+            );
+        }
+    }
+}

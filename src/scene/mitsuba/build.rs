@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::{Affine2, DAffine3, DMat3, DMat4, DVec3, Vec2, Vec3, Vec3A};
 
-use super::materials::{ConductorMaterial, DielectricMaterial, PlasticMaterial};
+use super::materials::{BlendMaterial, ConductorMaterial, DielectricMaterial, PlasticMaterial};
 use super::props::Props;
 use super::shapes::{self, RawMesh};
 use super::xml::{Child, Object, Place, Resolver};
@@ -657,20 +657,49 @@ impl<'o> Builder<'o> {
                 return self.bsdf(inner[0], two_sided, maps);
             }
             "blendbsdf" => {
-                let (weight, texture) = self.scalar_texture(b, &p, "weight", 0.5)?;
+                let weight = match self.named(b, "weight")? {
+                    Some(t) if t.tag == "texture" => {
+                        // One weight a material: the texture's mean.
+                        let t = self.texture(t, Decode::Luminance { raw: false })?;
+                        let mean = match self.textures.get(t as usize) {
+                            Some(Texture::Image { image, .. }) => image.mean().x,
+                            Some(Texture::Constant(c)) => c.x,
+                            _ => 0.5,
+                        };
+                        self.note(
+                            &b.at,
+                            format!("a blendbsdf's weight texture is read as its mean, {mean:.3}"),
+                        );
+                        mean
+                    }
+                    Some(o) => return Err(format!("{}: `weight` is a <{}>, not a texture", o.at, o.tag)),
+                    None => p.float("weight", 0.5)? as f32,
+                };
+                if !(0.0..=1.0).contains(&weight) {
+                    return Err(format!("{}: a blendbsdf's `weight` must lie in [0, 1], not {weight}", b.at));
+                }
                 let inner = self.inner(b)?;
-                let pick = if weight > 0.5 && inner.len() > 1 { 1 } else { 0 };
-                let textured =
-                    if texture.is_some() { " (its weight a texture, read as its factor)" } else { "" };
-                self.note(
-                    &b.at,
-                    format!(
-                        "a blendbsdf is read as its heavier BSDF alone, number {} of two{textured}",
-                        pick + 1
-                    ),
-                );
+                if inner.len() != 2 {
+                    return Err(format!("{}: a blendbsdf blends two BSDFs, not {}", b.at, inner.len()));
+                }
+                // Each BSDF its own textures; where both have some, the first's are read.
+                let before = *maps;
+                let (mut ma, mut mb) = (before, before);
+                let first = self.bsdf(inner[0], two_sided, &mut ma)?;
+                let second = self.bsdf(inner[1], two_sided, &mut mb)?;
+                *maps = match (ma != before, mb != before) {
+                    (true, true) => {
+                        self.note(
+                            &b.at,
+                            "both of a blendbsdf's BSDFs read textures: the first's are read for both",
+                        );
+                        ma
+                    }
+                    (false, true) => mb,
+                    _ => ma,
+                };
                 self.unread(&p);
-                return self.bsdf(inner[pick], two_sided, maps);
+                return Ok(Material::Blend(Box::new(BlendMaterial { a: first, b: second, weight })));
             }
             "diffuse" => {
                 let (albedo, texture) = self.color_texture(b, &p, "reflectance", DEFAULT_REFLECTANCE)?;

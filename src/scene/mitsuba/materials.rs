@@ -97,3 +97,11 @@ impl PlasticMaterial {
         }
     }
 }
+
+/// Mitsuba's `blendbsdf`: its two BSDFs and the weight of the second.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlendMaterial {
+    pub a: crate::scene::Material,
+    pub b: crate::scene::Material,
+    pub weight: f32,
+}
