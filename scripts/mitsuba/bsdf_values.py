@@ -46,19 +46,9 @@ def direction(theta, phi):
 
 PAIRS = [((10, 0), (15, 180)), ((40, 30), (50, 200)), ((70, 90), (20, 270)), ((30, 0), (60, 100)), ((5, 0), (80, 45))]
 
-for name, spec in CASES:
+def print_values(name, spec, pairs):
+    """Prints `spec`'s f cos at each pair of (view, light) directions, as Rust rows."""
     bsdf = mi.load_dict(spec)
-    ctx = mi.BSDFContext()
-    print(f"// {name}")
-    for (a, b) in PAIRS:
-        si = mi.SurfaceInteraction3f()
-        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-        si.wi = mi.Vector3f(*direction(*a))
-        v = bsdf.eval(ctx, si, mi.Vector3f(*direction(*b)))
-        print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.5e}, {v[1]:.5e}, {v[2]:.5e}]),")
-
-for name, pairs in GLASS_PAIRS.items():
-    bsdf = mi.load_dict(GLASS)
     ctx = mi.BSDFContext()
     print(f"// {name}")
     for (a, b) in pairs:
@@ -67,6 +57,12 @@ for name, pairs in GLASS_PAIRS.items():
         si.wi = mi.Vector3f(*direction(*a))
         v = bsdf.eval(ctx, si, mi.Vector3f(*direction(*b)))
         print(f"(({a[0]:.1f}, {a[1]:.1f}), ({b[0]:.1f}, {b[1]:.1f}), [{v[0]:.5e}, {v[1]:.5e}, {v[2]:.5e}]),")
+
+
+for name, spec in CASES:
+    print_values(name, spec, PAIRS)
+for name, pairs in GLASS_PAIRS.items():
+    print_values(name, GLASS, pairs)
 
 # White furnaces: the mean sample weight (with its standard error) of the white rough
 # conductors (`none`: eta 0, k 1) at view angles 0, 45 and 80 degrees, azimuth 10, for
