@@ -20,7 +20,7 @@ fn bench(c: &mut Criterion) {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"));
         let scene = scene::load(&path).expect("scene loads");
         let accel = build_embree(&scene, None).expect("embree builds");
-        let lights = Lights::new(&scene);
+        let lights = Lights::new(&scene, scene.render.light_sampler);
         let faces = FaceNormals::new(&scene);
         // The general integrator (every feature); `bench-features` measures the specialised ones.
         let integrator: Integrator<'_, _> = Integrator {

@@ -14,6 +14,7 @@ use lightsplit::film::{Film, Format};
 use lightsplit::filter::{Overrides, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
+use lightsplit::scene::LightSamplerKind;
 use lightsplit::scene::{limits, Environment};
 
 use crate::Failure;
@@ -399,6 +400,11 @@ pub struct RenderArgs {
     /// (PCG streams). Default: the scene file's.
     #[arg(long, value_enum)]
     pub sampler: Option<SamplerKind>,
+    /// How next-event estimation picks a light among more than eight: tree (a light tree:
+    /// by what each light can send to the shading point, the default), power or uniform.
+    /// Default: the scene file's.
+    #[arg(long, value_enum)]
+    pub light_sampler: Option<LightSamplerKind>,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,

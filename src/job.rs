@@ -26,7 +26,7 @@ use crate::output::{self, Layer, OutputError};
 use crate::part;
 use crate::render::sampler::SamplerKind;
 use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
-use crate::scene::{self, Scene};
+use crate::scene::{self, LightSamplerKind, Scene};
 
 /// What a render is asked for: the command line's `render`, in the library's terms. `None`
 /// keeps the scene file's value.
@@ -40,6 +40,7 @@ pub struct Request {
     pub seed: Option<u64>,
     pub max_depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
+    pub light_sampler: Option<LightSamplerKind>,
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
@@ -157,6 +158,7 @@ impl<'s> Job<'s> {
         options.height = request.height.unwrap_or(options.height);
         options.max_depth = request.max_depth.unwrap_or(options.max_depth);
         options.sampler = request.sampler.unwrap_or(options.sampler);
+        options.light_sampler = request.light_sampler.unwrap_or(options.light_sampler);
         options.adaptive = request.adaptive;
 
         let part_mode = request.part.is_some();
@@ -347,6 +349,7 @@ impl<'s> Job<'s> {
             "height": options.height,
             "accel": options.accel,
             "sampler": options.sampler.name(),
+            "light_sampler": options.light_sampler.name(),
             "seed": options.seed,
             "threads": options.threads.unwrap_or_else(rayon::current_num_threads),
             "samples": s.samples,

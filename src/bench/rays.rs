@@ -55,7 +55,7 @@ impl RaySets {
     pub fn generate<A: Accel>(scene: &Scene, accel: &A, n: usize, seed: u64) -> RaySets {
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);
-        let lights = Lights::new(scene);
+        let lights = Lights::new(scene, crate::scene::LightSamplerKind::Power);
         let (lo, hi) = scene.bounds();
         let mut sets = RaySets { primary: Vec::with_capacity(n), shadow: Vec::new(), incoherent: Vec::new() };
         for i in 0..n {

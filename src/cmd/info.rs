@@ -25,6 +25,8 @@ pub fn info_command(args: InfoArgs) -> Result<(), Failure> {
         film.pixel_filter.describe()
     );
     say!("{}", analysis.to_string().trim_end_matches('\n'));
+    let lights = lightsplit::render::lights::Lights::new(&scene, scene.render.light_sampler);
+    say!("next-event estimation: {}", lights.describe());
     let Outputs { split, guides } = args.out.layer.reads(format, &setting);
     say!(
         "and the outputs ({}, filter {}) need:",

@@ -28,6 +28,7 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         seed: args.seed,
         max_depth: args.max_depth,
         sampler: args.sampler,
+        light_sampler: args.light_sampler,
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,

@@ -12,7 +12,7 @@ use glam::Vec3;
 
 use super::bsdf::{Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
-use super::lights::{LightSample, Lights, ShadowEnd};
+use super::lights::{LightSample, Lights, ShadowEnd, Strategy};
 use super::material::{Shading, UseBsdf};
 use super::sampler::{Dim, Sampler};
 use super::surface::{surface_with, valid_reflection, FaceNormals, Surface};
@@ -191,8 +191,10 @@ struct PathState {
     after_delta: bool,
     /// The density of the last bounce's direction, for the MIS weight of emission found next.
     bsdf_pdf: f32,
-    /// Where the last bounce left from.
+    /// Where the last bounce left from, and its shading normal there (the light tree's
+    /// probabilities depend on both).
     prev_p: Vec3,
+    prev_n: Vec3,
     /// Distance from the eye along the path.
     travelled: f32,
 }
@@ -200,7 +202,7 @@ struct PathState {
 impl PathState {
     /// Follows a sampled direction: false when it cannot carry light (no density, or a zero
     /// throughput: nothing more can reach the eye along it).
-    fn scatter(&mut self, bs: &BsdfSample, p: Vec3) -> bool {
+    fn scatter(&mut self, bs: &BsdfSample, p: Vec3, n: Vec3) -> bool {
         if bs.pdf <= 0.0 {
             return false;
         }
@@ -208,6 +210,7 @@ impl PathState {
         self.after_delta = bs.lobe.is_delta();
         self.bsdf_pdf = bs.pdf;
         self.prev_p = p;
+        self.prev_n = n;
         self.beta != Vec3::ZERO
     }
 
@@ -306,6 +309,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 after_delta: true,
                 bsdf_pdf: 0.0,
                 prev_p: ray.origin,
+                prev_n: Vec3::ZERO,
                 travelled: 0.0,
             },
             sampler,
@@ -335,7 +339,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                     walk.path.beta *= (-sigma * distance).exp();
                 }
             }
-            self.emitted(&mut walk.out, &walk.path, hit.shape, shape, &s, wo);
+            self.emitted(&mut walk.out, &walk.path, &hit, shape, &s, wo);
             if depth >= self.max_depth {
                 break;
             }
@@ -411,7 +415,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         if bsdf.lobe().is_none() {
             vertex(&mut walk.out, &mut walk.path.class, bs.lobe);
         }
-        if !walk.path.scatter(&bs, at.p) {
+        if !walk.path.scatter(&bs, at.p, at.ns) {
             return None;
         }
         // Russian roulette once the path has had a chance to gather light, after non-delta
@@ -423,7 +427,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         Some(Ray::new(origin, bs.wi))
     }
 
-    /// Emission at a hit on `shape` (number `index`), on its front side only (a scene without
+    /// Emission at a hit on `shape`, on its front side only (a scene without
     /// MIS has no light a path can hit), weighted against light sampling's chance of finding the
     /// same point.
     #[inline(always)]
@@ -431,7 +435,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         &self,
         out: &mut PathSample,
         path: &PathState,
-        index: u32,
+        hit: &Hit,
         shape: &Shape,
         s: &Surface,
         wo: Vec3,
@@ -440,10 +444,11 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         if F & MIS == 0 || emission.max_element() <= 0.0 || s.ng.dot(wo) <= 0.0 {
             return;
         }
-        let light = lights.of_shape(index);
+        let light = lights.of_shape(hit.shape);
         let w = match light {
             Some(light) if !path.after_delta => {
-                power_heuristic(path.bsdf_pdf, lights.pdf_shape(light, path.prev_p, s.p, s.ng))
+                let pdf = lights.pdf_shape(light, hit.prim, path.prev_p, path.prev_n, s.p, s.ng);
+                power_heuristic(path.bsdf_pdf, pdf)
             }
             _ => 1.0,
         };
@@ -472,22 +477,38 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     }
 
     /// Next-event estimation at a reflecting vertex: samples every light when there are few,
-    /// else one picked by power, and gathers what each sample sends through the BSDF's lobes.
-    /// `before` is the path's class before this vertex.
+    /// else one picked from the table, or each light at infinity and one bounded light picked
+    /// by the tree; gathers what each sample sends through the BSDF's lobes. `before` is the
+    /// path's class before this vertex.
     #[inline(always)]
     fn next_event<B: Bsdf>(&self, walk: &mut Walk, before: PathClass, bsdf: &B, at: &Reflecting) {
         let (scene, lights) = (self.scene, self.lights);
-        if lights.sample_all() {
-            for i in 0..lights.emitters.len() {
-                let u = walk.sampler.get_2d(Dim::Light(i as u32));
-                if let Some(ls) = lights.sample_one(scene, i, at.p, u) {
+        match lights.strategy() {
+            Strategy::All => {
+                for i in 0..lights.emitters.len() {
+                    let u = walk.sampler.get_2d(Dim::Light(i as u32));
+                    if let Some(ls) = lights.sample_one(scene, i, at.p, u) {
+                        self.gather(walk, before, bsdf, at, &ls);
+                    }
+                }
+            }
+            Strategy::One => {
+                let (select, u) = (walk.sampler.get_1d(Dim::Select), walk.sampler.get_2d(Dim::Light(0)));
+                if let Some(ls) = lights.sample(scene, at.p, select, u) {
                     self.gather(walk, before, bsdf, at, &ls);
                 }
             }
-        } else {
-            let (select, u) = (walk.sampler.get_1d(Dim::Select), walk.sampler.get_2d(Dim::Light(0)));
-            if let Some(ls) = lights.sample(scene, at.p, select, u) {
-                self.gather(walk, before, bsdf, at, &ls);
+            Strategy::Tree => {
+                for (k, &i) in lights.distant.iter().enumerate() {
+                    let u = walk.sampler.get_2d(Dim::Light(1 + k as u32));
+                    if let Some(ls) = lights.sample_one(scene, i as usize, at.p, u) {
+                        self.gather(walk, before, bsdf, at, &ls);
+                    }
+                }
+                let (select, u) = (walk.sampler.get_1d(Dim::Select), walk.sampler.get_2d(Dim::Light(0)));
+                if let Some(ls) = lights.sample_tree(scene, at.p, at.ns, select, u) {
+                    self.gather(walk, before, bsdf, at, &ls);
+                }
             }
         }
     }

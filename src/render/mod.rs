@@ -24,7 +24,7 @@ use crate::accel::{BuildHints, UseAccel, PACKET};
 use crate::component::Split;
 use crate::film::{self, Film, Sums};
 use crate::scene::analysis::Analysis;
-use crate::scene::Scene;
+use crate::scene::{LightSamplerKind, Scene};
 use camera::PinholeCamera;
 pub use features::{Features, Outputs};
 use integrator::{Integrator, PathSample};
@@ -47,6 +47,8 @@ pub struct RenderOptions {
     pub seed: u64,
     /// Which numbers the paths draw: Owen-scrambled Sobol points or independent streams.
     pub sampler: SamplerKind,
+    /// How next-event estimation picks a light among many.
+    pub light_sampler: LightSamplerKind,
     /// Worker threads; `None` for one per core.
     pub threads: Option<usize>,
     pub accel: Backend,
@@ -163,7 +165,7 @@ pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::M
         filter: None,
         world_to_camera: Some(world_to_camera),
         world_to_ndc: Some(world_to_ndc),
-        extra: Vec::new(),
+        extra: vec![("lightsplit.light_sampler".into(), options.light_sampler.name().into())],
     }
 }
 
@@ -179,6 +181,7 @@ impl RenderOptions {
             max_depth: scene.render.max_depth,
             seed: scene.render.seed,
             sampler: scene.render.sampler,
+            light_sampler: scene.render.light_sampler,
             threads: None,
             accel: Backend::Embree,
             debug_nonfinite: false,
@@ -635,7 +638,7 @@ fn render_features<A: Accel, const F: u8>(
     let start = Instant::now();
     let (width, height) = (options.width, options.height);
     let camera = PinholeCamera::of_film(&scene.camera, &scene.film, width, height);
-    let lights = Lights::new(scene);
+    let lights = Lights::new(scene, options.light_sampler);
     let faces = surface::FaceNormals::new(scene);
     let integrator: Integrator<'_, A, F> = Integrator {
         scene,

@@ -313,6 +313,46 @@ impl std::fmt::Display for SamplerKind {
     }
 }
 
+/// How next-event estimation picks a light among many (with at most eight, every light is
+/// sampled at each vertex whatever this says).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LightSamplerKind {
+    /// Every light equally likely.
+    Uniform,
+    /// In proportion to each light's power.
+    Power,
+    /// By a light tree: in proportion to a bound of what each light sends to the shading
+    /// point (distance, orientation, the surface's normal); lights at infinity each sampled
+    /// beside it.
+    #[default]
+    Tree,
+}
+
+impl LightSamplerKind {
+    pub const ALL: [LightSamplerKind; 3] =
+        [LightSamplerKind::Uniform, LightSamplerKind::Power, LightSamplerKind::Tree];
+
+    /// The name on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSamplerKind::Uniform => "uniform",
+            LightSamplerKind::Power => "power",
+            LightSamplerKind::Tree => "tree",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<LightSamplerKind> {
+        LightSamplerKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl std::fmt::Display for LightSamplerKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Path length limit and the random seed.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -321,6 +361,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Which numbers the paths draw.
     pub sampler: SamplerKind,
+    /// How next-event estimation picks a light.
+    pub light_sampler: LightSamplerKind,
 }
 
 /// How a surface scatters light.

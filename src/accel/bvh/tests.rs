@@ -21,7 +21,12 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
             lens: None,
         },
         film: FilmSettings::new(1, 1, 1),
-        render: RenderSettings { max_depth: 1, seed: 0, sampler: Default::default() },
+        render: RenderSettings {
+            max_depth: 1,
+            seed: 0,
+            sampler: Default::default(),
+            light_sampler: Default::default(),
+        },
         materials: vec![Material::Diffuse { albedo: Vec3::ONE }],
         shapes: shapes
             .into_iter()

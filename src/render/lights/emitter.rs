@@ -156,29 +156,10 @@ impl Emitter {
                     light,
                 })
             }
-            Emitter::Mesh { shape, triangles, area, emission, cutouts } => {
-                let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
-                    return None;
-                };
+            Emitter::Mesh { triangles, area, .. } => {
                 // u.x picks the triangle, then, rescaled, the point within it.
                 let (t, _, ux) = triangles.sample_reuse(u.x);
-                let (q, n, magnitude, bary) = point_on_triangle(mesh, t as u32, Vec2::new(ux, u.y));
-                let shape_index = *shape;
-                let shape = &scene.shapes[*shape as usize];
-                let radiance = match scene.maps(shape.material).emission {
-                    Some(texture) => {
-                        match mesh.uv(scene.textures[texture as usize].set(), t as u32, bary.into()) {
-                            Some(uv) => scene.emission_at(shape, [uv, uv]),
-                            None => *emission,
-                        }
-                    }
-                    None => *emission,
-                };
-                let radiance = match cutouts {
-                    Some(c) => radiance * c.coverage(shape_index, t as u32, bary.x, bary.y),
-                    None => radiance,
-                };
-                area_sample(p, q, n, magnitude, radiance, select / area, light)
+                self.sample_triangle(scene, light, t as u32, select / area, p, Vec2::new(ux, u.y))
             }
             Emitter::Sphere { center, radius, emission, .. } => {
                 let (pdf, q, n) = sample_sphere_cone(p, *center, *radius, u)?;
@@ -199,19 +180,43 @@ impl Emitter {
         }
     }
 
+    /// Samples a point of triangle `t` of this mesh emitter (number `light`), uniformly by
+    /// area with density `pdf_area` (its selection included), as seen from `p`.
+    pub fn sample_triangle(
+        &self,
+        scene: &Scene,
+        light: u32,
+        t: u32,
+        pdf_area: f32,
+        p: Vec3,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let Emitter::Mesh { shape, emission, cutouts, .. } = self else { return None };
+        let Geometry::Triangles(mesh) = &scene.shapes[*shape as usize].geometry else {
+            return None;
+        };
+        let (q, n, magnitude, bary) = point_on_triangle(mesh, t, u);
+        let shape_index = *shape;
+        let shape = &scene.shapes[*shape as usize];
+        let radiance = match scene.maps(shape.material).emission {
+            Some(texture) => match mesh.uv(scene.textures[texture as usize].set(), t, bary.into()) {
+                Some(uv) => scene.emission_at(shape, [uv, uv]),
+                None => *emission,
+            },
+            None => *emission,
+        };
+        let radiance = match cutouts {
+            Some(c) => radiance * c.coverage(shape_index, t, bary.x, bary.y),
+            None => radiance,
+        };
+        area_sample(p, q, n, magnitude, radiance, pdf_area, light)
+    }
+
     /// The NEE density of reaching this emissive shape at point `q` (geometric normal `n`)
     /// from `p`, with `select` the probability of picking it.
     pub fn pdf_shape(&self, select: f32, p: Vec3, q: Vec3, n: Vec3) -> f32 {
         match self {
-            Emitter::Mesh { area, .. } => {
-                let d = q - p;
-                let dist2 = d.length_squared();
-                let cos = n.dot(d).abs() / dist2.sqrt();
-                if cos <= 0.0 {
-                    return 0.0;
-                }
-                select * dist2 / (area * cos)
-            }
+            Emitter::Mesh { area, .. } => area_pdf(select / area, p, q, n),
             Emitter::Sphere { center, radius, .. } => {
                 let dc2 = (*center - p).length_squared();
                 let r2 = radius * radius;
@@ -255,6 +260,17 @@ impl Emitter {
             }
             _ => (Vec3::ZERO, 0.0),
         }
+    }
+
+    /// Whether it is at infinity (sun, sky, environment): what a ray leaving the scene sees.
+    pub fn is_distant(&self) -> bool {
+        matches!(
+            self,
+            Emitter::Sun { .. }
+                | Emitter::Sky { .. }
+                | Emitter::CloudySky { .. }
+                | Emitter::Environment { .. }
+        )
     }
 
     /// Whether it sends no light at all.
@@ -344,6 +360,18 @@ fn area_sample(
         end: ShadowEnd::Point(offset_ray_origin(q, n, magnitude)),
         light,
     })
+}
+
+/// The solid-angle density at `p` of a point `q` (normal `n`) of a surface sampled by area
+/// with density `pdf_area`.
+pub fn area_pdf(pdf_area: f32, p: Vec3, q: Vec3, n: Vec3) -> f32 {
+    let d = q - p;
+    let dist2 = d.length_squared();
+    let cos = n.dot(d).abs() / dist2.sqrt();
+    if cos <= 0.0 {
+        return 0.0;
+    }
+    pdf_area * dist2 / cos
 }
 
 /// 1 - cos(theta_max) of the cone a sphere subtends, from sin^2(theta_max), accurate when small.

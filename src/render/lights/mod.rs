@@ -1,10 +1,11 @@
 //! Light sampling for next-event estimation: the registry of a scene's lights ([`Lights`]), how
-//! one is picked (in proportion to its power, or all of them when there are few), and the
-//! matching densities for multiple importance sampling. The lights themselves are in
-//! [`emitter`], the cloudy sky's table in [`sky_table`].
+//! one is picked (all of them when there are few; else by a light tree, by power or uniformly),
+//! and the matching densities for multiple importance sampling. The lights themselves are in
+//! [`emitter`], the tree in [`tree`], the cloudy sky's table in [`sky_table`].
 
 pub mod emitter;
 pub mod sky_table;
+pub mod tree;
 
 use std::f32::consts::PI;
 
@@ -12,14 +13,18 @@ use glam::{Vec2, Vec3};
 
 pub use emitter::{Emitter, LightSample, ShadowEnd};
 use sky_table::sky_table;
+use tree::{LightBounds, LightTree};
 
 use crate::math::{luminance, Distribution1D, Distribution2D, Frame, FOUR_PI};
-use crate::scene::{Geometry, Light, Scene};
+use crate::scene::{Geometry, Light, LightSamplerKind, Scene};
 
-/// No light on this shape.
+/// No light on this shape; no item of an emitter; a whole emitter rather than one triangle.
 const NONE: u32 = u32::MAX;
 /// Scenes with at most this many lights sample all of them at every vertex.
 const SAMPLE_ALL: usize = 8;
+/// Above this many emissive triangles in all, a mesh is one leaf of the light tree (sampled by
+/// area within) rather than one leaf a triangle: the tree's memory stays bounded.
+const MAX_TREE_TRIANGLES: usize = 1 << 20;
 
 /// Every light of a scene and how to pick one.
 #[derive(Clone, Debug, Default)]
@@ -27,15 +32,61 @@ pub struct Lights {
     pub emitters: Vec<Emitter>,
     /// Whether light `i` is a diffuse source (its light counts as already diffusely reflected).
     pub diffuse_source: Vec<bool>,
-    select: Option<Distribution1D>,
+    selection: Selection,
+    /// The lights by power (or uniform, for that light sampler): next-event estimation's
+    /// table when it picks one light from it, and [`Lights::sample`]'s always.
+    table: Option<Distribution1D>,
     /// For each shape, the index of its emitter, or NONE.
     shape_light: Vec<u32>,
     /// The emitters at infinity (sun, sky, environment), which a ray that escapes the scene sees.
     pub distant: Vec<u32>,
 }
 
+/// How next-event estimation picks among the lights.
+#[derive(Clone, Debug, Default)]
+enum Selection {
+    /// Every light at every vertex (few lights).
+    #[default]
+    All,
+    /// One light from the table over all of them (by power, or uniform).
+    Table,
+    /// The bounded lights by a light tree, those at infinity each beside it.
+    Tree(Box<TreeLights>),
+}
+
+/// The light tree's leaves: an emitter, or one triangle of a mesh emitter.
+#[derive(Clone, Debug)]
+struct TreeLights {
+    tree: LightTree,
+    items: Vec<Item>,
+    /// For each emitter, its first item (a mesh's triangles follow it), or NONE at infinity.
+    first: Vec<u32>,
+}
+
+/// One leaf of the light tree.
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    emitter: u32,
+    /// The mesh's triangle, or NONE for the whole emitter.
+    triangle: u32,
+    /// The triangle's area.
+    area: f32,
+}
+
+/// What next-event estimation does at a vertex ([`Lights::strategy`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// Sample every light.
+    All,
+    /// Sample one light, picked from the table.
+    One,
+    /// Sample each light at infinity, and one picked by the tree ([`Lights::sample_tree`]).
+    Tree,
+}
+
 impl Lights {
-    pub fn new(scene: &Scene) -> Self {
+    /// The lights of `scene`, picked as `kind` says when there are more than a few.
+    pub fn new(scene: &Scene, kind: LightSamplerKind) -> Self {
         let (lo, hi) = scene.bounds();
         let radius = 0.5 * (hi - lo).length().max(1e-3);
         let disc = PI * radius * radius;
@@ -83,13 +134,7 @@ impl Lights {
                 }
             };
             if !emitter.is_dark() {
-                if matches!(
-                    emitter,
-                    Emitter::Sun { .. }
-                        | Emitter::Sky { .. }
-                        | Emitter::CloudySky { .. }
-                        | Emitter::Environment { .. }
-                ) {
+                if emitter.is_distant() {
                     lights.distant.push(lights.emitters.len() as u32);
                 }
                 lights.emitters.push(emitter);
@@ -133,7 +178,15 @@ impl Lights {
             lights.diffuse_source.push(false);
             power.push(PI * area * luminance(scene.mean_emission(shape)));
         }
-        lights.select = Distribution1D::new(&power);
+        lights.table = match kind {
+            LightSamplerKind::Uniform => Distribution1D::new(&vec![1.0; power.len()]),
+            _ => Distribution1D::new(&power),
+        };
+        lights.selection = match kind {
+            _ if lights.sample_all() => Selection::All,
+            LightSamplerKind::Power | LightSamplerKind::Uniform => Selection::Table,
+            LightSamplerKind::Tree => Selection::Tree(Box::new(TreeLights::new(scene, &lights.emitters))),
+        };
         lights
     }
 
@@ -145,12 +198,22 @@ impl Lights {
         }
     }
 
-    /// The probability of picking light `i`.
-    pub fn select_pdf(&self, i: u32) -> f32 {
-        if self.sample_all() {
-            return 1.0;
+    /// What next-event estimation does at each vertex.
+    pub fn strategy(&self) -> Strategy {
+        match self.selection {
+            Selection::All => Strategy::All,
+            Selection::Table => Strategy::One,
+            Selection::Tree(_) => Strategy::Tree,
         }
-        self.select.as_ref().map_or(0.0, |d| d.pdf(i as usize))
+    }
+
+    /// The probability of picking light `i` where it does not depend on the shading point:
+    /// every light when all are sampled, a table's, a light at infinity beside the tree.
+    pub fn select_pdf(&self, i: u32) -> f32 {
+        match &self.selection {
+            Selection::All | Selection::Tree(_) => 1.0,
+            Selection::Table => self.table.as_ref().map_or(0.0, |d| d.pdf(i as usize)),
+        }
     }
 
     /// With few lights, next-event estimation samples every light at each vertex instead of
@@ -162,34 +225,170 @@ impl Lights {
 
     /// Samples light `i` as seen from `p` (its selection probability is [`Lights::select_pdf`]).
     pub fn sample_one(&self, scene: &Scene, i: usize, p: Vec3, u: Vec2) -> Option<LightSample> {
-        self.sample_emitter(scene, i, self.select_pdf(i as u32), p, u)
+        self.emitters[i].sample(scene, i as u32, self.select_pdf(i as u32), p, u)
     }
 
-    /// Samples a light as seen from `p`, with uniform numbers `u_select` and `u`.
+    /// Samples a light picked from the table, as seen from `p`, with uniform numbers `u_select`
+    /// and `u` (its density is the table's whatever the selection: next-event estimation calls
+    /// it only when it picks from the table).
     pub fn sample(&self, scene: &Scene, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
         let (i, select) = match self.emitters.len() {
             0 => return None,
             1 => (0, 1.0),
-            _ => self.select.as_ref()?.sample(u_select),
+            _ => self.table.as_ref()?.sample(u_select),
         };
-        self.sample_emitter(scene, i, select, p, u)
-    }
-
-    /// Samples light `i`, picked with probability `select`, as seen from `p`.
-    fn sample_emitter(&self, scene: &Scene, i: usize, select: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
         self.emitters[i].sample(scene, i as u32, select, p, u)
     }
 
+    /// Samples a bounded light picked by the tree for a surface at `p` of normal `n`, with
+    /// uniform numbers `u_select` and `u`.
+    pub fn sample_tree(
+        &self,
+        scene: &Scene,
+        p: Vec3,
+        n: Vec3,
+        u_select: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let Selection::Tree(t) = &self.selection else { return None };
+        let (item, pmf, _) = t.tree.sample(p, n, u_select)?;
+        let item = t.items[item as usize];
+        let emitter = &self.emitters[item.emitter as usize];
+        if item.triangle == NONE {
+            emitter.sample(scene, item.emitter, pmf, p, u)
+        } else {
+            emitter.sample_triangle(scene, item.emitter, item.triangle, pmf / item.area, p, u)
+        }
+    }
+
     /// The NEE density (selection included) of reaching emissive shape `light` at point `q`
-    /// (geometric normal `n`) from `p`: what a BSDF-sampled hit needs for its MIS weight.
-    pub fn pdf_shape(&self, light: u32, p: Vec3, q: Vec3, n: Vec3) -> f32 {
-        self.emitters[light as usize].pdf_shape(self.select_pdf(light), p, q, n)
+    /// (geometric normal `n`, on triangle `prim` of a mesh) from `p`, a surface of normal
+    /// `np`: what a BSDF-sampled hit needs for its MIS weight.
+    pub fn pdf_shape(&self, light: u32, prim: u32, p: Vec3, np: Vec3, q: Vec3, n: Vec3) -> f32 {
+        let emitter = &self.emitters[light as usize];
+        let Selection::Tree(t) = &self.selection else {
+            return emitter.pdf_shape(self.select_pdf(light), p, q, n);
+        };
+        let first = t.first[light as usize];
+        let whole = t.items.get(first as usize).is_none_or(|i| i.triangle == NONE);
+        let item = if whole { first } else { first + prim };
+        let pmf = t.tree.pmf(item, p, np);
+        match t.items.get(item as usize) {
+            Some(i) if !whole => emitter::area_pdf(pmf / i.area, p, q, n),
+            _ => emitter.pdf_shape(pmf, p, q, n),
+        }
     }
 
     /// The radiance of distant light `light` along direction `dir` and its NEE density
     /// (selection included); `seen` as in [`Emitter::distant`].
     pub fn distant(&self, light: u32, dir: Vec3, seen: bool) -> (Vec3, f32) {
         self.emitters[light as usize].distant(self.select_pdf(light), dir, seen)
+    }
+
+    /// How next-event estimation picks lights, in words (for `info`).
+    pub fn describe(&self) -> String {
+        match &self.selection {
+            Selection::All => format!("every light at each vertex ({} at most {SAMPLE_ALL})", self.emitters.len()),
+            Selection::Table => format!("one of {} lights from a table", self.emitters.len()),
+            Selection::Tree(t) => format!(
+                "one of {} bounded lights by a light tree ({} nodes, depth {} at most, {:.1} on average){}",
+                t.items.len(),
+                t.tree.nodes(),
+                t.tree.depth().0,
+                t.tree.depth().1,
+                match self.distant.len() {
+                    0 => String::new(),
+                    n => format!(", and each of {n} at infinity"),
+                }
+            ),
+        }
+    }
+}
+
+impl TreeLights {
+    /// The leaves of the bounded `emitters` of `scene`, and their tree.
+    fn new(scene: &Scene, emitters: &[Emitter]) -> TreeLights {
+        let triangles: usize = emitters
+            .iter()
+            .map(|e| match e {
+                Emitter::Mesh { triangles, .. } => triangles.len(),
+                _ => 0,
+            })
+            .sum();
+        let per_triangle = triangles <= MAX_TREE_TRIANGLES;
+        let (mut items, mut bounds, mut first) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, e) in emitters.iter().enumerate() {
+            let i = i as u32;
+            let whole = |bounds: &mut Vec<LightBounds>, items: &mut Vec<Item>, b: LightBounds| {
+                bounds.push(b);
+                items.push(Item { emitter: i, triangle: NONE, area: 0.0 });
+            };
+            first.push(if e.is_distant() { NONE } else { items.len() as u32 });
+            match e {
+                Emitter::Point { position, intensity } => whole(
+                    &mut bounds,
+                    &mut items,
+                    LightBounds::omni(*position, *position, luminance(*intensity)),
+                ),
+                Emitter::Spot { position, direction, intensity, cos_total, cos_falloff_start } => {
+                    let spread =
+                        cos_total.clamp(-1.0, 1.0).acos() - cos_falloff_start.clamp(-1.0, 1.0).acos();
+                    let b = LightBounds {
+                        lo: *position,
+                        hi: *position,
+                        phi: luminance(*intensity),
+                        w: *direction,
+                        cos_o: *cos_falloff_start,
+                        cos_e: spread.max(0.0).cos(),
+                    };
+                    whole(&mut bounds, &mut items, b)
+                }
+                Emitter::Sphere { shape, center, radius, .. } => {
+                    let le = luminance(scene.mean_emission(&scene.shapes[*shape as usize]));
+                    let r = Vec3::splat(*radius);
+                    whole(
+                        &mut bounds,
+                        &mut items,
+                        LightBounds::omni(center - r, center + r, le * PI * radius * radius),
+                    )
+                }
+                Emitter::Mesh { shape, .. } => {
+                    let shape = &scene.shapes[*shape as usize];
+                    let Geometry::Triangles(mesh) = &shape.geometry else { continue };
+                    let le = luminance(scene.mean_emission(shape));
+                    let tri = |t: u32| {
+                        let [a, b, c] = mesh.triangle(t);
+                        let cross = (b - a).cross(c - a);
+                        let area = 0.5 * cross.length();
+                        let b = LightBounds {
+                            lo: a.min(b).min(c),
+                            hi: a.max(b).max(c),
+                            phi: le * area,
+                            w: cross.normalize_or_zero(),
+                            cos_o: 1.0,
+                            cos_e: 0.0,
+                        };
+                        (b, area)
+                    };
+                    let count = mesh.indices.len() as u32;
+                    if per_triangle {
+                        for t in 0..count {
+                            let (b, area) = tri(t);
+                            bounds.push(b);
+                            items.push(Item { emitter: i, triangle: t, area });
+                        }
+                    } else {
+                        let all = (1..count).fold(tri(0).0, |acc, t| acc.union(&tri(t).0));
+                        whole(&mut bounds, &mut items, all)
+                    }
+                }
+                Emitter::Sun { .. }
+                | Emitter::Sky { .. }
+                | Emitter::CloudySky { .. }
+                | Emitter::Environment { .. } => {}
+            }
+        }
+        TreeLights { tree: LightTree::new(&bounds), items, first }
     }
 }
 
@@ -234,7 +433,7 @@ mod tests {
 
         fn lights_of(text: &str) -> (Scene, Lights) {
             let scene = parse(std::path::Path::new("t.toml"), text).expect("parses");
-            let lights = Lights::new(&scene);
+            let lights = Lights::new(&scene, LightSamplerKind::Power);
             (scene, lights)
         }
 
@@ -270,7 +469,7 @@ mod tests {
                     .find_map(|t| {
                         let tri = mesh.triangle(t);
                         let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
-                        hit_triangle(tri, d).map(|h| lights.pdf_shape(0, Vec3::ZERO, d * h, n))
+                        hit_triangle(tri, d).map(|h| lights.pdf_shape(0, t, Vec3::ZERO, Vec3::ZERO, d * h, n))
                     })
                     .unwrap_or(0.0)
             };
@@ -298,7 +497,7 @@ mod tests {
                 let q = d * (b - disc.sqrt());
                 let dc2 = c.length_squared();
                 if r == 1.0 {
-                    lights.pdf_shape(0, o, o + q, (q - c) / r)
+                    lights.pdf_shape(0, 0, o, Vec3::ZERO, o + q, (q - c) / r)
                 } else {
                     1.0 / (2.0 * PI * cone_one_minus_cos(r * r / dc2))
                 }
@@ -318,7 +517,7 @@ mod tests {
                     position = [0, 4, 0]\ndirection = [0, -1, 0]\nintensity = [8, 8, 8]\n\
                     cone_angle = 30\nfalloff_start = 20\n";
         let scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
-        let lights = Lights::new(&scene);
+        let lights = Lights::new(&scene, LightSamplerKind::Power);
         // The intensity a receiver at angle `deg` from the axis, 2 units from the light, gets.
         let at = |deg: f32| {
             let t = deg.to_radians();
@@ -345,7 +544,7 @@ mod tests {
         let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n[[light]]\ntype = \"sky\"\n\
                     zenith = [1, 1, 1]\nclear = [0.1, 0.2, 0.5]\ncloud_cover = 0.5\ncloud_scale = 0.3\n";
         let scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
-        let lights = Lights::new(&scene);
+        let lights = Lights::new(&scene, LightSamplerKind::Power);
         let z = z_score(
             |s| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi),
             |d| lights.distant(0, d, false).1,
@@ -391,7 +590,7 @@ mod tests {
         let text = "[camera]\nposition = [0, 0, -5]\nlook_at = [0, 0, 0]\n";
         let mut scene = crate::scene::file::parse(std::path::Path::new("t.toml"), text).expect("parses");
         scene.lights.push(Light::Environment { map: Arc::new(map), diffuse_source: false });
-        let lights = Lights::new(&scene);
+        let lights = Lights::new(&scene, LightSamplerKind::Power);
         let z = z_score(
             |s| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi),
             |d| lights.distant(0, d, false).1,

@@ -7,8 +7,8 @@ use toml::Spanned;
 use glam::{DVec3, Vec3};
 
 use super::{dv3, v3, Ctx, F, V3};
-use crate::scene::SamplerKind;
 use crate::scene::{limits, Camera, FilmSettings, Lens, PixelFilter, RenderSettings, SceneError};
+use crate::scene::{LightSamplerKind, SamplerKind};
 
 /// `[camera]` as written.
 #[derive(Deserialize)]
@@ -48,6 +48,7 @@ pub(super) struct FileRender {
     seed: Option<u64>,
     sampler: Option<Spanned<String>>,
     diffuse_roughness: Option<Spanned<F>>,
+    light_sampler: Option<Spanned<String>>,
 }
 
 /// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient. With
@@ -229,6 +230,18 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
             },
             None => SamplerKind::default(),
         },
+        light_sampler: match r.and_then(|r| r.light_sampler.as_ref()) {
+            Some(s) => match LightSamplerKind::parse(s.get_ref()) {
+                Some(kind) => kind,
+                None => {
+                    return ctx.err(
+                        s.span(),
+                        format!("unknown light sampler `{}`: use tree, power or uniform", s.get_ref()),
+                    )
+                }
+            },
+            None => LightSamplerKind::default(),
+        },
     })
 }
 
@@ -245,7 +258,7 @@ pub(super) fn diffuse_roughness(ctx: &Ctx, r: Option<&FileRender>) -> Result<f32
 #[cfg(test)]
 mod tests {
     use crate::scene::file::tests::{error_line, parse_str, MINIMAL};
-    use crate::scene::SamplerKind;
+    use crate::scene::{LightSamplerKind, SamplerKind};
 
     #[test]
     fn minimal_scene_has_defaults() {
@@ -254,6 +267,17 @@ mod tests {
         assert_eq!(s.render.max_depth, 8);
         assert_eq!(s.camera.fov, 40.0);
         assert_eq!(s.render.sampler, SamplerKind::Sobol);
+    }
+
+    #[test]
+    fn the_light_sampler_is_read_and_an_unknown_one_names_its_line() {
+        let s = parse_str(MINIMAL).expect("parses");
+        assert_eq!(s.render.light_sampler, LightSamplerKind::Tree);
+        let s = parse_str(&format!("{MINIMAL}[render]\nlight_sampler = \"power\"\n")).expect("parses");
+        assert_eq!(s.render.light_sampler, LightSamplerKind::Power);
+        let (line, msg) = error_line(&format!("{MINIMAL}[render]\nseed = 3\nlight_sampler = \"bvh\"\n"));
+        assert_eq!(line, Some(6), "{msg}");
+        assert!(msg.contains("unknown light sampler `bvh`") && msg.contains("tree"), "{msg}");
     }
 
     #[test]

@@ -1367,7 +1367,12 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             lens: None,
         },
         film: FilmSettings::new(WIDTH, height, 16),
-        render: RenderSettings { max_depth: 8, seed: 0, sampler: Default::default() },
+        render: RenderSettings {
+            max_depth: 8,
+            seed: 0,
+            sampler: Default::default(),
+            light_sampler: Default::default(),
+        },
         materials: placed.materials,
         shapes: placed.shapes,
         lights,

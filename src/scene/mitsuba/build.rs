@@ -227,7 +227,12 @@ impl<'o> Builder<'o> {
             origin: self.origin,
             camera,
             film,
-            render: RenderSettings { max_depth, seed, sampler: Default::default() },
+            render: RenderSettings {
+                max_depth,
+                seed,
+                sampler: Default::default(),
+                light_sampler: Default::default(),
+            },
             materials,
             shapes: self.shapes,
             lights: self.lights,
