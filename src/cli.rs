@@ -14,8 +14,8 @@ use lightsplit::film::{Film, Format};
 use lightsplit::filter::{Overrides, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
-use lightsplit::scene::LightSamplerKind;
 use lightsplit::scene::{limits, Environment};
+use lightsplit::scene::{Guiding, LightSamplerKind};
 
 use crate::Failure;
 
@@ -405,6 +405,16 @@ pub struct RenderArgs {
     /// Default: the scene file's.
     #[arg(long, value_enum)]
     pub light_sampler: Option<LightSamplerKind>,
+    /// Guide directions at diffuse-like vertices by the incident light learned in a first,
+    /// short training pass (path guiding): `--guiding` alone or `all` learns all the light a
+    /// bounce brings, `indirect` only what it brings after a further bounce, `off` none.
+    /// Default: the scene file's (off).
+    #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all")]
+    pub guiding: Option<Guiding>,
+    /// The guide's file: read when it exists (every part of a split render can share one),
+    /// else written with the guide this render trains.
+    #[arg(long, value_name = "FILE")]
+    pub guide: Option<PathBuf>,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,

@@ -26,7 +26,7 @@ use crate::output::{self, Layer, OutputError};
 use crate::part;
 use crate::render::sampler::SamplerKind;
 use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
-use crate::scene::{self, LightSamplerKind, Scene};
+use crate::scene::{self, Guiding, LightSamplerKind, Scene};
 
 /// What a render is asked for: the command line's `render`, in the library's terms. `None`
 /// keeps the scene file's value.
@@ -41,6 +41,9 @@ pub struct Request {
     pub max_depth: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub light_sampler: Option<LightSamplerKind>,
+    pub guiding: Option<Guiding>,
+    /// The guide's file: read when it exists, else written with the guide the render trains.
+    pub guide: Option<PathBuf>,
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
@@ -114,6 +117,8 @@ pub struct Job<'s> {
     pub part_path: PathBuf,
     part_mode: bool,
     resume: Option<Sums>,
+    /// The guide's file, to be written with the guide the render trains (it did not exist).
+    guide_out: Option<PathBuf>,
     /// The run key, computed before the render when a part file is to be written (so that a
     /// scene file changed meanwhile does not lend its key to samples of the old one).
     key: Option<String>,
@@ -159,6 +164,26 @@ impl<'s> Job<'s> {
         options.max_depth = request.max_depth.unwrap_or(options.max_depth);
         options.sampler = request.sampler.unwrap_or(options.sampler);
         options.light_sampler = request.light_sampler.unwrap_or(options.light_sampler);
+        options.guiding = request.guiding.unwrap_or(options.guiding);
+        let mut guide_out = None;
+        if let Some(path) = &request.guide {
+            if options.guiding == Guiding::Off {
+                return Err(input(format!(
+                    "{}: --guide names the guide of a guided render: add --guiding",
+                    path.display()
+                )));
+            }
+            match std::fs::read(path) {
+                Ok(bytes) => {
+                    let guide = crate::render::guide::Guide::from_bytes(&bytes).map_err(|e| {
+                        input(format!("{}: not a guide lightsplit wrote: {e}", path.display()))
+                    })?;
+                    options.guide = Some(std::sync::Arc::new(guide));
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => guide_out = Some(path.clone()),
+                Err(e) => return Err(input(format!("{}: {e}", path.display()))),
+            }
+        }
         options.adaptive = request.adaptive;
 
         let part_mode = request.part.is_some();
@@ -231,6 +256,7 @@ impl<'s> Job<'s> {
             part_mode,
             resume,
             key,
+            guide_out,
             checkpoint: request.checkpoint,
             time_limit: request.time_limit,
             layer: request.layer,
@@ -312,6 +338,9 @@ impl<'s> Job<'s> {
     pub fn write(&mut self, rendered: Rendered) -> Result<Done, JobError> {
         let out = rendered.0;
         let interrupted = out.stats.interrupted;
+        if let (Some(path), Some(guide)) = (&self.guide_out, &out.guide) {
+            film::write_text(path, guide.to_bytes()).map_err(|e| JobError::Failed(e.to_string()))?;
+        }
         if let Some(sums) = &out.sums {
             let key = match self.key.take() {
                 Some(k) => k,
@@ -350,6 +379,7 @@ impl<'s> Job<'s> {
             "accel": options.accel,
             "sampler": options.sampler.name(),
             "light_sampler": options.light_sampler.name(),
+            "guiding": options.guiding.name(),
             "seed": options.seed,
             "threads": options.threads.unwrap_or_else(rayon::current_num_threads),
             "samples": s.samples,

@@ -17,6 +17,7 @@ mod cutouts;
 mod determinism;
 mod features;
 mod formats;
+mod guiding;
 mod hardening;
 mod hostile_parts;
 mod hostile_scenes;

@@ -504,3 +504,72 @@ fn splatted_filters_merge_resume_and_stay_deterministic() {
     };
     assert_eq!(on(1), on(2), "the same splats on one thread and on two");
 }
+
+/// A guided render keeps the invariants of parts and resumes: the guide it trains first is
+/// the same in every part and in a resumed render (its training is a pure function of the
+/// scene and the options), so 2 and 3 parts merge to the whole and a render stopped after a
+/// pass resumes to the uninterrupted one, bit for bit.
+#[test]
+fn a_guided_render_merges_and_resumes_exactly() {
+    let scene = cornell();
+    for guiding in [lightsplit::scene::Guiding::All, lightsplit::scene::Guiding::Indirect] {
+        let options = RenderOptions { guiding, ..options(&scene, 24) };
+        let whole = sums(&scene, &options, Part::default());
+        for n in [2u32, 3] {
+            let mut merged: Option<Sums> = None;
+            for i in 0..n {
+                let s = sums(&scene, &options, Part { index: i, count: n });
+                match &mut merged {
+                    None => merged = Some(s),
+                    Some(m) => m.add(&s).expect("adds"),
+                }
+            }
+            same_sums(&merged.expect("parts"), &whole, 2.0 * gamma(2 * 24 + 2 * n + 2), "guided parts");
+        }
+        let stop = AtomicBool::new(false);
+        let progress = |_n: u64| stop.store(true, Ordering::SeqCst);
+        let first = render_controlled(
+            &scene,
+            &options,
+            Control { stop: Some(&stop), ..Control::progress(&progress) },
+        )
+        .expect("renders");
+        let partial = first.sums.expect("an interrupted render keeps its sums");
+        let control = Control { resume: Some(partial), keep_sums: true, ..Control::progress(&|_| {}) };
+        let resumed = render_controlled(&scene, &options, control).expect("resumes");
+        assert_eq!(resumed.sums.expect("sums"), whole, "{guiding:?}: resumed");
+    }
+}
+
+/// `--guide FILE` writes the guide a render trains when the file does not exist, and a render
+/// that reads it makes the same image; a file that is not a guide is one error, exit 2.
+#[test]
+fn a_guide_file_is_written_and_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let s = &scene_in(d);
+    let path = |name: &str| d.join(name).to_string_lossy().into_owned();
+    let render = |out: &str, extra: &[&str]| {
+        let mut args = vec!["render", s, "--spp", "16", "--guiding", "-o"];
+        let out = path(out);
+        args.push(&out);
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+    let guide = path("scene.guide");
+    let o = render("trained.exr", &["--guide", &guide]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("scene.guide").exists(), "the guide is written");
+    let o = render("read.exr", &["--guide", &guide]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = render("again.exr", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let image = |name: &str| lightsplit::film::read_image(&d.join(name)).expect("reads").pixels;
+    assert_eq!(image("trained.exr"), image("read.exr"), "the guide read is the guide trained");
+    assert_eq!(image("trained.exr"), image("again.exr"), "training is the same every time");
+    std::fs::write(d.join("bad.guide"), b"not a guide").expect("writes");
+    let o = render("bad.exr", &["--guide", &path("bad.guide")]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.guide") && stderr(&o).contains("not a guide"), "{}", stderr(&o));
+    assert!(!d.join("bad.exr").exists());
+}

@@ -29,6 +29,8 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         max_depth: args.max_depth,
         sampler: args.sampler,
         light_sampler: args.light_sampler,
+        guiding: args.guiding,
+        guide: args.guide.clone(),
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,

@@ -4,6 +4,7 @@
 pub mod bsdf;
 pub mod camera;
 pub mod features;
+pub mod guide;
 pub mod integrator;
 pub mod lights;
 pub mod material;
@@ -24,12 +25,14 @@ use crate::accel::{BuildHints, UseAccel, PACKET};
 use crate::component::Split;
 use crate::film::{self, Film, Sums};
 use crate::scene::analysis::Analysis;
-use crate::scene::{LightSamplerKind, Scene};
+use crate::scene::{Guiding, LightSamplerKind, Scene};
 use camera::PinholeCamera;
 pub use features::{Features, Outputs};
+use guide::{Guide, RadianceRecord};
 use integrator::{Integrator, PathSample};
 use lights::Lights;
 use sampler::{PixelSampler, Sampler, SamplerKind};
+use std::sync::Arc;
 
 /// How many non-finite samples `debug_nonfinite` prints.
 const MAX_REPORTS: u32 = 20;
@@ -49,6 +52,11 @@ pub struct RenderOptions {
     pub sampler: SamplerKind,
     /// How next-event estimation picks a light among many.
     pub light_sampler: LightSamplerKind,
+    /// Whether directions at diffuse-like vertices are guided by the learned incident light,
+    /// and what the guide learns from.
+    pub guiding: Guiding,
+    /// The guide to render with (read from a file); `None` trains one first when guided.
+    pub guide: Option<Arc<Guide>>,
     /// Worker threads; `None` for one per core.
     pub threads: Option<usize>,
     pub accel: Backend,
@@ -165,7 +173,10 @@ pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::M
         filter: None,
         world_to_camera: Some(world_to_camera),
         world_to_ndc: Some(world_to_ndc),
-        extra: vec![("lightsplit.light_sampler".into(), options.light_sampler.name().into())],
+        extra: vec![
+            ("lightsplit.light_sampler".into(), options.light_sampler.name().into()),
+            ("lightsplit.guiding".into(), options.guiding.name().into()),
+        ],
     }
 }
 
@@ -182,6 +193,8 @@ impl RenderOptions {
             seed: scene.render.seed,
             sampler: scene.render.sampler,
             light_sampler: scene.render.light_sampler,
+            guiding: scene.render.guiding,
+            guide: None,
             threads: None,
             accel: Backend::Embree,
             debug_nonfinite: false,
@@ -225,6 +238,8 @@ pub struct RenderOutput {
     pub stats: RenderStats,
     /// The sums, when [`Control::keep_sums`] asked for them.
     pub sums: Option<Sums>,
+    /// The guide the render used, when guided (trained by it, or given).
+    pub guide: Option<Arc<Guide>>,
 }
 
 /// An error while rendering (the scene itself was valid).
@@ -650,7 +665,19 @@ fn render_features<A: Accel, const F: u8>(
             true => integrator::Cone::of_camera(&scene.camera, height, options.spp),
             false => integrator::Cone::default(),
         },
+        guide: None,
     };
+    // The guide: given, or trained now (the same on any threads, so every part of a split
+    // render and a resumed one train the same).
+    let mut training_rays = 0;
+    let guide = match (options.guiding, &options.guide) {
+        (Guiding::Off, _) => None,
+        (_, Some(g)) => Some(g.clone()),
+        (learns, None) => {
+            Some(Arc::new(train_guide(&integrator, scene, options, learns, &mut training_rays)))
+        }
+    };
+    let integrator = Integrator { guide: guide.as_deref(), ..integrator };
     let spp = options.spp.max(1);
     let reported = AtomicU32::new(0);
 
@@ -804,6 +831,7 @@ fn render_features<A: Accel, const F: u8>(
         interrupted,
         ..Default::default()
     };
+    stats.rays += training_rays;
     for tile in &tiles {
         stats.rays += tile.rays;
         stats.nonfinite_samples += tile.nonfinite;
@@ -815,7 +843,62 @@ fn render_features<A: Accel, const F: u8>(
     state.samples = samples;
     let sums = (control.keep_sums || interrupted).then(|| state.clone());
     stats.seconds = start.elapsed().as_secs_f64();
-    RenderOutput { film: state.into_means(), stats, sums }
+    RenderOutput { film: state.into_means(), stats, sums, guide }
+}
+
+/// Training iterations of the guide, each this many samples a pixel (Müller et al. double
+/// each iteration's budget; each guide trains the next).
+const TRAINING_SPP: [u32; 4] = [1, 2, 4, 8];
+
+/// Trains the guide for a render with `options` (Müller et al.'s iterations): renders a
+/// smaller image of the same view, its pixels about an eighth of the render's samples over
+/// the iterations' total, each iteration guided by the guide of the one before, whose paths'
+/// records (in pixel order: the same on any threads) train the next. `rays` counts the rays.
+fn train_guide<A: Accel, const F: u8>(
+    integrator: &Integrator<'_, A, F>,
+    scene: &Scene,
+    options: &RenderOptions,
+    learns: Guiding,
+    rays: &mut u64,
+) -> Guide {
+    let (lo, hi) = scene.bounds();
+    let mut guide = Guide::new(lo, hi);
+    let learns = match learns {
+        Guiding::All => integrator::Learns::All,
+        _ => integrator::Learns::Indirect,
+    };
+    let total: u32 = TRAINING_SPP.iter().sum();
+    let (w, h) = (options.width.max(1), options.height.max(1));
+    let share = (options.spp.max(1) as f64 / (8.0 * total as f64)).min(1.0);
+    let scale = share.sqrt();
+    let (tw, th) =
+        (((w as f64 * scale).round() as u32).clamp(1, w), ((h as f64 * scale).round() as u32).clamp(1, h));
+    let camera = PinholeCamera::of_film(&scene.camera, &scene.film, tw, th);
+    let counted = std::sync::atomic::AtomicU64::new(0);
+    for (k, &spp) in TRAINING_SPP.iter().enumerate() {
+        let seed = options.seed ^ 0x6775_6964_6500_0000 ^ ((k as u64 + 1) << 40);
+        let current = Integrator { guide: (k > 0).then_some(&guide), ..*integrator };
+        let rows: Vec<Vec<RadianceRecord>> = (0..th)
+            .into_par_iter()
+            .map(|y| {
+                let mut path = integrator::GuidePath::new(learns);
+                let mut traced = 0;
+                for x in 0..tw {
+                    let streams = PixelSampler::new(options.sampler, seed, y as u64 * tw as u64 + x as u64);
+                    for i in 0..spp {
+                        let mut sampler = streams.sample(i as u64);
+                        let ray = camera.generate(x, y, &mut sampler);
+                        current.sample_training(ray, &mut sampler, &mut traced, &mut path);
+                    }
+                }
+                counted.fetch_add(traced, Ordering::Relaxed);
+                path.records
+            })
+            .collect();
+        guide = guide.train(&rows.concat());
+    }
+    *rays += counted.into_inner();
+    guide
 }
 
 /// Each pixel's sample count, from the tiles (whose counts run from `first`, the range's first

@@ -46,6 +46,8 @@ pub enum Dim {
     Direction,
     /// Russian roulette (1D).
     Roulette,
+    /// Whether the guide or the BSDF picks the direction (1D), at a guided vertex.
+    Guide,
 }
 
 /// Bounces whose numbers come from the Sobol points; deeper ones draw independent numbers. One:
@@ -195,6 +197,8 @@ impl Sobol {
             Some(Dim::Lobe) => 2,
             Some(Dim::Direction) => 3,
             Some(Dim::Roulette) => 4,
+            // Apart from every light's.
+            Some(Dim::Guide) => 0x7fff_0000,
             Some(Dim::Light(i)) => 5 + i as u64,
         };
         let at = purpose | (self.bounce as u64) << 32;

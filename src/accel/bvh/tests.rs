@@ -26,6 +26,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
             seed: 0,
             sampler: Default::default(),
             light_sampler: Default::default(),
+            guiding: Default::default(),
         },
         materials: vec![Material::Diffuse { albedo: Vec3::ONE }],
         shapes: shapes

@@ -288,7 +288,9 @@ impl Lights {
     /// How next-event estimation picks lights, in words (for `info`).
     pub fn describe(&self) -> String {
         match &self.selection {
-            Selection::All => format!("every light at each vertex ({} at most {SAMPLE_ALL})", self.emitters.len()),
+            Selection::All => {
+                format!("every light at each vertex ({} at most {SAMPLE_ALL})", self.emitters.len())
+            }
             Selection::Table => format!("one of {} lights from a table", self.emitters.len()),
             Selection::Tree(t) => format!(
                 "one of {} bounded lights by a light tree ({} nodes, depth {} at most, {:.1} on average){}",
@@ -475,6 +477,70 @@ mod tests {
             };
             let z = z_score(|s| lights.sample_one(&scene, 0, Vec3::ZERO, s.next_2d()).map(|l| l.wi), pdf);
             assert!(z < 4.0, "z = {z}");
+        }
+
+        /// Twelve small emissive quads of varied emission around the origin, some turned away
+        /// (more than eight lights: the tree picks one): the tree's samples from a surface at
+        /// the origin follow the density MIS gives a BSDF-sampled hit on any of them, its
+        /// selection included; with the selection evaluated without the surface's normal, they
+        /// fail.
+        #[test]
+        fn tree_sampling_matches_its_mis_density() {
+            let mut text = String::from(CAMERA);
+            let mut s = Sampler::new(6, 6, 6);
+            for i in 0..12 {
+                let u = crate::math::uniform_sphere(s.next_2d());
+                let c = u * 3.0;
+                // Facing the origin, or turned 70 degrees from it.
+                let facing =
+                    if i % 4 == 3 { (-u + 2.7 * Frame::new(u).to_world(Vec3::X)).normalize() } else { -u };
+                let t = Frame::new(facing).to_world(Vec3::X) * 0.25;
+                let b = facing.cross(t);
+                let v = [c - t - b, c + t - b, c + t + b, c - t + b];
+                let e = 1.0 + 9.0 * s.next_1d();
+                let f = |p: Vec3| format!("[{}, {}, {}]", p.x, p.y, p.z);
+                text.push_str(&format!(
+                    "[[shape]]\ntype = \"quad\"\nemission = [{e}, {e}, {e}]\nvertices = [{}, {}, {}, {}]\n",
+                    f(v[0]),
+                    f(v[1]),
+                    f(v[2]),
+                    f(v[3])
+                ));
+            }
+            let scene = parse(std::path::Path::new("t.toml"), &text).expect("parses");
+            let lights = Lights::new(&scene, LightSamplerKind::Tree);
+            assert_eq!(lights.strategy(), Strategy::Tree);
+            let o = -scene.origin.as_vec3();
+            let n = Vec3::new(0.3, 1.0, -0.2).normalize();
+            // The first emissive triangle along d, traced, and the density MIS gives it.
+            let pdf = |d: Vec3, np: Vec3| {
+                let mut best: Option<(f32, f32)> = None;
+                for (i, shape) in scene.shapes.iter().enumerate() {
+                    let Geometry::Triangles(mesh) = &shape.geometry else { continue };
+                    for t in 0..mesh.indices.len() as u32 {
+                        let tri = mesh.triangle(t).map(|p| p - o);
+                        let Some(h) = hit_triangle(tri, d) else { continue };
+                        if best.is_some_and(|(near, _)| near <= h) {
+                            continue;
+                        }
+                        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+                        let light = lights.of_shape(i as u32).expect("a light");
+                        let p = if ng.dot(d) < 0.0 {
+                            lights.pdf_shape(light, t, o, np, o + d * h, ng)
+                        } else {
+                            0.0
+                        };
+                        best = Some((h, p));
+                    }
+                }
+                best.map_or(0.0, |(_, p)| p)
+            };
+            let sample =
+                |s: &mut Sampler| lights.sample_tree(&scene, o, n, s.next_1d(), s.next_2d()).map(|l| l.wi);
+            let z = z_score(sample, |d| pdf(d, n));
+            assert!(z < 4.0, "z = {z}");
+            let z = z_score(sample, |d| pdf(d, Vec3::ZERO));
+            assert!(z > 10.0, "without the normal: z = {z}");
         }
 
         #[test]

@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 
 use super::{dv3, v3, Ctx, F, V3};
 use crate::scene::{limits, Camera, FilmSettings, Lens, PixelFilter, RenderSettings, SceneError};
-use crate::scene::{LightSamplerKind, SamplerKind};
+use crate::scene::{Guiding, LightSamplerKind, SamplerKind};
 
 /// `[camera]` as written.
 #[derive(Deserialize)]
@@ -49,6 +49,8 @@ pub(super) struct FileRender {
     sampler: Option<Spanned<String>>,
     diffuse_roughness: Option<Spanned<F>>,
     light_sampler: Option<Spanned<String>>,
+    /// true, false, or the mode's name.
+    guiding: Option<Spanned<toml::Value>>,
 }
 
 /// The camera, checked: a field of view inside (0, 180) degrees and a view it can orient. With
@@ -241,6 +243,21 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
                 }
             },
             None => LightSamplerKind::default(),
+        },
+        guiding: match r.and_then(|r| r.guiding.as_ref()) {
+            Some(g) => {
+                let parsed = match g.get_ref() {
+                    toml::Value::Boolean(true) => Some(Guiding::ON),
+                    toml::Value::Boolean(false) => Some(Guiding::Off),
+                    toml::Value::String(name) => Guiding::parse(name),
+                    _ => None,
+                };
+                match parsed {
+                    Some(g) => g,
+                    None => return ctx.err(g.span(), "`guiding` is true, false, \"indirect\" or \"all\""),
+                }
+            }
+            None => Guiding::default(),
         },
     })
 }

@@ -1372,6 +1372,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             seed: 0,
             sampler: Default::default(),
             light_sampler: Default::default(),
+            guiding: Default::default(),
         },
         materials: placed.materials,
         shapes: placed.shapes,

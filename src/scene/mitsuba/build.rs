@@ -232,6 +232,7 @@ impl<'o> Builder<'o> {
                 seed,
                 sampler: Default::default(),
                 light_sampler: Default::default(),
+                guiding: Default::default(),
             },
             materials,
             shapes: self.shapes,
