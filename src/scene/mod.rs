@@ -380,9 +380,10 @@ impl Guiding {
         }
     }
 
-    /// What `true` means: the measured better mode (on `window-room.toml` at 128x128 and 32
-    /// spp, against 1,024: 1.31x less MSE of the indirect component a sample learning all the
-    /// light, 1.14x learning the indirect only; docs/RESULTS.md).
+    /// What `true` means: the better of the two measured (on `window-room.toml`, 128x128, at
+    /// equal time 0.55x and 0.58x the unguided MSE learning all the light, 0.52x and 0.56x
+    /// the indirect only; with a training 30 times longer, 1.31x and 1.14x less MSE of the
+    /// indirect component a sample: docs/RESULTS.md, issue 39).
     pub const ON: Guiding = Guiding::All;
 
     pub fn parse(name: &str) -> Option<Guiding> {
