@@ -10,7 +10,7 @@
 //! `f * 4^d / (4 pi)` over solid angle. A quadtree with no energy is uniform.
 //!
 //! A guide is learned in iterations (the paper's sections 3.3 and 3.4). Iteration `k` renders
-//! with guide `k` and turns its path vertices into [`RadianceRecord`]s (a [`PathRecorder`]
+//! with guide `k` and turns its path vertices into [`RadianceRecord`]s (the integrator's `GuidePath`
 //! follows a path for that); [`Guide::train`] makes guide `k + 1` from them:
 //! - a spatial leaf that received more than `c * sqrt(2^k)` records is split, and its halves
 //!   again while theirs exceed it; the records falling in each half are counted, where Müller
@@ -104,76 +104,6 @@ impl RadianceRecord {
             return None;
         }
         self.direction.try_normalize()
-    }
-}
-
-/// One path's records, gathered while it is traced, as Müller's guided path tracer gathers
-/// them: each bounce is noted with the path's throughput after it, the radiance the path then
-/// brings to the eye is added to every bounce before it, and at the end a bounce's record is
-/// that radiance over its throughput (the radiance incident along its direction) over its
-/// density. Keep one a thread and reuse it: it allocates only to grow.
-///
-/// A light sample (next-event estimation) may be recorded directly, as
-/// `RadianceRecord::new(p, wi, radiance * mis_weight / light_pdf)`: with the bounces' records
-/// holding the MIS-weighted emission they find, the two add up to the incident radiance.
-#[derive(Clone, Debug, Default)]
-pub struct PathRecorder {
-    bounces: Vec<Bounce>,
-}
-
-/// A bounce of the path a [`PathRecorder`] follows.
-#[derive(Clone, Copy, Debug)]
-struct Bounce {
-    position: Vec3,
-    direction: Vec3,
-    pdf: f32,
-    throughput: Vec3,
-    /// The radiance the path brought to the eye after this bounce, so far.
-    gathered: Vec3,
-}
-
-impl PathRecorder {
-    /// An empty recorder.
-    pub fn new() -> Self {
-        PathRecorder::default()
-    }
-
-    /// Forgets the path so far.
-    pub fn clear(&mut self) {
-        self.bounces.clear();
-    }
-
-    /// A bounce at `position` along `direction`, sampled with density `pdf` (the density of
-    /// the strategy that chose it, e.g. the mixture of guide and BSDF), after which the path's
-    /// throughput from the eye, this bounce's weight included, is `throughput`. Not for delta
-    /// bounces, which no guide samples (their weight still counts in later throughputs).
-    pub fn bounce(&mut self, position: Vec3, direction: Vec3, pdf: f32, throughput: Vec3) {
-        self.bounces.push(Bounce { position, direction, pdf, throughput, gathered: Vec3::ZERO });
-    }
-
-    /// Radiance that reached the eye along the path, as the pixel gets it (throughput and MIS
-    /// weight included): every bounce so far led to it. Kept per bounce, so that a bright
-    /// early contribution does not swamp a faint late one's share in rounding.
-    pub fn gather(&mut self, radiance: Vec3) {
-        for b in &mut self.bounces {
-            b.gathered += radiance;
-        }
-    }
-
-    /// Appends the path's records to `out`, one a bounce in the order of the bounces, and
-    /// clears the recorder. A record's value is the radiance gathered after its bounce over
-    /// the throughput, channel by channel (0 where the throughput is 0), averaged over the
-    /// channels (Müller's choice), over the density; a bounce whose value is not finite
-    /// (a density of 0) gives none.
-    pub fn finish(&mut self, out: &mut Vec<RadianceRecord>) {
-        for b in self.bounces.drain(..) {
-            let incident =
-                Vec3::select(b.throughput.cmpgt(Vec3::ZERO), b.gathered / b.throughput, Vec3::ZERO);
-            let value = incident.element_sum() / 3.0 / b.pdf;
-            if value.is_finite() && value >= 0.0 {
-                out.push(RadianceRecord::new(b.position, b.direction, value));
-            }
-        }
     }
 }
 
@@ -1461,32 +1391,6 @@ mod tests {
         assert_eq!(a.to_bytes(), b.to_bytes());
         assert!(a.quads.iter().all(|n| n.energy.is_finite()));
         assert!(a.pdf(Vec3::splat(0.5), lobe_a()) > 5.0 * UNIFORM);
-    }
-
-    #[test]
-    fn a_path_recorder_divides_by_throughput_and_density() {
-        let mut r = PathRecorder::new();
-        let mut out = Vec::new();
-        let (p1, p2) = (Vec3::ZERO, Vec3::ONE);
-        r.gather(Vec3::splat(7.0)); // emission seen from the eye: no bounce before it
-        r.bounce(p1, Vec3::Z, 0.5, Vec3::splat(0.5));
-        r.gather(Vec3::ONE);
-        r.bounce(p2, Vec3::X, 0.25, Vec3::new(0.1, 0.2, 0.0));
-        r.gather(Vec3::splat(0.1));
-        r.bounce(p2, Vec3::Y, 0.0, Vec3::ONE); // a density of 0: no record
-        r.gather(Vec3::splat(0.3));
-        r.finish(&mut out);
-        // The first bounce led to 1 + 0.1 + 0.3 over a throughput of 1/2, at density 1/2; the
-        // second to 0.4 over (0.1, 0.2, 0), (4, 2, 0) averaged, at density 1/4.
-        assert_eq!(out.len(), 2);
-        assert_eq!((out[0].position, out[0].direction), (p1, Vec3::Z));
-        assert!((out[0].value - 1.4 / 0.5 / 0.5).abs() < 1e-5, "{}", out[0].value);
-        assert_eq!((out[1].position, out[1].direction), (p2, Vec3::X));
-        assert!((out[1].value - 2.0 / 0.25).abs() < 1e-5, "{}", out[1].value);
-        // Cleared for the next path.
-        r.gather(Vec3::ONE);
-        r.finish(&mut out);
-        assert_eq!(out.len(), 2);
     }
 
     #[test]
