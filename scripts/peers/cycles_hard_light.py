@@ -47,6 +47,7 @@ arguments.
 
 import argparse
 import contextlib
+import importlib.util
 import json
 import math
 import os
@@ -134,17 +135,17 @@ def relative_rmse(a, test, reference):
     return math.sqrt(compare(a, test, reference)["relmse"])
 
 
-def time_to(points, target):
-    """The time at which the log-log line through (time, error) points reaches `target` (the
-    same reading as scripts/mitsuba/compare.py's)."""
-    logs = sorted((math.log(t), math.log(e)) for t, e in points if t > 0 and e > 0)
-    lt = math.log(target)
-    for (t0, e0), (t1, e1) in zip(logs, logs[1:]):
-        if (e0 - lt) * (e1 - lt) <= 0 and e0 != e1:
-            return math.exp(t0 + (lt - e0) * (t1 - t0) / (e1 - e0))
-    # Past the ends: error ~ time^(-1/2) from the nearer end.
-    t, e = logs[0] if lt > logs[0][1] else logs[-1]
-    return math.exp(t - 2.0 * (lt - e))
+def _mitsuba_compare():
+    """scripts/mitsuba/compare.py, loaded for its `time_to`: the time at which the log-log line
+    through (time, error) points reaches a target error, the same reading for both peers."""
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "mitsuba", "compare.py")
+    spec = importlib.util.spec_from_file_location("mitsuba_compare", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+time_to = _mitsuba_compare().time_to
 
 
 class Cycles:

@@ -4,7 +4,7 @@
 //! instance's own) is a leaf; a node bounds its leaves' positions, their summed intensity and
 //! the cone of directions they shine into. At a shading point a light is picked by descending
 //! from the root, choosing each child in proportion to an upper bound of what it can send to
-//! that point ([`LightBounds::importance`]); the probability of any leaf at any point is found
+//! that point (`Bound::importance`); the probability of any leaf at any point is found
 //! again, exactly, by following its parents back to the root ([`LightTree::pmf`]), which is
 //! what multiple importance sampling needs for a light a BSDF sample hits.
 //!
@@ -66,12 +66,6 @@ impl LightBounds {
 
     fn centroid(&self) -> Vec3 {
         0.5 * (self.lo + self.hi)
-    }
-
-    /// An upper bound of the irradiance these lights can give at `p` on a surface of normal
-    /// `n` ([`Bound::importance`]).
-    pub fn importance(&self, p: Vec3, n: Vec3) -> f32 {
-        Bound::of(self).importance(p, n)
     }
 
     /// pbrt-v4's cost of a node for the split heuristic: its intensity times the solid angle
@@ -250,6 +244,19 @@ impl LightTree {
         at
     }
 
+    /// The children of interior node `at` and the probability of descending into the first,
+    /// seen from `p` (normal `n`): in proportion to their importances; `None` when neither
+    /// lets any light through.
+    #[inline(always)]
+    fn children(&self, at: usize, p: Vec3, n: Vec3) -> Option<(usize, usize, f32)> {
+        let (a, b) = (at + 1, self.nodes[at].second_or_item as usize);
+        let (ia, ib) = (self.nodes[a].bounds.importance(p, n), self.nodes[b].bounds.importance(p, n));
+        if ia <= 0.0 && ib <= 0.0 {
+            return None;
+        }
+        Some((a, b, ia / (ia + ib)))
+    }
+
     /// Picks an item as seen from `p` (surface normal `n`) with the uniform number `u`: the
     /// item, its probability and `u` rescaled for reuse. `None` when no light can reach `p`.
     #[inline]
@@ -264,12 +271,7 @@ impl LightTree {
             if node.leaf {
                 return Some((node.second_or_item, pmf, u));
             }
-            let (a, b) = (at + 1, node.second_or_item as usize);
-            let (ia, ib) = (self.nodes[a].bounds.importance(p, n), self.nodes[b].bounds.importance(p, n));
-            if ia <= 0.0 && ib <= 0.0 {
-                return None;
-            }
-            let pa = ia / (ia + ib);
+            let (a, b, pa) = self.children(at, p, n)?;
             if u < pa {
                 at = a;
                 pmf *= pa;
@@ -296,12 +298,7 @@ impl LightTree {
         let mut pmf = 1.0f32;
         while self.nodes[at].parent != NONE {
             let parent = self.nodes[at].parent as usize;
-            let (a, b) = (parent + 1, self.nodes[parent].second_or_item as usize);
-            let (ia, ib) = (self.nodes[a].bounds.importance(p, n), self.nodes[b].bounds.importance(p, n));
-            if ia <= 0.0 && ib <= 0.0 {
-                return 0.0;
-            }
-            let pa = ia / (ia + ib);
+            let Some((a, _, pa)) = self.children(parent, p, n) else { return 0.0 };
             pmf *= if at == a { pa } else { 1.0 - pa };
             at = parent;
         }
@@ -315,16 +312,10 @@ impl LightTree {
     #[cfg(test)]
     fn no_light(&self, p: Vec3, n: Vec3) -> f32 {
         fn below(tree: &LightTree, at: usize, p: Vec3, n: Vec3) -> f32 {
-            let node = &tree.nodes[at];
-            if node.leaf {
+            if tree.nodes[at].leaf {
                 return 0.0;
             }
-            let (a, b) = (at + 1, node.second_or_item as usize);
-            let (ia, ib) = (tree.nodes[a].bounds.importance(p, n), tree.nodes[b].bounds.importance(p, n));
-            if ia <= 0.0 && ib <= 0.0 {
-                return 1.0;
-            }
-            let pa = ia / (ia + ib);
+            let Some((a, b, pa)) = tree.children(at, p, n) else { return 1.0 };
             pa * below(tree, a, p, n) + (1.0 - pa) * below(tree, b, p, n)
         }
         match self.nodes.first() {
@@ -373,10 +364,7 @@ fn split(items: &[LightBounds], order: &mut [u32]) -> usize {
         if extent[axis] <= 0.0 {
             continue;
         }
-        let bucket = |i: u32| {
-            let c = items[i as usize].centroid()[axis];
-            (((c - clo[axis]) / extent[axis] * BUCKETS as f32) as usize).min(BUCKETS - 1)
-        };
+        let bucket = |i: u32| bucket_of(items[i as usize].centroid()[axis], clo[axis], extent[axis]);
         let mut buckets: [Option<LightBounds>; BUCKETS] = [None; BUCKETS];
         for &i in order.iter() {
             let b = &mut buckets[bucket(i)];
@@ -401,10 +389,8 @@ fn split(items: &[LightBounds], order: &mut [u32]) -> usize {
     }
     let mid = match best {
         Some((_, axis, cut)) => {
-            let below = |i: &u32| {
-                let c = items[*i as usize].centroid()[axis];
-                (((c - clo[axis]) / extent[axis] * BUCKETS as f32) as usize).min(BUCKETS - 1) <= cut
-            };
+            let below =
+                |i: &u32| bucket_of(items[*i as usize].centroid()[axis], clo[axis], extent[axis]) <= cut;
             partition(order, below)
         }
         None => 0,
@@ -415,6 +401,11 @@ fn split(items: &[LightBounds], order: &mut [u32]) -> usize {
         return order.len() / 2;
     }
     mid
+}
+
+/// The bucket of a centroid at `c` along an axis whose centroids span `lo` to `lo + extent`.
+fn bucket_of(c: f32, lo: f32, extent: f32) -> usize {
+    (((c - lo) / extent * BUCKETS as f32) as usize).min(BUCKETS - 1)
 }
 
 /// Moves the items for which `below` holds to the front, keeping each side's order (the tree

@@ -220,30 +220,20 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
             None => 8,
         },
         seed: r.and_then(|r| r.seed).unwrap_or(0),
-        sampler: match r.and_then(|r| r.sampler.as_ref()) {
-            Some(s) => match SamplerKind::parse(s.get_ref()) {
-                Some(kind) => kind,
-                None => {
-                    return ctx.err(
-                        s.span(),
-                        format!("unknown sampler `{}`: use independent or sobol", s.get_ref()),
-                    )
-                }
-            },
-            None => SamplerKind::default(),
-        },
-        light_sampler: match r.and_then(|r| r.light_sampler.as_ref()) {
-            Some(s) => match LightSamplerKind::parse(s.get_ref()) {
-                Some(kind) => kind,
-                None => {
-                    return ctx.err(
-                        s.span(),
-                        format!("unknown light sampler `{}`: use tree, power or uniform", s.get_ref()),
-                    )
-                }
-            },
-            None => LightSamplerKind::default(),
-        },
+        sampler: named(
+            ctx,
+            r.and_then(|r| r.sampler.as_ref()),
+            SamplerKind::parse,
+            "sampler",
+            "independent or sobol",
+        )?,
+        light_sampler: named(
+            ctx,
+            r.and_then(|r| r.light_sampler.as_ref()),
+            LightSamplerKind::parse,
+            "light sampler",
+            "tree, power or uniform",
+        )?,
         guiding: match r.and_then(|r| r.guiding.as_ref()) {
             Some(g) => {
                 let parsed = match g.get_ref() {
@@ -260,6 +250,24 @@ pub(super) fn render(ctx: &Ctx, r: Option<&FileRender>) -> Result<RenderSettings
             None => Guiding::default(),
         },
     })
+}
+
+/// A key whose value is one of a fixed set of names, read by `parse`: its default when absent;
+/// an unknown name is an error at its place naming `what` and the `choices`.
+fn named<T: Default>(
+    ctx: &Ctx,
+    value: Option<&Spanned<String>>,
+    parse: impl Fn(&str) -> Option<T>,
+    what: &str,
+    choices: &str,
+) -> Result<T, SceneError> {
+    match value {
+        None => Ok(T::default()),
+        Some(s) => match parse(s.get_ref()) {
+            Some(kind) => Ok(kind),
+            None => ctx.err(s.span(), format!("unknown {what} `{}`: use {choices}", s.get_ref())),
+        },
+    }
 }
 
 /// `diffuse_roughness`: the roughness from which a metallic-roughness material's GGX lobe is a D
