@@ -15,6 +15,7 @@ mod components;
 mod converge;
 mod cutouts;
 mod determinism;
+mod embree;
 mod features;
 mod formats;
 mod guiding;
