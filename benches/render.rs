@@ -22,11 +22,13 @@ fn bench(c: &mut Criterion) {
         let accel = build_embree(&scene, None).expect("embree builds");
         let lights = Lights::new(&scene, scene.render.light_sampler);
         let faces = FaceNormals::new(&scene);
+        let paths = lightsplit::render::paths::PathExprs::new(&lights);
         // The general integrator (every feature); `bench-features` measures the specialised ones.
         let integrator: Integrator<'_, _> = Integrator {
             scene: &scene,
             accel: &accel,
             lights: &lights,
+            paths: &paths,
             faces: &faces,
             max_depth: scene.render.max_depth,
             cone: lightsplit::render::integrator::Cone::of_camera(&scene.camera, scene.film.height, 1),

@@ -12,6 +12,7 @@ pub mod error;
 pub mod film;
 pub mod filter;
 pub mod job;
+pub mod lpe;
 pub mod math;
 pub mod metrics;
 pub mod output;

@@ -9,6 +9,7 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
+pub mod cryptomatte;
 pub mod layers;
 mod sums;
 

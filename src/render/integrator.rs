@@ -17,10 +17,12 @@ use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::guide::{Directions, Guide, RadianceRecord};
 use super::lights::{LightSample, Lights, ShadowEnd, Strategy};
 use super::material::{Shading, UseBsdf};
+use super::paths::PathExprs;
 use super::sampler::{Dim, Sampler};
 use super::surface::{surface_with, valid_reflection, FaceNormals, Surface};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
+use crate::lpe::State;
 use crate::math::luminance;
 use crate::scene::{Scene, Shape};
 
@@ -30,6 +32,8 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     pub scene: &'a Scene,
     pub accel: &'a A,
     pub lights: &'a Lights,
+    /// The light path expressions that split each contribution among the components.
+    pub paths: &'a PathExprs,
     /// The scene's triangle normals, made once (`FaceNormals::new`).
     pub faces: &'a FaceNormals,
     pub max_depth: u32,
@@ -276,46 +280,17 @@ impl PathSample {
     }
 }
 
-/// Where the eye path is in Heckbert's notation: how many D vertices it has passed, and whether
-/// an S vertex followed the first D. That is all the component split needs.
+/// How many D vertices the eye path has passed: the guide buffers follow the path until the
+/// first. (Which component its light goes to is the light path expressions' state.)
 #[derive(Clone, Copy, Debug, Default)]
 struct PathClass {
     diffuse: u32,
-    specular_after_first: bool,
 }
 
 impl PathClass {
-    /// The component of light that reaches the eye along the path so far: from a light hit
-    /// after the last vertex, or found by NEE at the current D vertex (already counted).
-    fn component(self, diffuse_source: bool) -> Component {
-        match self.diffuse {
-            0 => Component::Emitted,
-            // A diffuse source's light counts as already diffusely reflected once.
-            _ if diffuse_source => Component::Indirect,
-            1 if self.specular_after_first => Component::Caustic,
-            1 => Component::Direct,
-            _ => Component::Indirect,
-        }
-    }
-
-    /// The class after one more D vertex.
-    fn through_diffuse(self) -> Self {
-        PathClass { diffuse: self.diffuse + 1, ..self }
-    }
-
-    /// The class after one more S vertex: after the first D vertex, light arriving next is a
-    /// caustic.
-    fn through_specular(self) -> Self {
-        PathClass { specular_after_first: self.specular_after_first || self.diffuse == 1, ..self }
-    }
-
     /// The class after a vertex of this lobe's kind.
     fn through(self, lobe: Lobe) -> Self {
-        if lobe.is_specular() {
-            self.through_specular()
-        } else {
-            self.through_diffuse()
-        }
+        PathClass { diffuse: self.diffuse + u32::from(!lobe.is_specular()) }
     }
 }
 
@@ -374,6 +349,8 @@ struct PathState {
     /// Throughput: the product of the BSDF weights so far.
     beta: Vec3,
     class: PathClass,
+    /// Where the path is in the light path expressions (the split's automaton).
+    lpe: State,
     /// The last bounce was a delta one (the camera counts as one): emission found next takes
     /// no MIS weight, since light sampling could not have found it.
     after_delta: bool,
@@ -416,12 +393,17 @@ impl PathState {
 }
 
 impl PathSample {
-    /// Adds a contribution to the beauty and to its component (the split only when `F` has it).
+    /// Adds a contribution to the beauty and to the components whose expressions its path
+    /// matches (`mask`, [`PathExprs::light`]; the split only when `F` has it).
     #[inline(always)]
-    fn add<const F: u8>(&mut self, c: Vec3, component: Component) {
+    fn add<const F: u8>(&mut self, c: Vec3, mask: u64) {
         self.beauty += c;
         if F & SPLIT != 0 {
-            self.components[component] += c;
+            let mut m = mask & super::paths::COMPONENT_BITS;
+            while m != 0 {
+                self.components[Component::ALL[m.trailing_zeros() as usize]] += c;
+                m &= m - 1;
+            }
         }
     }
 
@@ -524,6 +506,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             path: PathState {
                 beta: Vec3::ONE,
                 class: PathClass::default(),
+                lpe: self.paths.start(),
                 after_delta: true,
                 bsdf_pdf: 0.0,
                 prev_p: ray.origin,
@@ -617,7 +600,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         if !bsdf.scatters(at.wo) {
             return None;
         }
-        let before = walk.path.class;
+        let before = walk.path.lpe;
         // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see it
         // even when the path ends here; one of several lobes, once a lobe is sampled.
         let travelled = walk.path.travelled;
@@ -650,6 +633,9 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         }
         if bsdf.lobe().is_none() {
             vertex(&mut walk.out, &mut walk.path.class, bs.lobe);
+        }
+        if F & SPLIT != 0 {
+            walk.path.lpe = self.paths.scatter(before, bs.lobe, bs.wi.dot(at.ng) <= 0.0);
         }
         if !walk.path.scatter(&bs, at.p, at.ns) {
             return None;
@@ -701,10 +687,10 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             }
             _ => 1.0,
         };
-        let source = light.is_some_and(|i| lights.diffuse_source[i as usize]);
+        let mask = if F & SPLIT != 0 { self.paths.light(path.lpe, light) } else { 0 };
         let emission =
             if F & TEXTURES != 0 { self.scene.emission_at(shape, [s.uv, s.uv1]) } else { emission };
-        out.add::<F>(path.beta * emission * w, path.class.component(source));
+        out.add::<F>(path.beta * emission * w, mask);
     }
 
     /// What a path that left the scene along `dir` sees of the sun and the sky (nothing in a
@@ -719,8 +705,8 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             let (le, light_pdf) = lights.distant(i, dir, path.after_delta);
             if le != Vec3::ZERO {
                 let w = if path.after_delta { 1.0 } else { power_heuristic(path.bsdf_pdf, light_pdf) };
-                let component = path.class.component(lights.diffuse_source[i as usize]);
-                out.add::<F>(path.beta * le * w, component);
+                let mask = if F & SPLIT != 0 { self.paths.light(path.lpe, Some(i)) } else { 0 };
+                out.add::<F>(path.beta * le * w, mask);
             }
         }
     }
@@ -728,12 +714,12 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     /// Next-event estimation at a reflecting vertex: samples every light when there are few,
     /// else one picked from the table, or each light at infinity and one bounded light picked
     /// by the tree; gathers what each sample sends through the BSDF's lobes. `before` is the
-    /// path's class before this vertex.
+    /// path's state in the light path expressions before this vertex.
     #[inline(always)]
     fn next_event<B: Bsdf>(
         &self,
         walk: &mut Walk,
-        before: PathClass,
+        before: State,
         bsdf: &B,
         at: &Reflecting,
         guided: Option<&Guided>,
@@ -777,7 +763,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     fn gather<B: Bsdf>(
         &self,
         walk: &mut Walk,
-        before: PathClass,
+        before: State,
         bsdf: &B,
         at: &Reflecting,
         ls: &LightSample,
@@ -796,7 +782,15 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         if self.accel.occluded(&shadow) {
             return;
         }
-        let source = self.lights.diffuse_source[ls.light as usize];
+        let paths = self.paths;
+        // The expressions light through a lobe of this kind matches (a light sample reflects).
+        let mask = |lobe| {
+            if F & SPLIT != 0 {
+                paths.light(paths.scatter(before, lobe, false), Some(ls.light))
+            } else {
+                0
+            }
+        };
         let (out, beta) = (&mut walk.out, walk.path.beta);
         if let Some(g) = guided {
             // Weighed against the mixture's density of the direction, lobe kind by kind.
@@ -810,7 +804,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                         power_heuristic(ls.pdf, g.density(&lobes, k, guide))
                     };
                     let c = beta * f * ls.radiance * (cos * w / ls.pdf);
-                    out.add::<F>(c, before.through(kind(k)).component(source));
+                    out.add::<F>(c, mask(kind(k)));
                 }
             }
             return;
@@ -819,7 +813,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             if f != Vec3::ZERO {
                 let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
                 let c = beta * f * ls.radiance * (cos * w / ls.pdf);
-                out.add::<F>(c, before.through(lobe).component(source));
+                out.add::<F>(c, mask(lobe));
             }
         });
     }

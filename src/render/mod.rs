@@ -8,6 +8,7 @@ pub mod guide;
 pub mod integrator;
 pub mod lights;
 pub mod material;
+pub mod paths;
 pub mod sampler;
 pub mod splat;
 pub mod surface;
@@ -655,10 +656,12 @@ fn render_features<A: Accel, const F: u8>(
     let camera = PinholeCamera::of_film(&scene.camera, &scene.film, width, height);
     let lights = Lights::new(scene, options.light_sampler);
     let faces = surface::FaceNormals::new(scene);
+    let paths = paths::PathExprs::new(&lights);
     let integrator: Integrator<'_, A, F> = Integrator {
         scene,
         accel,
         lights: &lights,
+        paths: &paths,
         faces: &faces,
         max_depth: options.max_depth,
         cone: match options.texture_filter {

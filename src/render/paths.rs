@@ -1,0 +1,140 @@
+//! The light path expressions a render evaluates ([`crate::lpe`]): the paper's four components
+//! first, as the built-in expressions `emitted`, `direct`, `caustic` and `indirect`, compiled
+//! once into one automaton that each path steps at its vertices. A contribution's bit mask says
+//! which expressions its path matches; the components partition every path, so exactly one of
+//! the first four bits is set.
+//!
+//! The events the integrator produces: `C` at the eye; at each scattering vertex `R` (the
+//! sampled direction leaves on the side the path came from) or `T`, with the lobe's tag as the
+//! scattering (diffuse `D`, a glossy lobe `G`, a delta lobe `S`); `L` for light from an emitter
+//! the light list holds, `O` for one flagged as a diffuse source. Next-event estimation only
+//! ever reflects.
+
+use crate::component::Component;
+use crate::lpe::{Aovs, Scatter, State, Symbol, Type, BUILTINS};
+
+use super::bsdf::Lobe;
+use super::lights::Lights;
+
+/// The component expressions, compiled, with the symbols of the events a path produces.
+#[derive(Clone, Debug)]
+pub struct PathExprs {
+    aovs: Aovs,
+    /// The state after the camera event.
+    start: State,
+    /// The scattering events: [reflection, transmission] x [diffuse, glossy, singular].
+    scatter: [[Symbol; 3]; 2],
+    /// Each light's event by its index in the light list: `L`, or `O` for a diffuse source.
+    light: Vec<Symbol>,
+    /// Emission from a surface the light list lacks.
+    unlisted: Symbol,
+}
+
+/// The mask bits of the paper's components, in [`Component::ALL`] order.
+pub const COMPONENT_BITS: u64 = (1 << Component::ALL.len()) - 1;
+
+impl PathExprs {
+    /// The paper's four components as expressions, for a scene with these lights.
+    pub fn new(lights: &Lights) -> PathExprs {
+        let components = &BUILTINS[..Component::ALL.len()];
+        // The built-ins are constants of the program, compiled by a unit test too.
+        let aovs = Aovs::compile(components, &[]).expect("the built-in expressions compile");
+        let scatter =
+            |ty| [Scatter::Diffuse, Scatter::Glossy, Scatter::Singular].map(|s| aovs.symbol(ty, s, 0));
+        let emits = |source: bool| {
+            let ty = if source { Type::Object } else { Type::Light };
+            aovs.symbol(ty, Scatter::None, 0)
+        };
+        PathExprs {
+            start: aovs.next(aovs.start(), aovs.symbol(Type::Camera, Scatter::None, 0)),
+            scatter: [scatter(Type::Reflection), scatter(Type::Transmission)],
+            light: lights.diffuse_source.iter().map(|&s| emits(s)).collect(),
+            unlisted: emits(false),
+            aovs,
+        }
+    }
+
+    /// The state of a path that has left the eye.
+    #[inline(always)]
+    pub fn start(&self) -> State {
+        self.start
+    }
+
+    /// The state after a vertex of `lobe`'s kind, its direction `transmitted` through the
+    /// surface or not.
+    #[inline(always)]
+    pub fn scatter(&self, s: State, lobe: Lobe, transmitted: bool) -> State {
+        let k = match lobe {
+            Lobe::Diffuse => 0,
+            Lobe::Specular => 1,
+            Lobe::Delta => 2,
+        };
+        self.aovs.next(s, self.scatter[transmitted as usize][k])
+    }
+
+    /// The expressions matched by light from `light` (its index in the light list; `None`, a
+    /// surface the list lacks) reaching a path in state `s`.
+    #[inline(always)]
+    pub fn light(&self, s: State, light: Option<u32>) -> u64 {
+        let sym = light.and_then(|i| self.light.get(i as usize)).copied().unwrap_or(self.unlisted);
+        self.aovs.accepts(self.aovs.next(s, sym))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_first_built_ins_are_the_components_in_order() {
+        for (c, (name, _)) in Component::ALL.iter().zip(BUILTINS) {
+            assert_eq!(c.name(), *name);
+        }
+    }
+
+    /// Every path of up to four vertices ends in exactly one component, the one the paper's
+    /// classification gives: Emitted with no D vertex, Direct after one D and nothing
+    /// specular after it, Caustic after one D and something specular after it, Indirect after
+    /// two D (or a diffuse source's light after one).
+    #[test]
+    fn each_path_matches_its_component() {
+        let mut lights = Lights::default();
+        lights.diffuse_source = vec![false, true];
+        let exprs = PathExprs::new(&lights);
+        let lobes = [Lobe::Diffuse, Lobe::Specular, Lobe::Delta];
+        let mut checked = 0;
+        for len in 0..5u32 {
+            for code in 0..6u32.pow(len) {
+                let (mut s, mut diffuse, mut specular_after) = (exprs.start(), 0, false);
+                let mut c = code;
+                for _ in 0..len {
+                    let (lobe, transmitted) = (lobes[(c % 3) as usize], c % 6 >= 3);
+                    c /= 6;
+                    s = exprs.scatter(s, lobe, transmitted);
+                    if lobe == Lobe::Diffuse {
+                        diffuse += 1;
+                    } else if diffuse == 1 {
+                        specular_after = true;
+                    }
+                }
+                for (light, source) in [(Some(0), false), (Some(1), true), (None, false)] {
+                    let want = match diffuse {
+                        0 => Component::Emitted,
+                        _ if source => Component::Indirect,
+                        1 if specular_after => Component::Caustic,
+                        1 => Component::Direct,
+                        _ => Component::Indirect,
+                    };
+                    let mask = exprs.light(s, light);
+                    assert_eq!(
+                        mask & COMPONENT_BITS,
+                        1 << want.index(),
+                        "path {code} of {len}, light {light:?}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 4000);
+    }
+}
