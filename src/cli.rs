@@ -15,7 +15,7 @@ use lightsplit::filter::{Overrides, Setting, Target};
 use lightsplit::output::{self, Layer, OutputError};
 use lightsplit::render::sampler::SamplerKind;
 use lightsplit::scene::{limits, Environment};
-use lightsplit::scene::{Guiding, LightSamplerKind};
+use lightsplit::scene::{Aov, Guiding, LightSamplerKind};
 
 use crate::Failure;
 
@@ -415,6 +415,12 @@ pub struct RenderArgs {
     /// else written with the guide this render trains.
     #[arg(long, value_name = "FILE")]
     pub guide: Option<PathBuf>,
+    /// An output layer of the light of the paths a light path expression matches (OSL's
+    /// grammar; docs/usage.md): NAME=EXPR, or NAME alone for a built-in expression (emission,
+    /// diffuse_direct, diffuse_indirect, arnold_direct, arnold_indirect). Repeatable; added
+    /// to the scene file's [[aov]] tables. Written as the EXR layer NAME.
+    #[arg(long = "aov", value_name = "NAME=EXPR|NAME", value_parser = aov)]
+    pub aovs: Vec<Aov>,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
@@ -531,6 +537,13 @@ fn samples(text: &str) -> Result<u32, String> {
 }
 
 /// Scattering events per path: 1 to [`limits::MAX_DEPTH`], as in a scene file.
+fn aov(text: &str) -> Result<Aov, String> {
+    match text.split_once('=') {
+        Some((name, expr)) => Aov::new(name.trim(), Some(expr)),
+        None => Aov::new(text.trim(), None),
+    }
+}
+
 fn depth(text: &str) -> Result<u32, String> {
     number(text, |n| (1..=limits::MAX_DEPTH).contains(&n), &format!("1 to {}", limits::MAX_DEPTH))
 }

@@ -26,7 +26,7 @@ use crate::output::{self, Layer, OutputError};
 use crate::part;
 use crate::render::sampler::SamplerKind;
 use crate::render::{self, Features, Outputs, RenderError, RenderOptions, RenderStats};
-use crate::scene::{self, Guiding, LightSamplerKind, Scene};
+use crate::scene::{self, Aov, Guiding, LightSamplerKind, Scene};
 
 /// What a render is asked for: the command line's `render`, in the library's terms. `None`
 /// keeps the scene file's value.
@@ -44,6 +44,8 @@ pub struct Request {
     pub guiding: Option<Guiding>,
     /// The guide's file: read when it exists, else written with the guide the render trains.
     pub guide: Option<PathBuf>,
+    /// Output layers of light path expressions, besides the scene file's.
+    pub aovs: Vec<Aov>,
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
@@ -185,6 +187,21 @@ impl<'s> Job<'s> {
             }
         }
         options.adaptive = request.adaptive;
+        for aov in &request.aovs {
+            if options.aovs.iter().any(|a| a.name == aov.name) {
+                return Err(input(format!("--aov {}: the scene already has an AOV of that name", aov.name)));
+            }
+            options.aovs.push(aov.clone());
+        }
+        if let Some(aov) = options.aovs.iter().find(|a| film::layers::is_reserved(&a.name)) {
+            return Err(input(format!("AOV `{}`: the film has a layer of that name already", aov.name)));
+        }
+        if !options.aovs.is_empty() && format != Format::Exr {
+            return Err(input("AOVs are layers of an EXR: the output must be .exr".into()));
+        }
+        if options.aovs.len() > crate::render::paths::MAX_AOVS {
+            return Err(input(format!("at most {} AOVs", crate::render::paths::MAX_AOVS)));
+        }
 
         let part_mode = request.part.is_some();
         let setting = if part_mode {

@@ -8,6 +8,7 @@ mod common;
 mod adaptive;
 mod agreement;
 mod analytic;
+mod aovs;
 mod cameras;
 mod checker;
 mod cli;

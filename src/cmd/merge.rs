@@ -27,7 +27,7 @@ pub fn merge_command(args: MergeArgs) -> Result<(), Failure> {
     let meta = film::Metadata {
         filter: filter_label(&setting),
         spp: Some(first.spp),
-        extra: Vec::new(),
+        extra: film::aov_attributes(&first.meta).collect(),
         ..first.meta.clone()
     };
     let film = sums.into_means();

@@ -31,6 +31,7 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         light_sampler: args.light_sampler,
         guiding: args.guiding,
         guide: args.guide.clone(),
+        aovs: args.aovs.clone(),
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,

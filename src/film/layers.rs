@@ -131,6 +131,15 @@ pub const LAYERS: [LayerDef; 16] = [
     row(B::ComponentVariance(Indirect), &["indirect_variance.Y"], G::Variance, false, 0.0, M::FromSquares, R::None),
 ];
 
+/// Whether `name` is taken by a layer the film or a part file has (an AOV may not have it).
+pub fn is_reserved(name: &str) -> bool {
+    let taken =
+        |l: &LayerDef| l.name() == name || l.channels.iter().any(|c| c.split('.').next() == Some(name));
+    LAYERS.iter().any(taken)
+        || ["R", "G", "B", "A", "indirect_filtered", "samples", "sums"].contains(&name)
+        || name.starts_with("Crypto")
+}
+
 /// The row of `buffer`.
 pub fn layer(buffer: Buffer) -> &'static LayerDef {
     // The table is small; every buffer has a row (a test checks).

@@ -46,6 +46,51 @@ pub struct Film {
     pub variance: Vec<f32>,
     /// The same for each component.
     pub component_variance: Split<Vec<f32>>,
+    /// The layers of light path expressions the render was asked for, in order (summed and
+    /// averaged as the components are; no variance).
+    pub aovs: Vec<AovLayer>,
+}
+
+/// An AOV's layer ([`crate::scene::Aov`]): the light of the paths its expression matches,
+/// written as `name.R/G/B`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AovLayer {
+    pub name: String,
+    pub image: Image,
+}
+
+/// The names of the AOVs of a film, as its EXR header lists them ([`AOVS_ATTRIBUTE`]).
+pub fn aov_list(aovs: &[AovLayer]) -> String {
+    aovs.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(",")
+}
+
+/// The header attribute that lists a render's AOVs, by name, comma-separated.
+pub const AOVS_ATTRIBUTE: &str = "lightsplit.aovs";
+
+/// The header attribute with each AOV's expression, `NAME=EXPR;...`.
+pub const AOV_LPES_ATTRIBUTE: &str = "lightsplit.aov_lpes";
+
+/// The attributes of `meta` that say what its AOVs are (for a file made from it).
+pub fn aov_attributes(meta: &Metadata) -> impl Iterator<Item = (String, String)> + '_ {
+    meta.extra.iter().filter(|(n, _)| n == AOVS_ATTRIBUTE || n == AOV_LPES_ATTRIBUTE).cloned()
+}
+
+/// The AOVs an EXR's header lists ([`AOVS_ATTRIBUTE`]; none without it), each name checked.
+pub fn aov_names(meta: &Metadata) -> Result<Vec<String>, String> {
+    let Some((_, list)) = meta.extra.iter().find(|(n, _)| n == AOVS_ATTRIBUTE) else {
+        return Ok(Vec::new());
+    };
+    let names: Vec<String> = list.split(',').map(str::to_string).collect();
+    for (i, name) in names.iter().enumerate() {
+        let valid = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            && !layers::is_reserved(name)
+            && !names[..i].contains(name);
+        if !valid {
+            return Err(format!("`{AOVS_ATTRIBUTE}` names `{name}`, which cannot be an AOV"));
+        }
+    }
+    Ok(names)
 }
 
 /// The variance of the mean of `n` samples from their sum and sum of squares: the unbiased
@@ -83,6 +128,7 @@ impl Film {
             alpha: Vec::new(),
             variance: Vec::new(),
             component_variance: Split::from_fn(|_| Vec::new()),
+            aovs: Vec::new(),
         };
         for layer in &layers::LAYERS {
             let on = match layer.group {
@@ -97,6 +143,13 @@ impl Film {
         film
     }
 
+    /// The film with a zero layer for each AOV of `names`.
+    pub fn with_aovs(mut self, names: &[String]) -> Film {
+        let (w, h) = (self.width, self.height);
+        self.aovs = names.iter().map(|n| AovLayer { name: n.clone(), image: Image::new(w, h) }).collect();
+        self
+    }
+
     /// Whether the film holds the component split.
     pub fn has_split(&self) -> bool {
         !self.components[Component::Emitted].pixels.is_empty()
@@ -109,7 +162,8 @@ impl Film {
 
     /// Bytes of its pixel buffers.
     pub fn bytes(&self) -> u64 {
-        let images = [&self.raw, &self.albedo, &self.normal].into_iter().chain(&self.components);
+        let aovs = self.aovs.iter().map(|a| &a.image);
+        let images = [&self.raw, &self.albedo, &self.normal].into_iter().chain(&self.components).chain(aovs);
         let rgb: usize = images.map(|i| i.pixels.capacity() * size_of::<Vec3>()).sum();
         let variance: usize = self.component_variance.iter().map(Vec::capacity).sum();
         let scalars = self.depth.capacity()
@@ -389,7 +443,46 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
             push_layer(&mut out, "", layer, values.into());
         }
     }
+    for aov in std::mem::take(&mut film.aovs) {
+        push_aov(&mut out, "", aov);
+    }
     out
+}
+
+/// Pushes an AOV's layer as its channels `NAME.R/G/B`, each after `prefix`.
+fn push_aov(out: &mut Channels, prefix: &str, aov: AovLayer) {
+    for c in 0..3 {
+        out.push((
+            format!("{prefix}{}.{}", aov.name, ["R", "G", "B"][c]),
+            aov.image.pixels.iter().map(|p| p[c]).collect(),
+        ));
+    }
+}
+
+/// The AOV layers `names` from `channels`, each name after `prefix`: every one required.
+pub fn aovs_from_channels(
+    width: u32,
+    height: u32,
+    channels: &Channels,
+    prefix: &str,
+    names: &[String],
+) -> Result<Vec<AovLayer>, String> {
+    let n = width as usize * height as usize;
+    let find = |name: &str| channels.iter().find(|(c, _)| c == name).map(|(_, d)| d);
+    names
+        .iter()
+        .map(|name| {
+            let rgb = ["R", "G", "B"].map(|c| find(&format!("{prefix}{name}.{c}")));
+            let [Some(r), Some(g), Some(b)] = rgb else {
+                return Err(format!("no `{prefix}{name}` layer (R, G, B) for AOV `{name}`"));
+            };
+            if [r, g, b].iter().any(|c| c.len() != n) {
+                return Err("channel sizes do not match the image".into());
+            }
+            let pixels = (0..n).map(|i| Vec3::new(r[i], g[i], b[i])).collect();
+            Ok(AovLayer { name: name.clone(), image: Image { width, height, pixels } })
+        })
+        .collect()
 }
 
 /// Pushes a layer's values ([`Film::values`]) as its channels, each name after `prefix`: moved
@@ -410,6 +503,9 @@ pub fn layer_channels(film: &Film, prefix: &str) -> Channels {
     let mut out: Channels = Vec::new();
     for (layer, values) in film.layers() {
         push_layer(&mut out, prefix, layer, values.into());
+    }
+    for aov in &film.aovs {
+        push_aov(&mut out, prefix, aov.clone());
     }
     out
 }
@@ -750,6 +846,7 @@ impl Film {
         let images = [("raw", &self.raw), ("albedo", &self.albedo), ("normal", &self.normal)]
             .into_iter()
             .chain(self.components.named().map(|(c, l)| (c.name(), l)))
+            .chain(self.aovs.iter().map(|a| (a.name.as_str(), &a.image)))
             .map(|(name, l)| {
                 (name.to_string(), bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len())
             });
@@ -792,7 +889,12 @@ pub fn read_image(path: &Path) -> Result<Image, ReadError> {
 /// The film of a multi-layer EXR that `lightsplit render` wrote ([`Film::from_channels`]).
 pub fn read_film(path: &Path) -> Result<Film, ReadError> {
     let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
-    Film::from_channels(width, height, &channels).map_err(|e| ReadError(format!("{}: {e}", path.display())))
+    let at = |e: String| ReadError(format!("{}: {e}", path.display()));
+    let names = aov_names(&Metadata::of_exr(path).map_err(at)?).map_err(at)?;
+    let mut film = Film::from_channels(width, height, &channels).map_err(at)?;
+    film.aovs = aovs_from_channels(width, height, &channels, "", &names).map_err(at)?;
+    film.check_finite().map_err(at)?;
+    Ok(film)
 }
 
 /// The object-ID layer (`objectid.ID`) of an EXR that `lightsplit render` wrote, with its size.

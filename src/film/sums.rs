@@ -138,6 +138,11 @@ impl Sums {
                 Mean::First | Mean::FromSquares => {}
             }
         }
+        // The AOVs are light, as the components: splatted with them.
+        let inv = if weights.is_empty() { &inv } else { &inv_weight };
+        for aov in &mut film.aovs {
+            aov.image.pixels.iter_mut().zip(inv).for_each(|(p, &inv)| *p *= inv);
+        }
         film
     }
 
@@ -157,6 +162,16 @@ impl Sums {
         }
         if self.weights.is_empty() != other.weights.is_empty() {
             return Err("one has splatted filter weights and the other not".into());
+        }
+        if super::aov_list(&a.aovs) != super::aov_list(&b.aovs) {
+            return Err(format!(
+                "one has the AOVs [{}] and the other [{}]",
+                super::aov_list(&b.aovs),
+                super::aov_list(&a.aovs)
+            ));
+        }
+        for (x, y) in a.aovs.iter_mut().zip(&b.aovs) {
+            x.image.pixels.iter_mut().zip(&y.image.pixels).for_each(|(p, q)| *p += *q);
         }
         let width = a.width;
         for layer in &layers::LAYERS {

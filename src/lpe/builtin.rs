@@ -5,19 +5,22 @@
 /// The first four are the paper's components, which partition every camera path ending at
 /// an emitter (its "S" is our `G` or `S`, its "D" our `D`; `R` and `T` are both allowed).
 /// `indirect` keeps its alternatives in parentheses so OSL's parser reads it the same.
-/// The `arnold.*` ones are Arnold's built-in LPE AOVs (Arnold User Guide, "Light Path
-/// Expression AOVs"); Arnold has no `G`, its `S` is every non-diffuse lobe, so its `[DSV]`
-/// is our `[DGSV]`. Arnold's `albedo` (`C[DSV]A`) is left out: we produce no `A` event.
+/// The others are Arnold's built-in LPE AOVs (Arnold User Guide, "Light Path Expression
+/// AOVs"), by Arnold's names, but for `direct` and `indirect`, whose names the paper's
+/// components have: `arnold_direct`, `arnold_indirect`. Arnold has no `G`, its `S` is every
+/// non-diffuse lobe, so its `[DSV]` is our `[DGSV]`. Arnold's emissive meshes are `O` events and
+/// go to its indirect; ours are lights (`L`), so a diffuse bounce onto one is `arnold_direct`.
+/// Arnold's `albedo` (`C[DSV]A`) is left out: we produce no `A` event.
 pub const BUILTINS: &[(&str, &str)] = &[
     ("emitted", "C[GS]*[LO]"),
     ("direct", "C[GS]*DL"),
     ("caustic", "C[GS]*D[GS]+L"),
     ("indirect", "C[GS]*D[GS]*((D.*[LO])|O)"),
-    ("arnold.direct", "C[DGSV]L"),
-    ("arnold.indirect", "C[DGSV][DGSVOB].*"),
-    ("arnold.diffuse_direct", "C<RD>L"),
-    ("arnold.diffuse_indirect", "C<RD>[DGSVOB].*"),
-    ("arnold.emission", "C[LO]"),
+    ("arnold_direct", "C[DGSV]L"),
+    ("arnold_indirect", "C[DGSV][DGSVOB].*"),
+    ("diffuse_direct", "C<RD>L"),
+    ("diffuse_indirect", "C<RD>[DGSVOB].*"),
+    ("emission", "C[LO]"),
 ];
 
 /// The built-in expression called `name`, if there is one.
@@ -37,7 +40,7 @@ mod tests {
             assert!(Aovs::compile(&[(name, expr)], &[]).is_ok(), "{name}");
         }
         assert_eq!(builtin("direct"), Some("C[GS]*DL"));
-        assert_eq!(builtin("arnold.albedo"), None);
+        assert_eq!(builtin("albedo"), None);
     }
 
     /// Every `C (R|T)(D|G|S) ... (L|O)` path of up to 7 events is in exactly one component.
@@ -72,15 +75,15 @@ mod tests {
             let hit: Vec<&str> = (0..aovs.len()).filter(|&i| m >> i & 1 == 1).map(|i| aovs.name(i)).collect();
             hit.join(" ")
         };
-        assert_eq!(names("C RS L"), "emitted arnold.direct");
-        assert_eq!(names("C L"), "emitted arnold.emission");
-        assert_eq!(names("C O"), "emitted arnold.emission");
-        assert_eq!(names("C RD L"), "direct arnold.direct arnold.diffuse_direct");
-        assert_eq!(names("C TG RD L"), "direct arnold.indirect");
-        assert_eq!(names("C RD TS L"), "caustic arnold.indirect arnold.diffuse_indirect");
-        assert_eq!(names("C RD O"), "indirect arnold.indirect arnold.diffuse_indirect");
-        assert_eq!(names("C TD RD L"), "indirect arnold.indirect");
-        assert_eq!(names("C RG L"), "emitted arnold.direct");
+        assert_eq!(names("C RS L"), "emitted arnold_direct");
+        assert_eq!(names("C L"), "emitted emission");
+        assert_eq!(names("C O"), "emitted emission");
+        assert_eq!(names("C RD L"), "direct arnold_direct diffuse_direct");
+        assert_eq!(names("C TG RD L"), "direct arnold_indirect");
+        assert_eq!(names("C RD TS L"), "caustic arnold_indirect diffuse_indirect");
+        assert_eq!(names("C RD O"), "indirect arnold_indirect diffuse_indirect");
+        assert_eq!(names("C TD RD L"), "indirect arnold_indirect");
+        assert_eq!(names("C RG L"), "emitted arnold_direct");
         assert_eq!(names("C B"), "");
     }
 

@@ -84,7 +84,11 @@ pub fn write(path: &Path, sums: &Sums, header: &Header) -> Result<(), WriteError
             ("lightsplit.spp".into(), header.spp.to_string()),
             ("lightsplit.adaptive".into(), header.adaptive.map_or("no".into(), |t| t.to_string())),
             ("lightsplit.complete".into(), if header.complete { "yes" } else { "no" }.into()),
-        ],
+        ]
+        .into_iter()
+        // The render's AOVs, which reading the sums needs.
+        .chain(film::aov_attributes(&header.meta))
+        .collect(),
         ..header.meta.clone()
     };
     let (width, height) = (sums.film.width, sums.film.height);
@@ -130,7 +134,8 @@ pub fn read_header(path: &Path) -> Result<Header, String> {
 pub fn read(path: &Path) -> Result<(Header, Sums), String> {
     let header = read_header(path)?;
     let (width, height, channels, words) = crate::scene::image::exr_layer(path)?;
-    let film = film_of(width, height, &channels)?;
+    let mut film = film_of(width, height, &channels)?;
+    film.aovs = film::aovs_from_channels(width, height, &channels, SUMS, &film::aov_names(&header.meta)?)?;
     let n = film.raw.pixels.len();
     let squares = if film.has_split() {
         let read = |layer: &str| -> Result<Vec<f64>, String> {
@@ -262,8 +267,14 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
     // directions, the object and the counts must be besides.
     let held: Vec<_> = f.layers().filter(|(l, _)| l.rule != Rule::None).collect();
     let layer = |name: &str| format!("{SUMS}{name}");
-    for (l, v) in held.iter().filter(|(l, _)| matches!(l.rule, Rule::Light | Rule::Scalar | Rule::Count)) {
-        let (name, wd) = (layer(l.name()), l.width());
+    let summed = held
+        .iter()
+        .filter(|(l, _)| matches!(l.rule, Rule::Light | Rule::Scalar | Rule::Count))
+        .map(|(l, v)| (l.name(), l.width(), *v))
+        // An AOV's sums are light, as a component's.
+        .chain(f.aovs.iter().map(|a| (a.name.as_str(), 3, bytemuck::cast_slice::<_, f32>(&a.image.pixels))));
+    for (name, wd, v) in summed {
+        let name = layer(name);
         refuse_any(&name, "NaN or infinite", n, w, |i| pixel_of(v, wd, i).iter().any(|x| !x.is_finite()))?;
         refuse_any(&name, "negative", n, w, |i| pixel_of(v, wd, i).iter().any(|&x| x < 0.0))?;
         refuse_any(&name, "not zero where no sample was taken", n, w, |i| {

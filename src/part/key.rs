@@ -57,7 +57,7 @@ impl RunKey {
 
 /// The key of a render: its scene's inputs ([`RunKey::of_scene`]) and every option that changes
 /// a sample: the image size, the samples per pixel, the path length, the seed, the sampler,
-/// the light sampler, guiding, what the integrator computes, adaptive sampling, and the program's version. Not the backend
+/// the light sampler, guiding, what the integrator computes, adaptive sampling, the AOVs, and the program's version. Not the backend
 /// (Embree and the BVH give the same samples up to float rounding), the threads, or which part.
 pub fn run_key(scene: &Scene, options: &RenderOptions) -> Result<String, String> {
     let mut key = RunKey::of_scene(scene)?;
@@ -68,5 +68,8 @@ pub fn run_key(scene: &Scene, options: &RenderOptions) -> Result<String, String>
     key.bytes(o.guiding.name().as_bytes());
     key.bytes(&[o.features.bits()]);
     key.bytes(&o.adaptive.map_or(u32::MAX, f32::to_bits).to_le_bytes());
+    for aov in &o.aovs {
+        key.bytes(format!("{}={}\0{}\0", aov.name.len(), aov.name, aov.lpe).as_bytes());
+    }
     Ok(key.finish())
 }

@@ -393,15 +393,23 @@ impl PathState {
 }
 
 impl PathSample {
-    /// Adds a contribution to the beauty and to the components whose expressions its path
-    /// matches (`mask`, [`PathExprs::light`]; the split only when `F` has it).
+    /// Adds a contribution to the beauty, to the components whose expressions its path
+    /// matches (`mask`, [`PathExprs::light`]) and to the AOVs it matches, in `aovs` (the split
+    /// and the AOVs only when `F` has the split).
     #[inline(always)]
-    fn add<const F: u8>(&mut self, c: Vec3, mask: u64) {
+    fn add<const F: u8>(&mut self, c: Vec3, mask: u64, aovs: &mut [Vec3]) {
         self.beauty += c;
         if F & SPLIT != 0 {
             let mut m = mask & super::paths::COMPONENT_BITS;
             while m != 0 {
                 self.components[Component::ALL[m.trailing_zeros() as usize]] += c;
+                m &= m - 1;
+            }
+            let mut m = mask >> Component::ALL.len();
+            while m != 0 {
+                if let Some(a) = aovs.get_mut(m.trailing_zeros() as usize) {
+                    *a += c;
+                }
                 m &= m - 1;
             }
         }
@@ -443,7 +451,20 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         sampler: &mut Sampler,
         rays: &mut u64,
     ) -> PathSample {
-        self.trace(ray, Some(hit), sampler, rays, &mut ())
+        self.trace(ray, Some(hit), sampler, rays, &mut (), &mut [])
+    }
+
+    /// [`Integrator::sample_from`], adding each AOV's light to `aovs` (one value an AOV, in
+    /// the order of [`PathExprs::with_aovs`]; zero them before).
+    pub fn sample_from_into(
+        &self,
+        ray: Ray,
+        hit: Option<Hit>,
+        sampler: &mut Sampler,
+        rays: &mut u64,
+        aovs: &mut [Vec3],
+    ) -> PathSample {
+        self.trace(ray, Some(hit), sampler, rays, &mut (), aovs)
     }
 
     /// [`Integrator::sample`] of a training path: its guided bounces become the guide's
@@ -455,7 +476,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
         path: &mut GuidePath,
     ) -> PathSample {
-        self.trace_with(ray, None, sampler, rays, &mut (), Some(path))
+        self.trace_with(ray, None, sampler, rays, &mut (), (&mut [], Some(path)))
     }
 
     /// [`Integrator::sample`], reporting each vertex to `record` (nothing, for `()`).
@@ -466,7 +487,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
         record: &mut R,
     ) -> PathSample {
-        self.trace(ray, None, sampler, rays, record)
+        self.trace(ray, None, sampler, rays, record, &mut [])
     }
 
     /// The path from `ray`, whose closest hit is `first` when already traced: at each vertex,
@@ -481,12 +502,13 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         sampler: &mut Sampler,
         rays: &mut u64,
         record: &mut R,
+        aovs: &mut [Vec3],
     ) -> PathSample {
-        self.trace_with(ray, first, sampler, rays, record, None)
+        self.trace_with(ray, first, sampler, rays, record, (aovs, None))
     }
 
-    /// [`Integrator::trace`], following the path's guided bounces in `training` when it is a
-    /// training path.
+    /// [`Integrator::trace`], adding to `aovs` and following the path's guided bounces in
+    /// `training` when it is a training path.
     #[inline(always)]
     fn trace_with<R: Record>(
         &self,
@@ -495,7 +517,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         sampler: &mut Sampler,
         rays: &mut u64,
         record: &mut R,
-        mut training: Option<&mut GuidePath>,
+        (aovs, mut training): (&mut [Vec3], Option<&mut GuidePath>),
     ) -> PathSample {
         if let Some(t) = training.as_deref_mut() {
             t.start();
@@ -515,6 +537,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             },
             sampler,
             rays,
+            aovs,
             training,
         };
         for depth in 0.. {
@@ -526,7 +549,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             };
             let Some(hit) = hit else {
                 record.escaped(depth, ray.dir, walk.path.beta);
-                self.escaped(&mut walk.out, &walk.path, ray.dir);
+                self.escaped(&mut walk.out, walk.aovs, &walk.path, ray.dir);
                 if let Some(t) = walk.training.as_deref_mut() {
                     t.found_direct(walk.out.beauty);
                 }
@@ -544,7 +567,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                     walk.path.beta *= (-sigma * distance).exp();
                 }
             }
-            self.emitted(&mut walk.out, &walk.path, &hit, shape, &s, wo);
+            self.emitted((&mut walk.out, walk.aovs), &walk.path, &hit, shape, &s, wo);
             if let Some(t) = walk.training.as_deref_mut() {
                 t.found_direct(walk.out.beauty);
             }
@@ -668,7 +691,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     #[inline(always)]
     fn emitted(
         &self,
-        out: &mut PathSample,
+        (out, aovs): (&mut PathSample, &mut [Vec3]),
         path: &PathState,
         hit: &Hit,
         shape: &Shape,
@@ -690,13 +713,13 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         let mask = if F & SPLIT != 0 { self.paths.light(path.lpe, light) } else { 0 };
         let emission =
             if F & TEXTURES != 0 { self.scene.emission_at(shape, [s.uv, s.uv1]) } else { emission };
-        out.add::<F>(path.beta * emission * w, mask);
+        out.add::<F>(path.beta * emission * w, mask, aovs);
     }
 
     /// What a path that left the scene along `dir` sees of the sun and the sky (nothing in a
     /// scene without them).
     #[inline(always)]
-    fn escaped(&self, out: &mut PathSample, path: &PathState, dir: Vec3) {
+    fn escaped(&self, out: &mut PathSample, aovs: &mut [Vec3], path: &PathState, dir: Vec3) {
         if F & MIS == 0 {
             return;
         }
@@ -706,7 +729,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             if le != Vec3::ZERO {
                 let w = if path.after_delta { 1.0 } else { power_heuristic(path.bsdf_pdf, light_pdf) };
                 let mask = if F & SPLIT != 0 { self.paths.light(path.lpe, Some(i)) } else { 0 };
-                out.add::<F>(path.beta * le * w, mask);
+                out.add::<F>(path.beta * le * w, mask, aovs);
             }
         }
     }
@@ -791,7 +814,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 0
             }
         };
-        let (out, beta) = (&mut walk.out, walk.path.beta);
+        let (out, aovs, beta) = (&mut walk.out, &mut *walk.aovs, walk.path.beta);
         if let Some(g) = guided {
             // Weighed against the mixture's density of the direction, lobe kind by kind.
             let lobes = lobes_by_kind(bsdf, at.wo, ls.wi);
@@ -804,7 +827,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                         power_heuristic(ls.pdf, g.density(&lobes, k, guide))
                     };
                     let c = beta * f * ls.radiance * (cos * w / ls.pdf);
-                    out.add::<F>(c, mask(kind(k)));
+                    out.add::<F>(c, mask(kind(k)), aovs);
                 }
             }
             return;
@@ -813,7 +836,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             if f != Vec3::ZERO {
                 let w = if F & MIS == 0 || ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
                 let c = beta * f * ls.radiance * (cos * w / ls.pdf);
-                out.add::<F>(c, mask(lobe));
+                out.add::<F>(c, mask(lobe), aovs);
             }
         });
     }
@@ -826,6 +849,8 @@ struct Walk<'s> {
     path: PathState,
     sampler: &'s mut Sampler,
     rays: &'s mut u64,
+    /// What the path adds to each AOV (empty without AOVs).
+    aovs: &'s mut [Vec3],
     /// A training path's guided bounces.
     training: Option<&'s mut GuidePath>,
 }

@@ -26,7 +26,7 @@ use crate::accel::{BuildHints, UseAccel, PACKET};
 use crate::component::Split;
 use crate::film::{self, Film, Sums};
 use crate::scene::analysis::Analysis;
-use crate::scene::{Guiding, LightSamplerKind, Scene};
+use crate::scene::{Aov, Guiding, LightSamplerKind, Scene};
 use camera::PinholeCamera;
 pub use features::{Features, Outputs};
 use guide::{Guide, RadianceRecord};
@@ -75,6 +75,8 @@ pub struct RenderOptions {
     pub adaptive: Option<f32>,
     /// Which of each pixel's `spp` samples this render takes (all, by default).
     pub part: Part,
+    /// Output layers of light path expressions (the scene file's `[[aov]]`, then `--aov`).
+    pub aovs: Vec<Aov>,
 }
 
 /// A share of each pixel's samples: part `index` of `count` takes samples `index spp / count`
@@ -174,10 +176,20 @@ pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::M
         filter: None,
         world_to_camera: Some(world_to_camera),
         world_to_ndc: Some(world_to_ndc),
-        extra: vec![
+        extra: [
             ("lightsplit.light_sampler".into(), options.light_sampler.name().into()),
             ("lightsplit.guiding".into(), options.guiding.name().into()),
-        ],
+        ]
+        .into_iter()
+        .chain((!options.aovs.is_empty()).then(|| {
+            let names: Vec<&str> = options.aovs.iter().map(|a| a.name.as_str()).collect();
+            (film::AOVS_ATTRIBUTE.into(), names.join(","))
+        }))
+        .chain((!options.aovs.is_empty()).then(|| {
+            let lpes: Vec<String> = options.aovs.iter().map(|a| format!("{}={}", a.name, a.lpe)).collect();
+            (film::AOV_LPES_ATTRIBUTE.into(), lpes.join(";"))
+        }))
+        .collect(),
     }
 }
 
@@ -204,6 +216,7 @@ impl RenderOptions {
             build: BuildHints::for_scene(&analysis),
             adaptive: None,
             part: Part::default(),
+            aovs: scene.aovs.clone(),
         }
     }
 }
@@ -256,13 +269,16 @@ pub enum RenderError {
     /// The part asked for is not one of the render ([`Part::check`]).
     #[error("{0}")]
     Part(String),
+    /// The AOVs' expressions cannot be compiled together.
+    #[error("{0}")]
+    Aovs(String),
 }
 
 impl crate::error::Classify for RenderError {
     /// Whether the request itself was bad (a part or a checkpoint that does not fit), rather
     /// than the rendering.
     fn is_input(&self) -> bool {
-        matches!(self, RenderError::Resume(_) | RenderError::Part(_))
+        matches!(self, RenderError::Resume(_) | RenderError::Part(_) | RenderError::Aovs(_))
     }
 }
 
@@ -287,6 +303,9 @@ pub fn render_controlled(
         return Err(RenderError::Size(options.width, options.height));
     }
     options.part.check(options.spp.max(1)).map_err(RenderError::Part)?;
+    // The AOVs' expressions compile together (else `render_with` renders without them).
+    let aovs: &[Aov] = if options.features.split { &options.aovs } else { &[] };
+    paths::PathExprs::with_aovs(&Lights::default(), aovs).map_err(RenderError::Aovs)?;
     if let Some(r) = &control.resume {
         let f = &r.film;
         let (split, guides) = (options.features.split, options.features.guides);
@@ -301,6 +320,10 @@ pub fn render_controlled(
         }
         if options.adaptive.is_some() {
             return Err(RenderError::Resume("an adaptive render cannot be resumed".into()));
+        }
+        let names: Vec<&str> = aovs.iter().map(|a| a.name.as_str()).collect();
+        if crate::film::aov_list(&f.aovs) != names.join(",") {
+            return Err(RenderError::Resume("the checkpoint was rendered with other AOVs".into()));
         }
         let range = options.part.samples(options.spp.max(1));
         let first = r.samples.first().copied().unwrap_or(0);
@@ -423,6 +446,9 @@ impl Tile {
 struct TileSums {
     beauty: Vec<Vec3>,
     components: Vec<Split<Vec3>>,
+    /// Each pixel's AOVs, `naovs` a pixel.
+    aovs: Vec<Vec3>,
+    naovs: usize,
     guides: Vec<GuideSums>,
     /// The sums of the squared sample luminances, of the beauty then of each component (with
     /// the split only), in f64 as [`film::Squares`] keeps them.
@@ -445,6 +471,8 @@ impl TileSums {
             } else {
                 Vec::new()
             },
+            aovs: (0..n).flat_map(|i| film.aovs.iter().map(move |a| a.image.pixels[at(i)])).collect(),
+            naovs: film.aovs.len(),
             squares: if squares.is_empty() {
                 Vec::new()
             } else {
@@ -488,6 +516,9 @@ impl TileSums {
                     layer.pixels[at] = c;
                 }
             }
+            for (layer, &v) in film.aovs.iter_mut().zip(self.aovs_of(i)) {
+                layer.image.pixels[at] = v;
+            }
             if let Some((beauty, components)) = self.squares.get(i) {
                 squares.beauty[at] = *beauty;
                 for (layer, &c) in squares.components.iter_mut().zip(components) {
@@ -513,10 +544,22 @@ impl TileSums {
         }
     }
 
-    /// Adds sample `k` of pixel `i`; false when it was dropped as non-finite (it counts as a
-    /// zero sample).
+    /// Pixel `i`'s AOVs.
+    fn aovs_of(&self, i: usize) -> &[Vec3] {
+        self.aovs.get(i * self.naovs..(i + 1) * self.naovs).unwrap_or(&[])
+    }
+
+    /// Adds sample `k` of pixel `i`, and its AOVs `aovs`; false when it was dropped as
+    /// non-finite (it counts as a zero sample).
     #[inline(always)]
-    fn add(&mut self, i: usize, k: u32, s: &PathSample, split: bool, moments: Option<&mut [f64; 2]>) -> bool {
+    fn add(
+        &mut self,
+        i: usize,
+        k: u32,
+        (s, aovs): (&PathSample, &[Vec3]),
+        split: bool,
+        moments: Option<&mut [f64; 2]>,
+    ) -> bool {
         if let Some(g) = self.guides.get_mut(i) {
             if k == 0 {
                 g.object = s.object;
@@ -524,7 +567,10 @@ impl TileSums {
             g.same += (s.object == g.object) as u32;
             g.hits += s.object.is_some() as u32;
         }
-        if !s.beauty.is_finite() || (split && s.components.iter().any(|c| !c.is_finite())) {
+        if !s.beauty.is_finite()
+            || (split && s.components.iter().any(|c| !c.is_finite()))
+            || aovs.iter().any(|a| !a.is_finite())
+        {
             return false;
         }
         if !self.splatted {
@@ -538,6 +584,12 @@ impl TileSums {
         if let (Some(c), false) = (self.components.get_mut(i), self.splatted) {
             for (a, c) in c.iter_mut().zip(s.components) {
                 *a += c;
+            }
+        }
+        if self.naovs > 0 && !self.splatted {
+            let sums = &mut self.aovs[i * self.naovs..(i + 1) * self.naovs];
+            for (a, &v) in sums.iter_mut().zip(aovs) {
+                *a += v;
             }
         }
         if let Some((beauty, components)) = self.squares.get_mut(i) {
@@ -656,7 +708,12 @@ fn render_features<A: Accel, const F: u8>(
     let camera = PinholeCamera::of_film(&scene.camera, &scene.film, width, height);
     let lights = Lights::new(scene, options.light_sampler);
     let faces = surface::FaceNormals::new(scene);
-    let paths = paths::PathExprs::new(&lights);
+    // The AOVs, computed with the split (an EXR's) only; expressions that cannot be compiled
+    // together, which `render_controlled` refuses, leave them out.
+    let aovs: &[Aov] = if split { &options.aovs } else { &[] };
+    let paths = paths::PathExprs::with_aovs(&lights, aovs).unwrap_or_else(|_| paths::PathExprs::new(&lights));
+    let aov_names: Vec<String> = aovs.iter().take(paths.aovs()).map(|a| a.name.clone()).collect();
+    let naovs = aov_names.len();
     let integrator: Integrator<'_, A, F> = Integrator {
         scene,
         accel,
@@ -693,7 +750,11 @@ fn render_features<A: Accel, const F: u8>(
         (!scene.film.pixel_filter.is_pixel_box()).then(|| splat::Weights::new(scene.film.pixel_filter));
     let start_state = match &control.resume {
         Some(r) => r.clone(),
-        None => Sums::empty(width, height, split, guides, weights.is_some()),
+        None => {
+            let mut sums = Sums::empty(width, height, split, guides, weights.is_some());
+            sums.film = sums.film.with_aovs(&aov_names);
+            sums
+        }
     };
     // Samples are taken in order: a resumed render has taken the first of its range.
     let done = range.start + start_state.samples.first().copied().unwrap_or(0);
@@ -701,8 +762,9 @@ fn render_features<A: Accel, const F: u8>(
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            let splat =
-                weights.as_ref().map(|wt| splat::TileSplat::new((x0, y0, w, h), (width, height), wt, split));
+            let splat = weights
+                .as_ref()
+                .map(|wt| splat::TileSplat::new((x0, y0, w, h), (width, height), wt, split, naovs));
             Tile::new(x0, y0, w, h, adaptive.is_some(), done, splat)
         })
         .collect();
@@ -749,6 +811,8 @@ fn render_features<A: Accel, const F: u8>(
         tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
             let mut sums = TileSums::load(tile, &lock());
             let mut taken = 0u64;
+            // One sample's AOVs.
+            let mut aov = vec![Vec3::ZERO; naovs];
             for i in 0..(tile.w * tile.h) as usize {
                 if tile.converged.get(i) == Some(&true) {
                     continue;
@@ -782,12 +846,14 @@ fn render_features<A: Accel, const F: u8>(
                     let mut hits = [None; PACKET];
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);
                     for (j, sampler) in samplers.iter_mut().take(n).enumerate() {
-                        let s = integrator.sample_from(rays[j], hits[j], sampler, &mut tile.rays);
-                        if !sums.add(i, k + j as u32, &s, split, tile.moments.get_mut(i)) {
+                        aov.fill(Vec3::ZERO);
+                        let s =
+                            integrator.sample_from_into(rays[j], hits[j], sampler, &mut tile.rays, &mut aov);
+                        if !sums.add(i, k + j as u32, (&s, &aov), split, tile.moments.get_mut(i)) {
                             tile.nonfinite += 1;
                             report_nonfinite(x, y, k + j as u32);
                         } else if let (Some(splats), Some(w)) = (tile.splat.as_mut(), &weights) {
-                            splats.add((x, y), offsets[j], w, s.beauty, split.then_some(&s.components));
+                            splats.add((x, y), offsets[j], w, s.beauty, split.then_some(&s.components), &aov);
                         }
                     }
                     k += n as u32;

@@ -1,8 +1,8 @@
 //! The light path expressions a render evaluates ([`crate::lpe`]): the paper's four components
-//! first, as the built-in expressions `emitted`, `direct`, `caustic` and `indirect`, compiled
-//! once into one automaton that each path steps at its vertices. A contribution's bit mask says
-//! which expressions its path matches; the components partition every path, so exactly one of
-//! the first four bits is set.
+//! first, as the built-in expressions `emitted`, `direct`, `caustic` and `indirect`, then the
+//! render's AOVs, compiled once into one automaton that each path steps at its vertices. A
+//! contribution's bit mask says which expressions its path matches; the components partition
+//! every path, so exactly one of the first four bits is set, and bit `4 + i` is AOV `i`.
 //!
 //! The events the integrator produces: `C` at the eye; at each scattering vertex `R` (the
 //! sampled direction leaves on the side the path came from) or `T`, with the lobe's tag as the
@@ -11,7 +11,8 @@
 //! ever reflects.
 
 use crate::component::Component;
-use crate::lpe::{Aovs, Scatter, State, Symbol, Type, BUILTINS};
+use crate::lpe::{Aovs, Scatter, State, Symbol, Type, BUILTINS, MAX_EXPRS};
+use crate::scene::Aov;
 
 use super::bsdf::Lobe;
 use super::lights::Lights;
@@ -33,25 +34,46 @@ pub struct PathExprs {
 /// The mask bits of the paper's components, in [`Component::ALL`] order.
 pub const COMPONENT_BITS: u64 = (1 << Component::ALL.len()) - 1;
 
+/// The most AOVs a render computes (beside the components, one bit each of a mask).
+pub const MAX_AOVS: usize = MAX_EXPRS - Component::ALL.len();
+
 impl PathExprs {
-    /// The paper's four components as expressions, for a scene with these lights.
+    /// The paper's four components as expressions, for a scene with these lights: no AOVs.
     pub fn new(lights: &Lights) -> PathExprs {
-        let components = &BUILTINS[..Component::ALL.len()];
         // The built-ins are constants of the program, compiled by a unit test too.
-        let aovs = Aovs::compile(components, &[]).expect("the built-in expressions compile");
+        PathExprs::with_aovs(lights, &[]).expect("the built-in expressions compile")
+    }
+
+    /// The components and `aovs` (checked when they were read, at most [`MAX_AOVS`]); an
+    /// error only where their automaton grows past its limit.
+    pub fn with_aovs(lights: &Lights, aovs: &[Aov]) -> Result<PathExprs, String> {
+        let exprs: Vec<(&str, &str)> = BUILTINS[..Component::ALL.len()]
+            .iter()
+            .copied()
+            .chain(aovs.iter().map(|a| (a.name.as_str(), a.lpe.as_str())))
+            .collect();
+        let aovs = Aovs::compile(&exprs, &[]).map_err(|(i, e)| match exprs.get(i) {
+            Some((name, expr)) => format!("AOV `{name}`: `{expr}`: {e}"),
+            None => format!("the AOVs' expressions together: {e}"),
+        })?;
         let scatter =
             |ty| [Scatter::Diffuse, Scatter::Glossy, Scatter::Singular].map(|s| aovs.symbol(ty, s, 0));
         let emits = |source: bool| {
             let ty = if source { Type::Object } else { Type::Light };
             aovs.symbol(ty, Scatter::None, 0)
         };
-        PathExprs {
+        Ok(PathExprs {
             start: aovs.next(aovs.start(), aovs.symbol(Type::Camera, Scatter::None, 0)),
             scatter: [scatter(Type::Reflection), scatter(Type::Transmission)],
             light: lights.diffuse_source.iter().map(|&s| emits(s)).collect(),
             unlisted: emits(false),
             aovs,
-        }
+        })
+    }
+
+    /// The AOVs beside the components.
+    pub fn aovs(&self) -> usize {
+        self.aovs.len() - Component::ALL.len()
     }
 
     /// The state of a path that has left the eye.

@@ -49,6 +49,9 @@ pub struct TileSplat {
     h: u32,
     beauty: Vec<Vec3>,
     components: Vec<Split<Vec3>>,
+    /// Each pixel's AOVs, `naovs` a pixel.
+    aovs: Vec<Vec3>,
+    naovs: usize,
     weight: Vec<f32>,
     /// Whether anything was added since the last [`TileSplat::flush`].
     touched: bool,
@@ -56,12 +59,13 @@ pub struct TileSplat {
 
 impl TileSplat {
     /// The splats of the tile at (`x0`, `y0`), `w` x `h` pixels, in an image of `width` x
-    /// `height`, for `weights`; with the components when `split`.
+    /// `height`, for `weights`; with the components when `split`, and `naovs` AOVs.
     pub fn new(
         tile: (u32, u32, u32, u32),
         (width, height): (u32, u32),
         weights: &Weights,
         split: bool,
+        naovs: usize,
     ) -> Self {
         let (tx, ty, tw, th) = tile;
         let m = weights.margin;
@@ -75,13 +79,15 @@ impl TileSplat {
             h: y1 - y0,
             beauty: vec![Vec3::ZERO; n],
             components: if split { vec![Split::default(); n] } else { Vec::new() },
+            aovs: vec![Vec3::ZERO; n * naovs],
+            naovs,
             weight: vec![0.0; n],
             touched: false,
         }
     }
 
     /// Splats a sample of pixel (`x`, `y`) at `offset` in it ([0, 1)^2): its beauty and, with the
-    /// split, its components.
+    /// split, its components and its AOVs.
     #[inline]
     pub fn add(
         &mut self,
@@ -90,6 +96,7 @@ impl TileSplat {
         weights: &Weights,
         beauty: Vec3,
         components: Option<&Split<Vec3>>,
+        aovs: &[Vec3],
     ) {
         let m = weights.margin as i64;
         let (px, py) = (x as f32 + offset.x, y as f32 + offset.y);
@@ -116,6 +123,12 @@ impl TileSplat {
                         *a += w * c;
                     }
                 }
+                if self.naovs > 0 {
+                    let sum = &mut self.aovs[i * self.naovs..(i + 1) * self.naovs];
+                    for (a, &v) in sum.iter_mut().zip(aovs) {
+                        *a += w * v;
+                    }
+                }
             }
         }
     }
@@ -137,9 +150,14 @@ impl TileSplat {
                         layer.pixels[at] += c;
                     }
                 }
+                let aovs = self.aovs.get(i * self.naovs..(i + 1) * self.naovs).unwrap_or(&[]);
+                for (layer, &v) in sums.film.aovs.iter_mut().zip(aovs) {
+                    layer.image.pixels[at] += v;
+                }
             }
         }
         self.beauty.fill(Vec3::ZERO);
+        self.aovs.fill(Vec3::ZERO);
         self.weight.fill(0.0);
         self.components.fill(Split::default());
         self.touched = false;
@@ -148,6 +166,7 @@ impl TileSplat {
     pub fn bytes(&self) -> u64 {
         (self.beauty.capacity() * size_of::<Vec3>()
             + self.components.capacity() * size_of::<Split<Vec3>>()
+            + self.aovs.capacity() * size_of::<Vec3>()
             + self.weight.capacity() * size_of::<f32>()) as u64
     }
 }
@@ -181,10 +200,10 @@ mod tests {
         let weights = Weights::new(PixelFilter::Tent { radius: 1.5 });
         let (width, height) = (6u32, 5u32);
         let mut sums = Sums::empty(width, height, false, false, true);
-        let mut tile = TileSplat::new((0, 0, 4, 4), (width, height), &weights, false);
+        let mut tile = TileSplat::new((0, 0, 4, 4), (width, height), &weights, false, 0);
         for y in 0..4 {
             for x in 0..4 {
-                tile.add((x, y), Vec2::new(0.3, 0.7), &weights, Vec3::splat(2.0), None);
+                tile.add((x, y), Vec2::new(0.3, 0.7), &weights, Vec3::splat(2.0), None, &[]);
             }
         }
         tile.flush(&mut sums);

@@ -395,6 +395,40 @@ impl Guiding {
     }
 }
 
+/// An output layer named by a light path expression ([`crate::lpe`]; `[[aov]]`, `--aov`): the
+/// light of the paths the expression matches, written as the EXR layer `name.R/G/B`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Aov {
+    pub name: String,
+    /// The expression, a built-in's name already replaced by its expression.
+    pub lpe: String,
+}
+
+impl Aov {
+    /// An AOV `name` of expression `lpe` (or of the built-in expression `lpe` names; `lpe`
+    /// `None`: the built-in called `name`), checked: a name of letters, digits and `_` that
+    /// does not start with a digit, and an expression that parses.
+    pub fn new(name: &str, lpe: Option<&str>) -> Result<Aov, String> {
+        let valid = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !valid {
+            return Err(format!(
+                "AOV name `{name}`: use letters, digits and `_`, not starting with a digit (it names an EXR layer)"
+            ));
+        }
+        let lpe = match lpe {
+            Some(e) => crate::lpe::builtin(e).unwrap_or(e),
+            None => crate::lpe::builtin(name).ok_or_else(|| {
+                let names: Vec<&str> = crate::lpe::BUILTINS.iter().map(|(n, _)| *n).collect();
+                format!("`{name}` is not a built-in expression ({}); give one as NAME=EXPR", names.join(", "))
+            })?,
+        };
+        crate::lpe::Aovs::compile(&[(name, lpe)], &[])
+            .map_err(|(_, e)| format!("AOV `{name}`: light path expression `{lpe}`: {e}"))?;
+        Ok(Aov { name: name.to_string(), lpe: lpe.to_string() })
+    }
+}
+
 /// Path length limit and the random seed.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -795,6 +829,8 @@ pub struct Scene {
     /// The parameters the file was read with (`-D name=value` of a Mitsuba file), which a run
     /// key counts as the files are.
     pub parameters: Vec<(String, String)>,
+    /// The output layers of light path expressions the file names (`[[aov]]`).
+    pub aovs: Vec<Aov>,
 }
 
 /// The textures a material reads instead of its constants.

@@ -47,6 +47,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
         maps: vec![],
         notes: vec![],
         parameters: vec![],
+        aovs: vec![],
     }
 }
 

@@ -128,6 +128,16 @@ struct FileScene {
     filter: Option<Spanned<FilterSection>>,
     #[serde(rename = "texture", default)]
     _texture: IgnoredAny,
+    #[serde(default)]
+    aov: Vec<Spanned<FileAov>>,
+}
+
+/// An `[[aov]]` table: an output layer and its light path expression (or a built-in's name).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileAov {
+    name: String,
+    lpe: String,
 }
 
 /// 1-based line of a byte offset.
@@ -248,6 +258,15 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         .chain(lights_in.iter().filter_map(|l| l.of_type.file()).map(|f| dir.join(f)))
         .chain(builder.libraries)
         .collect();
+    let mut aovs: Vec<crate::scene::Aov> = Vec::new();
+    for a in &file.aov {
+        let aov = crate::scene::Aov::new(&a.get_ref().name, Some(&a.get_ref().lpe))
+            .map_err(|e| ctx.error(Some(a.span()), e))?;
+        if aovs.iter().any(|b| b.name == aov.name) {
+            return ctx.err(a.span(), format!("a second [[aov]] named `{}`", aov.name));
+        }
+        aovs.push(aov);
+    }
     let filter = file.filter.map(|f| {
         let line = line_of(text, f.span().start);
         FilterSection { line, ..f.into_inner() }
@@ -269,6 +288,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         objects: builder.objects,
         notes: builder.notes,
         parameters: Vec::new(),
+        aovs,
     })
 }
 

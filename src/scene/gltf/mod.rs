@@ -1383,6 +1383,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
         maps,
         notes,
         parameters: Vec::new(),
+        aovs: Vec::new(),
     })
 }
 

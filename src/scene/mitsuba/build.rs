@@ -243,6 +243,7 @@ impl<'o> Builder<'o> {
             maps,
             notes: self.notes,
             parameters: Vec::new(),
+            aovs: Vec::new(),
         })
     }
 

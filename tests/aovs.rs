@@ -1,0 +1,192 @@
+//! AOVs of light path expressions (`[[aov]]`, `--aov`): an AOV of a component's expression is
+//! that component bit for bit (splatted too); Arnold's direct, indirect and emission partition
+//! the beauty; parts merge to the whole render's AOVs; the EXR carries them through `merge`
+//! and `filter`; bad names and expressions are one error with status 2.
+
+use std::path::Path;
+
+use glam::Vec3;
+use lightsplit::component::Component;
+use lightsplit::film::{self, AovLayer, Film, Sums};
+use lightsplit::render::{render_controlled, Control, Part, RenderOptions};
+use lightsplit::scene::{self, Aov, Scene};
+
+use crate::common::lightsplit as run;
+
+/// A camera and nothing else: the smallest scene that parses.
+const MINIMAL: &str = "[camera]\nposition = [0, 1, -5]\nlook_at = [0, 1, 0]\n";
+
+fn scene(name: &str) -> Scene {
+    scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)).expect("loads")
+}
+
+fn aov(name: &str, lpe: &str) -> Aov {
+    Aov::new(name, Some(lpe)).expect("a valid AOV")
+}
+
+fn sums(scene: &Scene, aovs: &[Aov], part: Part) -> Sums {
+    let mut o = RenderOptions::from_scene(scene);
+    (o.width, o.height, o.spp, o.seed, o.part) = (24, 20, 8, 5, part);
+    o.aovs = aovs.to_vec();
+    let control = Control { keep_sums: true, ..Control::progress(&|_| {}) };
+    render_controlled(scene, &o, control).expect("renders").sums.expect("sums kept")
+}
+
+fn layer<'f>(film: &'f Film, name: &str) -> &'f AovLayer {
+    film.aovs.iter().find(|a| a.name == name).unwrap_or_else(|| panic!("no AOV `{name}`"))
+}
+
+/// The paper's components given again as AOVs (by their built-in names, and one written out)
+/// sum exactly what the components sum, sample by sample in the same order: equal bits. The
+/// gallery has every component (glossy caustics, indirect light); the Gaussian pixel filter
+/// splats.
+#[test]
+fn an_aov_of_a_components_expression_is_that_component_bit_for_bit() {
+    let gallery = scene("paper-gallery.toml");
+    let aovs = [
+        aov("e", "emitted"),
+        aov("d", "direct"),
+        aov("c", "C[GS]*D[GS]+L"),
+        aov("i", "indirect"),
+        aov("nothing", "C<TD>L"),
+    ];
+    let mut splatted = gallery.clone();
+    splatted.film.pixel_filter = scene::PixelFilter::Gaussian { stddev: 0.5 };
+    for (what, scene) in [("box", &gallery), ("gaussian", &splatted)] {
+        let film = sums(scene, &aovs, Part::default()).into_means();
+        for (c, name) in Component::ALL.into_iter().zip(["e", "d", "c", "i"]) {
+            let (x, y) = (&layer(&film, name).image.pixels, &film.components[c].pixels);
+            assert!(x == y, "{what}: AOV `{name}` differs from `{}`", c.name());
+            assert!(y.iter().any(|p| p.max_element() > 0.0), "{what}: `{}` is black", c.name());
+        }
+        // No diffuse transmission in the gallery: nothing, and not nothing by accident.
+        assert!(layer(&film, "nothing").image.pixels.iter().all(|p| *p == Vec3::ZERO), "{what}");
+    }
+}
+
+/// Arnold's direct, indirect and emission split every path: they add up to the beauty within
+/// float rounding, each pixel (the Cornell box, whose light the camera sees).
+#[test]
+fn arnolds_direct_indirect_and_emission_sum_to_the_beauty() {
+    let cornell = scene("cornell.toml");
+    let aovs =
+        [Aov::new("arnold_direct", None), Aov::new("arnold_indirect", None), Aov::new("emission", None)]
+            .map(|a| a.expect("a built-in"));
+    let film = sums(&cornell, &aovs, Part::default()).into_means();
+    let parts = aovs.map(|a| &layer(&film, &a.name).image.pixels);
+    for (i, raw) in film.raw.pixels.iter().enumerate() {
+        let sum = parts[0][i] + parts[1][i] + parts[2][i];
+        assert!(
+            (sum - *raw).abs().max_element() <= 1e-5 * raw.max_element().max(1.0),
+            "pixel {i}: {sum} against {raw}"
+        );
+    }
+    for p in parts {
+        assert!(p.iter().any(|v| v.max_element() > 0.0), "a black Arnold AOV");
+    }
+}
+
+/// Three parts merge to the whole render's AOV sums (up to the order of float additions).
+#[test]
+fn parts_merge_to_the_whole_renders_aovs() {
+    let cornell = scene("cornell.toml");
+    let aovs = [aov("diffuse_indirect", "diffuse_indirect"), aov("via_red", "C.*<RD>.*L")];
+    let whole = sums(&cornell, &aovs, Part::default());
+    let mut merged = sums(&cornell, &aovs, Part { index: 0, count: 3 });
+    for index in 1..3 {
+        merged.add(&sums(&cornell, &aovs, Part { index, count: 3 })).expect("parts of one render");
+    }
+    for (a, b) in whole.film.aovs.iter().zip(&merged.film.aovs) {
+        assert_eq!(a.name, b.name);
+        for (p, q) in a.image.pixels.iter().zip(&b.image.pixels) {
+            assert!(
+                (*p - *q).abs().max_element() <= 1e-5 * p.max_element().max(1e-3),
+                "{}: {p} against {q}",
+                a.name
+            );
+        }
+    }
+    // Sums with other AOVs are not parts of this render.
+    let other = sums(&cornell, &aovs[..1], Part { index: 1, count: 3 });
+    assert!(whole.clone().add(&other).is_err());
+}
+
+/// The CLI: `--aov` layers in the EXR, kept by a part file, `merge` and `filter`; the header
+/// lists them.
+#[test]
+fn the_exr_carries_aovs_through_parts_merge_and_filter() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let scene = scene.to_str().expect("utf-8 path");
+    let common =
+        ["--width", "16", "--height", "12", "--spp", "8", "--aov", "glossy=C<RG>.*", "--aov", "emission"];
+    let whole = out("whole.exr");
+    let status = run(&[&["render", scene, "-o", &whole][..], &common].concat());
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let mut parts = Vec::new();
+    for p in ["0/2", "1/2"] {
+        let part = out(&format!("part{}.exr", &p[..1]));
+        let status = run(&[&["render", scene, "-o", &part, "--part", p][..], &common].concat());
+        assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+        parts.push(part);
+    }
+    let merged = out("merged.exr");
+    let status = run(&["merge", &parts[0], &parts[1], "-o", &merged]);
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let filtered = out("filtered.exr");
+    let status = run(&["filter", &merged, "-o", &filtered, "--filter", "box3"]);
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let read = |p: &str| film::read_film(Path::new(p)).expect("reads");
+    let (whole, merged, filtered) = (read(&whole), read(&merged), read(&filtered));
+    for film in [&whole, &merged, &filtered] {
+        assert_eq!(film::aov_list(&film.aovs), "glossy,emission");
+    }
+    for (a, b) in whole.aovs.iter().zip(&merged.aovs) {
+        for (p, q) in a.image.pixels.iter().zip(&b.image.pixels) {
+            assert!((*p - *q).abs().max_element() <= 1e-5 * p.max_element().max(1e-3), "{}", a.name);
+        }
+    }
+    // `filter` filters the image, not the AOVs: they are the merged ones.
+    assert_eq!(merged.aovs, filtered.aovs);
+    // The light the camera sees directly is the emitted component.
+    assert_eq!(layer(&whole, "emission").image.pixels, whole.components[Component::Emitted].pixels);
+}
+
+/// Bad AOVs are one error naming what is wrong, with status 2, and nothing is written.
+#[test]
+fn bad_aovs_are_one_error_with_status_2() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let exr = dir.path().join("out.exr").to_string_lossy().into_owned();
+    let png = dir.path().join("out.png").to_string_lossy().into_owned();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let scene = scene.to_str().expect("utf-8 path");
+    for (args, says) in [
+        (["--aov", "x=C<RD"], "column"),
+        (["--aov", "x=CQ"], "column 2"),
+        (["--aov", "2x=CL"], "letters, digits"),
+        (["--aov", "direct=CL"], "has a layer of that name"),
+        (["--aov", "nonesuch"], "not a built-in"),
+    ] {
+        let o = run(&[&["render", scene, "-o", &exr, "--width", "8", "--height", "8"][..], &args].concat());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    let o = run(&["render", scene, "-o", &png, "--aov", "e=emission"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!Path::new(&exr).exists() && !Path::new(&png).exists());
+    // In a scene file: the file and the line of the table.
+    let text = format!(
+        "{}\n[[aov]]\nname = \"ok\"\nlpe = \"CL\"\n\n[[aov]]\nname = \"bad\"\nlpe = \"C(L\"\n",
+        MINIMAL
+    );
+    let err = lightsplit::scene::file::parse(Path::new("s.toml"), &text).expect_err("a bad expression");
+    // The second table starts on line 9: its header or its first key.
+    assert!(matches!(err.line, Some(9..=11)), "{err}");
+    assert!(err.to_string().contains("column"), "{err}");
+    let twice =
+        format!("{}\n[[aov]]\nname = \"a\"\nlpe = \"CL\"\n[[aov]]\nname = \"a\"\nlpe = \"CDL\"\n", MINIMAL);
+    let err = lightsplit::scene::file::parse(Path::new("s.toml"), &twice).expect_err("a name twice");
+    assert!(err.to_string().contains("second"), "{err}");
+}
