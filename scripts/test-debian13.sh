@@ -6,6 +6,7 @@
 #   scripts/test-debian13.sh            # build the root if needed, then test
 #   scripts/test-debian13.sh ARGS...    # the same, with ARGS added to `cargo test` (e.g. --test integration hardening::)
 #   LIGHTSPLIT_DEBIAN13_ROOT=DIR ...    # where the root lives (default /var/tmp/lightsplit-debian13)
+#   LIGHTSPLIT_TEST_PROFILE=NAME ...    # the cargo profile to test with (default release; CI: embree4)
 #   DEBIAN13_MIRROR=URL ...             # a Debian mirror for debootstrap (default: debootstrap's own)
 set -euo pipefail
 
@@ -61,4 +62,4 @@ cp /etc/resolv.conf "$root/etc/resolv.conf" 2>/dev/null || true
 chroot "$root" /usr/bin/env -i \
   HOME=/root PATH=/opt/cargo/bin:/usr/bin:/bin RUSTUP_HOME=/opt/rustup CARGO_HOME=/opt/cargo \
   CARGO_TARGET_DIR=/var/tmp/lightsplit-target CI="${CI:-}" TERM=dumb \
-  /bin/bash -c 'cd /src && cargo test --release --workspace "$@"' bash "$@"
+  /bin/bash -c 'cd /src && cargo test --profile "$0" --workspace "$@"' "${LIGHTSPLIT_TEST_PROFILE:-release}" "$@"
