@@ -421,6 +421,11 @@ pub struct RenderArgs {
     /// to the scene file's [[aov]] tables. Written as the EXR layer NAME.
     #[arg(long = "aov", value_name = "NAME=EXPR|NAME", value_parser = aov)]
     pub aovs: Vec<Aov>,
+    /// One layer a light group of the scene (`light_group` on its lights and shapes; a glTF
+    /// file's lights and emissive materials by their names): `group_NAME`, its light along
+    /// every path.
+    #[arg(long)]
+    pub light_groups: bool,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,

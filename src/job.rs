@@ -46,6 +46,8 @@ pub struct Request {
     pub guide: Option<PathBuf>,
     /// Output layers of light path expressions, besides the scene file's.
     pub aovs: Vec<Aov>,
+    /// A layer for each light group.
+    pub light_groups: bool,
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
@@ -187,7 +189,18 @@ impl<'s> Job<'s> {
             }
         }
         options.adaptive = request.adaptive;
-        for aov in &request.aovs {
+        let groups = if request.light_groups {
+            if scene.light_groups.names.is_empty() {
+                return Err(input(format!(
+                    "{}: --light-groups: the scene has no light groups (`light_group` on a light or shape)",
+                    scene.path.display()
+                )));
+            }
+            scene.light_groups.aovs().map_err(input)?
+        } else {
+            Vec::new()
+        };
+        for aov in request.aovs.iter().chain(&groups) {
             if options.aovs.iter().any(|a| a.name == aov.name) {
                 return Err(input(format!("--aov {}: the scene already has an AOV of that name", aov.name)));
             }

@@ -190,3 +190,103 @@ fn bad_aovs_are_one_error_with_status_2() {
     let err = lightsplit::scene::file::parse(Path::new("s.toml"), &twice).expect_err("a name twice");
     assert!(err.to_string().contains("second"), "{err}");
 }
+
+/// The Cornell box with its ceiling light in group `ceiling` and a point light added in group
+/// `bulb`.
+fn grouped_cornell() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let text = std::fs::read_to_string(&path).expect("reads");
+    let emission = "emission = [18.387, 13.9873, 6.75357]\n";
+    assert!(text.contains(emission), "the Cornell box's light");
+    let text = text.replace(emission, &format!("{emission}light_group = \"ceiling\"\n"))
+        + "\n[[light]]\ntype = \"point\"\nposition = [150, 400, 200]\nintensity = [20000, 30000, 40000]\nlight_group = \"bulb\"\n";
+    scene::file::parse(&path, &text).expect("parses")
+}
+
+/// Light groups: one layer a group (`--light-groups`'s AOVs), and they split the light by
+/// source: with every emitter in a group, the layers sum to the beauty, and each group's
+/// direct light (`C[GS]*DL'name'`) sums to the direct component.
+#[test]
+fn light_groups_split_the_light_by_source() {
+    let cornell = grouped_cornell();
+    // A scene file's lights' groups first, then its shapes'.
+    assert_eq!(cornell.light_groups.names, ["bulb", "ceiling"]);
+    let mut aovs = cornell.light_groups.aovs().expect("groups make AOVs");
+    assert_eq!(aovs.iter().map(|a| a.name.as_str()).collect::<Vec<_>>(), ["group_bulb", "group_ceiling"]);
+    aovs.push(aov("direct_ceiling", "C[GS]*DL'ceiling'"));
+    aovs.push(aov("direct_bulb", "C[GS]*DL'bulb'"));
+    aovs.push(aov("unknown_group", "C.*L'nonesuch'"));
+    let film = sums(&cornell, &aovs, Part::default()).into_means();
+    let pixels = |name: &str| &layer(&film, name).image.pixels;
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() <= 1e-5 * b.max_element().max(1.0);
+    let direct = &film.components[Component::Direct].pixels;
+    for (i, raw) in film.raw.pixels.iter().enumerate() {
+        let groups = pixels("group_ceiling")[i] + pixels("group_bulb")[i];
+        assert!(close(groups, *raw), "pixel {i}: groups {groups} against the beauty {raw}");
+        let directs = pixels("direct_ceiling")[i] + pixels("direct_bulb")[i];
+        assert!(close(directs, direct[i]), "pixel {i}: {directs} against the direct {}", direct[i]);
+    }
+    for name in ["group_ceiling", "group_bulb", "direct_ceiling", "direct_bulb"] {
+        assert!(pixels(name).iter().any(|p| p.max_element() > 0.0), "`{name}` is black");
+    }
+    assert!(pixels("unknown_group").iter().all(|p| *p == Vec3::ZERO));
+    // The bulb lights what the ceiling light does not reach the same way: the two differ.
+    assert_ne!(pixels("group_ceiling"), pixels("group_bulb"));
+}
+
+/// `--light-groups` on a scene without groups, and a group name with a quote, are errors.
+#[test]
+fn light_group_errors() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let exr = dir.path().join("out.exr").to_string_lossy().into_owned();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let o = run(&["render", scene.to_str().expect("utf-8"), "-o", &exr, "--light-groups"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no light groups"));
+    let text = format!("{MINIMAL}[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nlight_group = \"it's\"\n");
+    let err = scene::file::parse(Path::new("s.toml"), &text).expect_err("a quote in a group name");
+    assert_eq!(err.line, Some(4), "{err}");
+}
+
+/// A glTF file's lights and emissive materials are light groups by their names (a light
+/// without a name by its node's, a quote made `_`), in the file read directly and placed by a
+/// scene file; a scene file's `light_group` on the shape puts them all in its one group.
+#[test]
+fn gltf_lights_and_emissive_materials_are_groups_by_name() {
+    use crate::common::GltfDoc;
+    use serde_json::json;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut doc = GltfDoc::quad();
+    doc.json["materials"] = json!([{"name": "panel's glow", "emissiveFactor": [1.0, 1.0, 1.0]}]);
+    doc.json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    doc.node(json!({"mesh": 0}), true);
+    doc.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    doc.json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
+        {"type": "point", "name": "key", "intensity": 683.0},
+        {"type": "point", "intensity": 683.0}
+    ]}});
+    let light = |k: usize| json!({"KHR_lights_punctual": {"light": k}});
+    doc.node(json!({"translation": [1, 2, 3], "extensions": light(0)}), true);
+    doc.node(json!({"name": "fill_node", "translation": [0, 2, 3], "extensions": light(1)}), true);
+    let path = doc.write_gltf(dir.path(), "groups");
+    let direct = scene::load(&path).expect("loads");
+    assert_eq!(direct.light_groups.names, ["panel_s glow", "key", "fill_node"]);
+    assert_eq!(direct.light_groups.of_light(1), Some(2));
+    let shape = direct.shapes.iter().position(|s| s.is_emissive()).expect("an emissive shape") as u32;
+    assert_eq!(direct.light_groups.of_shape(shape), Some(0));
+    let aovs = direct.light_groups.aovs().expect("groups make AOVs");
+    let names: Vec<&str> = aovs.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["group_panel_s_glow", "group_key", "group_fill_node"]);
+
+    let toml = |extra: &str| {
+        format!("{MINIMAL}[[shape]]\ntype = \"gltf\"\nfile = \"groups.gltf\"\n{extra}\n[[light]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [1, 1, 1]\n")
+    };
+    let placed = scene::file::parse(&dir.path().join("s.toml"), &toml("")).expect("parses");
+    assert_eq!(placed.light_groups.names, ["panel_s glow", "key", "fill_node"]);
+    // The file's own light is first, in no group: the glTF file's follow it.
+    assert_eq!((placed.light_groups.of_light(0), placed.light_groups.of_light(1)), (None, Some(1)));
+    assert_eq!(placed.light_groups.of_light(2), Some(2));
+    let one = scene::file::parse(&dir.path().join("s.toml"), &toml("light_group = \"all\"")).expect("parses");
+    assert_eq!(one.light_groups.names, ["all"]);
+    assert_eq!((one.light_groups.of_light(1), one.light_groups.of_light(2)), (Some(0), Some(0)));
+}

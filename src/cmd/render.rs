@@ -32,6 +32,7 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         guiding: args.guiding,
         guide: args.guide.clone(),
         aovs: args.aovs.clone(),
+        light_groups: args.light_groups,
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,

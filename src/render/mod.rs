@@ -305,7 +305,8 @@ pub fn render_controlled(
     options.part.check(options.spp.max(1)).map_err(RenderError::Part)?;
     // The AOVs' expressions compile together (else `render_with` renders without them).
     let aovs: &[Aov] = if options.features.split { &options.aovs } else { &[] };
-    paths::PathExprs::with_aovs(&Lights::default(), aovs).map_err(RenderError::Aovs)?;
+    paths::PathExprs::with_aovs(&Lights::default(), aovs, &scene.light_groups.names)
+        .map_err(RenderError::Aovs)?;
     if let Some(r) = &control.resume {
         let f = &r.film;
         let (split, guides) = (options.features.split, options.features.guides);
@@ -711,7 +712,8 @@ fn render_features<A: Accel, const F: u8>(
     // The AOVs, computed with the split (an EXR's) only; expressions that cannot be compiled
     // together, which `render_controlled` refuses, leave them out.
     let aovs: &[Aov] = if split { &options.aovs } else { &[] };
-    let paths = paths::PathExprs::with_aovs(&lights, aovs).unwrap_or_else(|_| paths::PathExprs::new(&lights));
+    let paths = paths::PathExprs::with_aovs(&lights, aovs, &scene.light_groups.names)
+        .unwrap_or_else(|_| paths::PathExprs::new(&lights));
     let aov_names: Vec<String> = aovs.iter().take(paths.aovs()).map(|a| a.name.clone()).collect();
     let naovs = aov_names.len();
     let integrator: Integrator<'_, A, F> = Integrator {

@@ -41,32 +41,35 @@ impl PathExprs {
     /// The paper's four components as expressions, for a scene with these lights: no AOVs.
     pub fn new(lights: &Lights) -> PathExprs {
         // The built-ins are constants of the program, compiled by a unit test too.
-        PathExprs::with_aovs(lights, &[]).expect("the built-in expressions compile")
+        PathExprs::with_aovs(lights, &[], &[]).expect("the built-in expressions compile")
     }
 
-    /// The components and `aovs` (checked when they were read, at most [`MAX_AOVS`]); an
-    /// error only where their automaton grows past its limit.
-    pub fn with_aovs(lights: &Lights, aovs: &[Aov]) -> Result<PathExprs, String> {
+    /// The components and `aovs` (checked when they were read, at most [`MAX_AOVS`]), in a
+    /// scene of light groups `groups` (labels `'name'`; light `i` is in group
+    /// `lights.group[i]`); an error only where their automaton grows past its limit.
+    pub fn with_aovs(lights: &Lights, aovs: &[Aov], groups: &[String]) -> Result<PathExprs, String> {
         let exprs: Vec<(&str, &str)> = BUILTINS[..Component::ALL.len()]
             .iter()
             .copied()
             .chain(aovs.iter().map(|a| (a.name.as_str(), a.lpe.as_str())))
             .collect();
-        let aovs = Aovs::compile(&exprs, &[]).map_err(|(i, e)| match exprs.get(i) {
+        let labels: Vec<&str> = groups.iter().map(String::as_str).collect();
+        let aovs = Aovs::compile(&exprs, &labels).map_err(|(i, e)| match exprs.get(i) {
             Some((name, expr)) => format!("AOV `{name}`: `{expr}`: {e}"),
             None => format!("the AOVs' expressions together: {e}"),
         })?;
         let scatter =
             |ty| [Scatter::Diffuse, Scatter::Glossy, Scatter::Singular].map(|s| aovs.symbol(ty, s, 0));
-        let emits = |source: bool| {
+        let emits = |source: bool, group: u16| {
             let ty = if source { Type::Object } else { Type::Light };
-            aovs.symbol(ty, Scatter::None, 0)
+            aovs.symbol(ty, Scatter::None, group)
         };
+        let group = |i: usize| lights.group.get(i).copied().unwrap_or(0);
         Ok(PathExprs {
             start: aovs.next(aovs.start(), aovs.symbol(Type::Camera, Scatter::None, 0)),
             scatter: [scatter(Type::Reflection), scatter(Type::Transmission)],
-            light: lights.diffuse_source.iter().map(|&s| emits(s)).collect(),
-            unlisted: emits(false),
+            light: lights.diffuse_source.iter().enumerate().map(|(i, &s)| emits(s, group(i))).collect(),
+            unlisted: emits(false, 0),
             aovs,
         })
     }

@@ -748,6 +748,72 @@ impl Shape {
     }
 }
 
+/// Light groups (`light_group = "name"` on a light or a shape): named sets of lights and
+/// emissive shapes, whose light path expressions name them as labels (`L'name'`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LightGroups {
+    /// The groups: a scene file's `[[light]]` tables' first, then its shapes', in file order
+    /// (a glTF file's: its emissive materials', then its lights').
+    pub names: Vec<String>,
+    /// (index in [`Scene::lights`], index in `names`), by light.
+    pub lights: Vec<(u32, u32)>,
+    /// (index in [`Scene::shapes`], index in `names`), by shape.
+    pub shapes: Vec<(u32, u32)>,
+}
+
+impl LightGroups {
+    /// The index of group `name`, added when new: a name from a file that is not a valid one
+    /// ([`LightGroups::check_name`]) has its quotes as `_`, and no name is `light`.
+    pub fn group(&mut self, name: &str) -> u32 {
+        let name = match name.replace('\'', "_") {
+            n if n.is_empty() => "light".to_string(),
+            n => n,
+        };
+        let name = name.as_str();
+        match self.names.iter().position(|n| n == name) {
+            Some(i) => i as u32,
+            None => {
+                self.names.push(name.to_string());
+                self.names.len() as u32 - 1
+            }
+        }
+    }
+
+    /// The group of light `i`.
+    pub fn of_light(&self, i: u32) -> Option<u32> {
+        self.lights.iter().find(|(l, _)| *l == i).map(|(_, g)| *g)
+    }
+
+    /// The group of shape `i`.
+    pub fn of_shape(&self, i: u32) -> Option<u32> {
+        self.shapes.iter().find(|(s, _)| *s == i).map(|(_, g)| *g)
+    }
+
+    /// Whether `name` can name a group: not empty, no `'` (it is quoted in expressions).
+    pub fn check_name(name: &str) -> Result<(), String> {
+        if name.is_empty() || name.contains('\'') {
+            return Err(format!("light group `{name}`: a name must not be empty or hold `'`"));
+        }
+        Ok(())
+    }
+
+    /// One AOV a group (`--light-groups`): `group_NAME` (other characters than letters, digits
+    /// and `_` as `_`), the light of the group's emitters along every path, `C.*[LO]'NAME'`.
+    pub fn aovs(&self) -> Result<Vec<Aov>, String> {
+        let mut out: Vec<Aov> = Vec::new();
+        for name in &self.names {
+            let clean: String =
+                name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+            let mut layer = format!("group_{clean}");
+            while out.iter().any(|a| a.name == layer) {
+                layer.push('_');
+            }
+            out.push(Aov::new(&layer, Some(&format!("C.*[LO]'{name}'")))?);
+        }
+        Ok(out)
+    }
+}
+
 /// A light that is not a shape.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
@@ -831,6 +897,8 @@ pub struct Scene {
     pub parameters: Vec<(String, String)>,
     /// The output layers of light path expressions the file names (`[[aov]]`).
     pub aovs: Vec<Aov>,
+    /// Which lights and emissive shapes are in which named group.
+    pub light_groups: LightGroups,
 }
 
 /// The textures a material reads instead of its constants.

@@ -48,6 +48,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
         notes: vec![],
         parameters: vec![],
         aovs: vec![],
+        light_groups: Default::default(),
     }
 }
 

@@ -32,6 +32,9 @@ pub struct Lights {
     pub emitters: Vec<Emitter>,
     /// Whether light `i` is a diffuse source (its light counts as already diffusely reflected).
     pub diffuse_source: Vec<bool>,
+    /// The light group of light `i` ([`crate::scene::LightGroups`]): its index + 1, 0 for none
+    /// (a label of the light path expressions).
+    pub group: Vec<u16>,
     selection: Selection,
     /// The lights by power (or uniform, for that light sampler): next-event estimation's
     /// table when it picks one light from it, and [`Lights::sample`]'s always.
@@ -94,7 +97,8 @@ impl Lights {
         let mut power = Vec::new();
         let cutouts = crate::scene::cutout::Cutouts::new(scene).map(std::sync::Arc::new);
 
-        for light in &scene.lights {
+        let label = |g: Option<u32>| g.map_or(0, |g| u16::try_from(g + 1).unwrap_or(0));
+        for (l, light) in scene.lights.iter().enumerate() {
             let (emitter, phi, diffuse_source) = match *light {
                 Light::Point { position, intensity } => {
                     (Emitter::Point { position, intensity }, FOUR_PI * luminance(intensity), false)
@@ -139,6 +143,7 @@ impl Lights {
                 }
                 lights.emitters.push(emitter);
                 lights.diffuse_source.push(diffuse_source);
+                lights.group.push(label(scene.light_groups.of_light(l as u32)));
                 power.push(phi);
             }
         }
@@ -176,6 +181,7 @@ impl Lights {
             lights.shape_light[i] = lights.emitters.len() as u32;
             lights.emitters.push(emitter);
             lights.diffuse_source.push(false);
+            lights.group.push(label(scene.light_groups.of_shape(i as u32)));
             power.push(PI * area * luminance(scene.mean_emission(shape)));
         }
         lights.table = match kind {

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glam::Vec3;
 use serde::Deserialize;
 
-use super::typed::{NoKeys, Table, Typed};
+use super::typed::{LightCommon, Table, Typed};
 use super::{dv3, v3, Ctx, F, V3};
 use crate::scene::environment::EnvironmentMap;
 use crate::scene::sky::CloudySky;
@@ -38,7 +38,7 @@ impl LightKind {
 }
 
 impl Typed for LightKind {
-    type Common = NoKeys;
+    type Common = LightCommon;
     const SECTION: &'static str = "light";
     const HINT: &'static str = "; an emissive shape has `emission`";
 

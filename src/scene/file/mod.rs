@@ -239,8 +239,42 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
     let mut builder = shape::Builder::default();
     builder.textures_before = textures.len() as u32;
     builder.solid = maps.iter().map(|m| m.read_solid(&textures)).collect();
+    // The light groups: of each `[[light]]`, and of the emitters each `[[shape]]` adds (its
+    // shapes that emit, a glTF file's lights, which follow the file's own lights).
+    let mut groups = crate::scene::LightGroups::default();
+    for (i, l) in lights_in.iter().enumerate() {
+        if let Some(name) = &l.common.light_group {
+            crate::scene::LightGroups::check_name(name).map_err(|e| ctx.error(Some(l.span.clone()), e))?;
+            let g = groups.group(name);
+            groups.lights.push((i as u32, g));
+        }
+    }
     for s in &shapes {
+        let (first_shape, first_light) = (builder.shapes.len(), builder.lights.len());
         shape::add(&ctx, &dir, s, &mut materials, &material_ids, &mut builder)?;
+        let named = std::mem::take(&mut builder.gltf_groups);
+        if shape::light_group(s).is_none() {
+            // A glTF file's own names.
+            for (of, name) in named {
+                let g = groups.group(&name);
+                match of {
+                    shape::GroupOf::Light(i) => groups.lights.push(((lights_in.len() + i) as u32, g)),
+                    shape::GroupOf::Shape(i) => groups.shapes.push((i as u32, g)),
+                }
+            }
+        }
+        if let Some(name) = shape::light_group(s) {
+            crate::scene::LightGroups::check_name(name).map_err(|e| ctx.error(Some(s.span.clone()), e))?;
+            let g = groups.group(name);
+            let before = groups.shapes.len();
+            let emitting = (first_shape..builder.shapes.len()).filter(|&i| builder.shapes[i].is_emissive());
+            groups.shapes.extend(emitting.map(|i| (i as u32, g)));
+            let lights = first_light..builder.lights.len();
+            if groups.shapes.len() == before && lights.is_empty() {
+                builder.notes.push(format!("light group `{name}`: its shape emits no light"));
+            }
+            groups.lights.extend(lights.map(|i| ((lights_in.len() + i) as u32, g)));
+        }
     }
     let mut lights = lights_in.iter().map(|l| light::light(&ctx, &dir, l)).collect::<Result<Vec<_>, _>>()?;
     // What glTF shapes brought.
@@ -289,6 +323,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         notes: builder.notes,
         parameters: Vec::new(),
         aovs,
+        light_groups: groups,
     })
 }
 

@@ -27,6 +27,9 @@ pub(super) struct ShapeCommon {
     object: Option<String>,
     emission: Option<V3>,
     transform: Option<FileTransform>,
+    /// The light group of its emitters (its own emission, a glTF file's lights and emissive
+    /// meshes).
+    light_group: Option<String>,
 }
 
 /// `transform = { scale, rotate, translate }` as written.
@@ -124,6 +127,13 @@ pub(super) struct Teapot {
     resolution: Option<Spanned<u32>>,
 }
 
+/// What a light group of a glTF file holds: a light or a shape, by its index in the builder.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum GroupOf {
+    Light(usize),
+    Shape(usize),
+}
+
 /// The shapes built so far and the objects they belong to.
 #[derive(Default)]
 pub(super) struct Builder {
@@ -140,6 +150,9 @@ pub(super) struct Builder {
     pub maps: Vec<(u32, crate::scene::Maps)>,
     /// The lights glTF shapes bring.
     pub lights: Vec<crate::scene::Light>,
+    /// The light groups glTF files name (their lights' and emissive materials' names), by index
+    /// in `lights` and `shapes` (for a shape that names none itself).
+    pub gltf_groups: Vec<(GroupOf, String)>,
     /// What the user should know of how glTF shapes were read.
     pub notes: Vec<String>,
     /// By the scene file's material index, whether it reads a solid texture (its meshes keep
@@ -213,6 +226,11 @@ impl Transform {
 
 /// Builds one `[[shape]]` into `out` (a mesh file may give several shapes), adding the default
 /// and the OBJ materials it needs to `materials`.
+/// The light group a `[[shape]]` table names for its emitters.
+pub(super) fn light_group(s: &Table<ShapeKind>) -> Option<&str> {
+    s.common.light_group.as_deref()
+}
+
 pub(super) fn add(
     ctx: &Ctx,
     dir: &Path,
@@ -448,6 +466,15 @@ pub(super) fn add(
             materials.extend(placed.materials);
             out.textures.extend(placed.textures);
             out.maps.extend(placed.maps);
+            let names = &placed.groups.names;
+            for &(s, g) in &placed.groups.shapes {
+                out.gltf_groups
+                    .push((GroupOf::Shape(out.shapes.len() + s as usize), names[g as usize].clone()));
+            }
+            for &(l, g) in &placed.groups.lights {
+                out.gltf_groups
+                    .push((GroupOf::Light(out.lights.len() + l as usize), names[g as usize].clone()));
+            }
             out.lights.extend(placed.lights);
             out.shapes.extend(placed.shapes);
             return Ok(());

@@ -60,10 +60,13 @@ fn or_list<S: AsRef<str>>(items: &[S]) -> String {
     }
 }
 
-/// The common keys of a section whose types share none but `type`.
+/// The keys every light takes besides `type`.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(super) struct NoKeys {}
+pub(super) struct LightCommon {
+    /// Its light group.
+    pub light_group: Option<String>,
+}
 
 /// One table of a typed section, read.
 pub(super) struct Table<K: Typed> {
@@ -446,7 +449,10 @@ mod tests {
     fn names_come_from_the_types() {
         assert_eq!(names::<ShapeKind>(None), ["sphere", "quad", "box", "mesh", "gltf", "terrain", "teapot"]);
         assert_eq!(names::<ShapeKind>(Some("sphere")), ["center", "radius"]);
-        assert_eq!(names::<ShapeCommon>(None), ["name", "material", "object", "emission", "transform"]);
+        assert_eq!(
+            names::<ShapeCommon>(None),
+            ["name", "material", "object", "emission", "transform", "light_group"]
+        );
         assert_eq!(names::<LightKind>(Some("cloudy sky"))[0], "zenith");
     }
 

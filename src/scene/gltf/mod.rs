@@ -173,6 +173,8 @@ pub struct Gltf {
     /// name, else its node's.
     pub cameras: Vec<(String, GltfCamera)>,
     pub lights: Vec<PunctualLight>,
+    /// Each light's name (its node's when it has none): its light group.
+    pub light_names: Vec<String>,
     /// The external files it read (buffers, images), besides itself.
     pub files: Vec<PathBuf>,
     /// What was left out, one line each.
@@ -610,6 +612,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         textures,
         cameras: Vec::new(),
         lights: Vec::new(),
+        light_names: Vec::new(),
         files: Vec::new(),
         notes,
     };
@@ -685,6 +688,7 @@ pub fn load(path: &Path) -> Result<Gltf, String> {
         if let Some(light) = node.light() {
             out.lights
                 .push(punctual(&light, &world).map_err(|e| format!("light of node `{node_name}`: {e}"))?);
+            out.light_names.push(light.name().map_or_else(|| node_name.to_string(), str::to_string));
         }
         let first = stack.len();
         stack.extend(node.children().map(|c| (c, world)));
@@ -1077,6 +1081,9 @@ pub struct Placed {
     pub maps: Vec<(u32, Maps)>,
     pub textures: Vec<Texture>,
     pub lights: Vec<Light>,
+    /// The light group of each light (its name) and of each emissive shape (its material's
+    /// name), by index in `lights` and `shapes`.
+    pub groups: crate::scene::LightGroups,
 }
 
 /// Places glTF `g` (named `name`) in a scene by `at`. `diffuse_from` is the roughness from which
@@ -1162,15 +1169,22 @@ pub fn place(
     for part in &g.parts {
         let primitive = &g.primitives[part.primitive];
         let material = primitive.material.map_or(default_material, |m| first_material + m as u32);
+        let emission = primitive.material.map_or(Vec3::ZERO, |m| g.materials[m].emission);
+        if let Some(m) = primitive.material.filter(|_| emission.max_element() > 0.0) {
+            let group = out.groups.group(&g.materials[m].name);
+            out.groups.shapes.push((out.shapes.len() as u32, group));
+        }
         out.shapes.push(Shape {
             name: format!("{name}/{}", part.name),
             geometry: Geometry::Triangles(part_mesh(primitive, part, at)),
             material,
-            emission: primitive.material.map_or(Vec3::ZERO, |m| g.materials[m].emission),
+            emission,
             object: object(&format!("{name}/{}", part.node)),
         });
     }
-    for light in &g.lights {
+    for (light, light_name) in g.lights.iter().zip(&g.light_names) {
+        let group = out.groups.group(light_name);
+        out.groups.lights.push((out.lights.len() as u32, group));
         out.lights.push(match *light {
             PunctualLight::Directional { direction, irradiance } => {
                 Light::sun(-at.direction(direction), irradiance, 0.53, false)
@@ -1384,6 +1398,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
         notes,
         parameters: Vec::new(),
         aovs: Vec::new(),
+        light_groups: placed.groups,
     })
 }
 

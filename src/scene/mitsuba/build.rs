@@ -244,6 +244,7 @@ impl<'o> Builder<'o> {
             notes: self.notes,
             parameters: Vec::new(),
             aovs: Vec::new(),
+            light_groups: Default::default(),
         })
     }
 
