@@ -6,7 +6,7 @@
 #   scripts/test-debian13.sh            # build the root if needed, then test
 #   scripts/test-debian13.sh ARGS...    # the same, with ARGS added to `cargo test` (e.g. --test integration hardening::)
 #   LIGHTSPLIT_DEBIAN13_ROOT=DIR ...    # where the root lives (default /var/tmp/lightsplit-debian13)
-#   LIGHTSPLIT_TEST_PROFILE=NAME ...    # the cargo profile to test with (default release; CI: embree4)
+#   LIGHTSPLIT_TEST_PROFILE=NAME ...    # the cargo profile to test with (default release; CI: ci)
 #   DEBIAN13_MIRROR=URL ...             # a Debian mirror for debootstrap (default: debootstrap's own)
 set -euo pipefail
 

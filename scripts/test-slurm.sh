@@ -31,7 +31,11 @@ fi
 if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then
   apt-get install -y -qq slurm-wlm munge >/dev/null 2>&1 || { apt-get update -qq && apt-get install -y -qq slurm-wlm munge >/dev/null; }
 fi
-cargo build --release --quiet
+# LIGHTSPLIT_TEST_PROFILE: the cargo profile of the binary (default release; CI: ci, the
+# profile its tests were built with).
+profile=${LIGHTSPLIT_TEST_PROFILE:-release}
+cargo build --profile "$profile" --quiet
+exe=$root/target/$profile/lightsplit
 
 work=$(mktemp -d)
 started=()
@@ -111,7 +115,7 @@ sinfo -h -N -o '%T' | grep -qE '^(idle|mixed|allocated)' || { echo "error: the n
 echo "one-node cluster up: $(sinfo -h -N -o '%N %T %c CPUs')"
 
 start=$(date +%s.%N)
-submitted=$(LIGHTSPLIT=$root/target/release/lightsplit scripts/slurm-render.sh "$scene" "$work/out.exr" "$n" "${options[@]}")
+submitted=$(LIGHTSPLIT=$exe scripts/slurm-render.sh "$scene" "$work/out.exr" "$n" "${options[@]}")
 echo "$submitted"
 merge_job=$(echo "$submitted" | sed -E 's/.*merge job ([0-9]+).*/\1/')
 # Until the merge job has left the queue (sbatch --wait polls too coarsely to time with).
@@ -138,13 +142,13 @@ check() {
     failed=$((failed + 1))
   fi
 }
-target/release/lightsplit render "$scene" "${options[@]}" -o "$work/single.exr" 2>/dev/null
+"$exe" render "$scene" "${options[@]}" -o "$work/single.exr" 2>/dev/null
 check "the array job wrote $n parts" '[ "$(ls "$work"/out-parts/part-*.exr | wc -l)" = "$n" ]'
 for ((i = 0; i < n; i++)); do
   check "part $i saw its own index" "grep -q 'part $i/$n' '$work/out-parts/part-$i.log'"
 done
 check "the merge job wrote the image" '[ -s "$work/out.exr" ]'
-relmse=$(target/release/lightsplit compare --json "$work/out.exr" "$work/single.exr" | sed -E 's/.*"relmse":([^,}]*).*/\1/')
+relmse=$("$exe" compare --json "$work/out.exr" "$work/single.exr" | sed -E 's/.*"relmse":([^,}]*).*/\1/')
 echo "merged against a single render: relMSE $relmse (float rounding is about 1e-13)"
 check "the merged image is the single render's up to float rounding" "awk 'BEGIN { exit !($relmse < 1e-9) }'"
 echo "$passed passed, $failed failed"

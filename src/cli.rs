@@ -541,7 +541,7 @@ fn samples(text: &str) -> Result<u32, String> {
     number(text, |n| (1..=limits::MAX_SPP).contains(&n), &format!("1 to {}", limits::MAX_SPP))
 }
 
-/// Scattering events per path: 1 to [`limits::MAX_DEPTH`], as in a scene file.
+/// An AOV: NAME=EXPR, or the name of a built-in expression.
 fn aov(text: &str) -> Result<Aov, String> {
     match text.split_once('=') {
         Some((name, expr)) => Aov::new(name.trim(), Some(expr)),
@@ -549,6 +549,7 @@ fn aov(text: &str) -> Result<Aov, String> {
     }
 }
 
+/// Scattering events per path: 1 to [`limits::MAX_DEPTH`], as in a scene file.
 fn depth(text: &str) -> Result<u32, String> {
     number(text, |n| (1..=limits::MAX_DEPTH).contains(&n), &format!("1 to {}", limits::MAX_DEPTH))
 }

@@ -202,7 +202,10 @@ impl<'s> Job<'s> {
         };
         for aov in request.aovs.iter().chain(&groups) {
             if options.aovs.iter().any(|a| a.name == aov.name) {
-                return Err(input(format!("--aov {}: the scene already has an AOV of that name", aov.name)));
+                return Err(input(format!(
+                    "AOV `{}` is asked for twice (scene file, --aov, --light-groups)",
+                    aov.name
+                )));
             }
             options.aovs.push(aov.clone());
         }

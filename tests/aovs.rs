@@ -290,3 +290,18 @@ fn gltf_lights_and_emissive_materials_are_groups_by_name() {
     assert_eq!(one.light_groups.names, ["all"]);
     assert_eq!((one.light_groups.of_light(1), one.light_groups.of_light(2)), (Some(0), Some(0)));
 }
+
+/// `--environment` removes and adds lights at infinity: the other lights keep their groups.
+#[test]
+fn groups_follow_their_lights_when_the_environment_changes() {
+    let text = format!(
+        "{MINIMAL}[[light]]\ntype = \"sky\"\nradiance = [1, 1, 1]\n[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nlight_group = \"bulb\"\n"
+    );
+    let mut s = scene::file::parse(Path::new("s.toml"), &text).expect("parses");
+    assert_eq!((s.light_groups.of_light(0), s.light_groups.of_light(1)), (None, Some(0)));
+    s.set_environment(&scene::Environment::None).expect("no environment");
+    assert!(matches!(s.lights[0], scene::Light::Point { .. }));
+    assert_eq!(s.light_groups.of_light(0), Some(0));
+    s.set_environment(&scene::Environment::White).expect("a white sky");
+    assert_eq!((s.light_groups.of_light(0), s.light_groups.of_light(1)), (Some(0), None));
+}

@@ -166,8 +166,8 @@ impl Sums {
         if super::aov_list(&a.aovs) != super::aov_list(&b.aovs) {
             return Err(format!(
                 "one has the AOVs [{}] and the other [{}]",
-                super::aov_list(&b.aovs),
-                super::aov_list(&a.aovs)
+                super::aov_list(&a.aovs),
+                super::aov_list(&b.aovs)
             ));
         }
         for (x, y) in a.aovs.iter_mut().zip(&b.aovs) {

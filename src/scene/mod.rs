@@ -1107,6 +1107,16 @@ impl Scene {
                 Some(Light::Environment { map: Arc::new(map), diffuse_source: false })
             }
         };
+        // The lights kept move down over those removed: their light groups follow them.
+        let mut kept = Vec::with_capacity(self.lights.len());
+        for (i, l) in self.lights.iter().enumerate() {
+            if !l.is_environment() {
+                kept.push(i as u32);
+            }
+        }
+        self.light_groups.lights = (self.light_groups.lights.iter())
+            .filter_map(|&(l, g)| kept.iter().position(|&k| k == l).map(|n| (n as u32, g)))
+            .collect();
         self.lights.retain(|l| !l.is_environment());
         self.lights.extend(light);
         Ok(())

@@ -224,12 +224,13 @@ impl Transform {
     }
 }
 
-/// Builds one `[[shape]]` into `out` (a mesh file may give several shapes), adding the default
-/// and the OBJ materials it needs to `materials`.
 /// The light group a `[[shape]]` table names for its emitters.
 pub(super) fn light_group(s: &Table<ShapeKind>) -> Option<&str> {
     s.common.light_group.as_deref()
 }
+
+/// Builds one `[[shape]]` into `out` (a mesh file may give several shapes), adding the default
+/// and the OBJ materials it needs to `materials`.
 
 pub(super) fn add(
     ctx: &Ctx,
