@@ -231,7 +231,6 @@ pub(super) fn light_group(s: &Table<ShapeKind>) -> Option<&str> {
 
 /// Builds one `[[shape]]` into `out` (a mesh file may give several shapes), adding the default
 /// and the OBJ materials it needs to `materials`.
-
 pub(super) fn add(
     ctx: &Ctx,
     dir: &Path,
