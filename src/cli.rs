@@ -41,6 +41,9 @@ pub enum Command {
     Merge(MergeArgs),
     /// Compare an image with a reference: the paper's sum of squares, RMSE, relMSE.
     Compare(CompareArgs),
+    /// A Cryptomatte matte of an EXR (`render --cryptomatte`, or another renderer's): each
+    /// pixel's coverage by the objects or materials named, as a compositor reads it.
+    Matte(MatteArgs),
     /// Measure Embree and the BVH side by side on identical ray sets.
     BenchAccel(BenchAccelArgs),
     /// Run time against error: render each spp once per seed, filter it every way, compare
@@ -106,6 +109,15 @@ pub struct BenchFeaturesArgs {
     /// Rounds, each rendering every mode once; medians are reported.
     #[arg(long, default_value_t = 5, value_parser = count::<usize>)]
     pub rounds: usize,
+    /// Also measure what these AOVs cost (as `render --aov`; repeatable).
+    #[arg(long = "aov", value_name = "NAME=EXPR|NAME", value_parser = aov)]
+    pub aovs: Vec<Aov>,
+    /// Also measure what a layer a light group costs (each scene must have groups).
+    #[arg(long)]
+    pub light_groups: bool,
+    /// Also measure what Cryptomatte's mattes cost.
+    #[arg(long)]
+    pub cryptomatte: bool,
     /// `--accel`, `--threads` and `--json`.
     #[command(flatten)]
     pub run: RunArgs,
@@ -164,8 +176,8 @@ pub struct ConvergeArgs {
     /// The filters: none, box3, weighted3, median3, box5 (or custom kernels as 1;2;1;...).
     #[arg(long, value_delimiter = ',', default_value = "none,box3,weighted3,median3,box5")]
     pub filters: Vec<String>,
-    /// What the filters apply to.
-    #[arg(long, value_delimiter = ',', default_value = "indirect", value_enum)]
+    /// What the filters apply to: indirect, components, image, none.
+    #[arg(long, value_delimiter = ',', default_value = "indirect", value_parser = named_target)]
     pub targets: Vec<Target>,
     /// Edge-aware filtering: off, on (the paper's object stop), pure (also leave mixed border
     /// pixels alone, as --edge-pure does); a list measures each.
@@ -219,8 +231,10 @@ pub struct FilterArgs {
         conflicts_with_all = ["filter", "filter_target", "edge_aware", "edge_normal", "edge_depth", "edge_pure"]
     )]
     pub denoise: bool,
-    /// What the filter applies to (default: indirect, the paper's method, when a filter is named).
-    #[arg(long, value_enum)]
+    /// What the filter applies to (default: indirect, the paper's method, when a filter is
+    /// named): indirect, components, image, none, or the name of an AOV of the render (the
+    /// image is then the beauty less the AOV plus the AOV filtered).
+    #[arg(long, value_name = "TARGET", value_parser = target)]
     pub filter_target: Option<Target>,
     /// Average only neighbours that show the same object as the centre pixel.
     #[arg(long)]
@@ -338,6 +352,27 @@ pub struct CompareArgs {
     pub json: bool,
 }
 
+/// `matte`: the coverage of names in a Cryptomatte type of an EXR.
+#[derive(clap::Args)]
+pub struct MatteArgs {
+    /// A multi-layer EXR with Cryptomatte layers and their header attributes.
+    pub input: PathBuf,
+    /// The names whose coverage is summed, as the type's manifest has them (an object's name,
+    /// a material's).
+    #[arg(required = true)]
+    pub names: Vec<String>,
+    /// The Cryptomatte type, by its name in the file.
+    #[arg(long = "type", value_name = "TYPE", default_value = "CryptoObject")]
+    pub kind: String,
+    /// The matte, R = G = B = coverage: .exr or .pfm (32-bit float, exact), .hdr, or .png (8-bit
+    /// sRGB, as every PNG lightsplit writes).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `bench-accel`: both backends, so no `--accel`.
 #[derive(clap::Args)]
 pub struct BenchAccelArgs {
@@ -426,6 +461,11 @@ pub struct RenderArgs {
     /// every path.
     #[arg(long)]
     pub light_groups: bool,
+    /// Cryptomatte's object and material mattes (specification 1.2): layers CryptoObject00..02
+    /// and CryptoMaterial00..02, six ranks each, with their manifests in the header, from each
+    /// sample's first hit (so antialiased edges carry their coverage). EXR output only.
+    #[arg(long)]
+    pub cryptomatte: bool,
     /// The filter, exposure and layer of the output.
     #[command(flatten)]
     pub out: OutputArgs,
@@ -542,6 +582,20 @@ fn samples(text: &str) -> Result<u32, String> {
 }
 
 /// An AOV: NAME=EXPR, or the name of a built-in expression.
+/// `--filter-target`: a target's name or an AOV's.
+fn target(text: &str) -> Result<Target, String> {
+    Target::from_name(text)
+        .ok_or_else(|| format!("`{text}` is neither indirect, components, image, none nor an AOV's name"))
+}
+
+/// `--targets` of `converge`: a target's name (not an AOV's).
+fn named_target(text: &str) -> Result<Target, String> {
+    Target::NAMED
+        .into_iter()
+        .find(|t| t.name() == text)
+        .ok_or_else(|| format!("`{text}` is not indirect, components, image or none"))
+}
+
 fn aov(text: &str) -> Result<Aov, String> {
     match text.split_once('=') {
         Some((name, expr)) => Aov::new(name.trim(), Some(expr)),
@@ -607,9 +661,12 @@ mod tests {
                 assert_eq!(spelled(layer), c.name());
             }
         }
-        for target in Target::value_variants() {
-            assert_eq!(spelled(target), target.name());
+        for t in Target::NAMED {
+            assert_eq!(target(t.name()), Ok(t));
+            assert_eq!(named_target(t.name()), Ok(t));
         }
+        assert_eq!(target("glossy").map(|t| t.name().to_string()), Ok("glossy".into()));
+        assert!(target("2x").is_err() && named_target("glossy").is_err());
         for accel in Backend::value_variants() {
             assert_eq!(spelled(accel), accel.to_string());
         }

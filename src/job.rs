@@ -48,6 +48,8 @@ pub struct Request {
     pub aovs: Vec<Aov>,
     /// A layer for each light group.
     pub light_groups: bool,
+    /// Cryptomatte's object and material mattes.
+    pub cryptomatte: bool,
     pub accel: Backend,
     pub threads: Option<usize>,
     pub debug_nonfinite: bool,
@@ -209,11 +211,12 @@ impl<'s> Job<'s> {
             }
             options.aovs.push(aov.clone());
         }
-        if let Some(aov) = options.aovs.iter().find(|a| film::layers::is_reserved(&a.name)) {
-            return Err(input(format!("AOV `{}`: the film has a layer of that name already", aov.name)));
-        }
         if !options.aovs.is_empty() && format != Format::Exr {
             return Err(input("AOVs are layers of an EXR: the output must be .exr".into()));
+        }
+        options.cryptomatte = request.cryptomatte;
+        if options.cryptomatte && format != Format::Exr {
+            return Err(input("Cryptomatte's mattes are layers of an EXR: the output must be .exr".into()));
         }
         if options.aovs.len() > crate::render::paths::MAX_AOVS {
             return Err(input(format!("at most {} AOVs", crate::render::paths::MAX_AOVS)));
@@ -239,9 +242,14 @@ impl<'s> Job<'s> {
         } else {
             let setting = request.filter.over(scene_filter).map_err(input)?;
             request.layer.check(format, &setting)?;
+            output::check_aov_target(
+                &setting,
+                &options.aovs.iter().map(|a| a.name.as_str()).collect::<Vec<_>>(),
+            )?;
             setting
         };
-        scene::limits::check_render_memory(options.width, options.height).map_err(|e| input(e.0))?;
+        scene::limits::check_render_memory(options.width, options.height, render::layer_bytes(&options))
+            .map_err(|e| input(e.0))?;
         if request.all_features {
             options.features = Features::ALL;
             options.build = Default::default();

@@ -81,6 +81,7 @@ fn main() -> ExitCode {
         Command::Filter(args) => cmd::image::filter_command(args),
         Command::Merge(args) => cmd::merge::merge_command(args),
         Command::Compare(args) => cmd::image::compare_command(args),
+        Command::Matte(args) => cmd::image::matte_command(args),
         Command::BenchAccel(args) => cmd::measure::bench_accel_command(args),
         Command::Converge(args) => cmd::measure::converge_command(args),
         Command::Stress(args) => cmd::measure::stress_command(args),

@@ -43,9 +43,23 @@ pub enum OutputError {
     /// the variance layers existed).
     #[error("{0} reads each pixel's variance, and this input has no `*_variance` layers (written before they existed): render it again")]
     NoVariance(String),
+    /// The filter's target is an AOV the film does not have.
+    #[error("--filter-target {0}: there is no AOV of that name (the AOVs: {1})")]
+    NoAov(String, String),
     /// The file could not be written.
     #[error(transparent)]
     Write(#[from] film::WriteError),
+}
+
+/// Refuses a filter on an AOV that `aovs` (the names of a render's) does not hold.
+pub fn check_aov_target(setting: &Setting, aovs: &[&str]) -> Result<(), OutputError> {
+    match setting.target {
+        Target::Aov(name) if setting.method.is_some() && !aovs.contains(&name.as_str()) => {
+            let have = if aovs.is_empty() { "none".to_string() } else { aovs.join(", ") };
+            Err(OutputError::NoAov(name.as_str().to_string(), have))
+        }
+        _ => Ok(()),
+    }
 }
 
 impl crate::error::Classify for OutputError {
@@ -173,6 +187,7 @@ pub fn write(
     {
         return Err(OutputError::NoVariance(method.name()));
     }
+    check_aov_target(setting, &film.aovs.iter().map(|a| a.name.as_str()).collect::<Vec<_>>())?;
     let start = Instant::now();
     let (final_image, filtered) = composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();

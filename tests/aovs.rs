@@ -305,3 +305,50 @@ fn groups_follow_their_lights_when_the_environment_changes() {
     s.set_environment(&scene::Environment::White).expect("a white sky");
     assert_eq!((s.light_groups.of_light(0), s.light_groups.of_light(1)), (Some(0), None));
 }
+
+/// `--filter-target AOV`: the beauty less the AOV plus the AOV filtered. On an AOV of the
+/// indirect expression it is the paper's filter on indirect (up to float rounding); on a black
+/// AOV the beauty itself; an AOV the render lacks is one error with status 2.
+#[test]
+fn a_filter_on_an_aov_replaces_that_aov_by_its_filtered_self() {
+    use lightsplit::filter::{composite, EdgeStops, Method, Target};
+    let cornell = scene("cornell.toml");
+    let film =
+        sums(&cornell, &[aov("ind", "indirect"), aov("none_of_it", "C<TD>L")], Part::default()).into_means();
+    let box3 = Method::parse("box3").expect("a kernel");
+    let stops = EdgeStops::default();
+    let target = |name: &str| Target::from_name(name).expect("an AOV's name");
+    let (by_aov, _) = composite(&film, Some(&box3), target("ind"), &stops);
+    let (paper, _) = composite(&film, Some(&box3), Target::Indirect, &stops);
+    assert!(by_aov.pixels != film.raw.pixels, "the filter changed nothing");
+    for (a, b) in by_aov.pixels.iter().zip(&paper.pixels) {
+        assert!((*a - *b).abs().max_element() <= 1e-5 * b.max_element().max(1.0), "{a} against {b}");
+    }
+    let (black, _) = composite(&film, Some(&box3), target("none_of_it"), &stops);
+    assert_eq!(black.pixels, film.raw.pixels);
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let exr = dir.path().join("out.exr").to_string_lossy().into_owned();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let scene = path.to_str().expect("utf-8 path");
+    let small = ["--width", "8", "--height", "8", "--spp", "2", "--filter", "box3"];
+    let o = run(&[
+        &["render", scene, "-o", &exr, "--aov", "ind=indirect", "--filter-target", "indd"][..],
+        &small,
+    ]
+    .concat());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("no AOV of that name (the AOVs: ind)"), "{err}");
+    assert!(!Path::new(&exr).exists());
+    let o =
+        run(&[&["render", scene, "-o", &exr, "--aov", "ind=indirect", "--filter-target", "ind"][..], &small]
+            .concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // `filter` of the file on its AOV, and on one it lacks.
+    let again = dir.path().join("again.exr").to_string_lossy().into_owned();
+    let o = run(&["filter", &exr, "-o", &again, "--filter", "box3", "--filter-target", "ind"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&["filter", &exr, "-o", &again, "--filter", "box3", "--filter-target", "glossy"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -14,6 +14,7 @@ mod checker;
 mod cli;
 mod components;
 mod converge;
+mod cryptomatte;
 mod cutouts;
 mod determinism;
 mod embree;

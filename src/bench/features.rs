@@ -3,6 +3,10 @@
 //! scene and a PNG of its final image need), the general integrator on the specialised build
 //! (so the integrator's share is seen alone), and everything forced on (every feature, Embree's
 //! robust high-quality build). Speeds are medians over rounds of ratios measured side by side.
+//!
+//! With AOVs, light groups or Cryptomatte asked for, each round also renders an EXR's film
+//! twice, back to back: with the four components alone, and with those layers too, and the
+//! row gives the time ratio (the layers' cost) and whether the components came out the same.
 
 use std::path::Path;
 
@@ -13,7 +17,7 @@ use crate::film::{Film, Format};
 use crate::filter::Setting;
 use crate::output::Layer;
 use crate::render::{self, Features, RenderError, RenderOptions, RenderStats};
-use crate::scene::Scene;
+use crate::scene::{Aov, Scene};
 
 use super::median;
 
@@ -26,6 +30,28 @@ pub struct BenchFeaturesOptions {
     pub rounds: usize,
     pub threads: Option<usize>,
     pub accel: Backend,
+    /// Layers whose cost to measure: AOVs, a layer a light group, Cryptomatte's mattes.
+    pub aovs: Vec<Aov>,
+    pub light_groups: bool,
+    pub cryptomatte: bool,
+}
+
+impl BenchFeaturesOptions {
+    fn has_layers(&self) -> bool {
+        !self.aovs.is_empty() || self.light_groups || self.cryptomatte
+    }
+}
+
+/// What the layers asked for cost a scene's render.
+#[derive(Clone, Debug, Serialize)]
+pub struct LayersCost {
+    /// The AOVs (with the light groups') and `cryptomatte`, comma-separated.
+    pub layers: String,
+    /// Median over rounds of the render's seconds with the layers over without, measured back
+    /// to back (both with the components and guides an EXR has).
+    pub time_ratio: f64,
+    /// Whether the component layers are bit-identical with and without the layers.
+    pub components_identical: bool,
 }
 
 /// One scene's row.
@@ -53,6 +79,8 @@ pub struct FeaturesRow {
     /// report the other of two triangles a ray meets exactly on their shared edge.
     pub pixels_differing: usize,
     pub max_relative_difference: f32,
+    /// The layers' cost, when asked for.
+    pub layers: Option<LayersCost>,
 }
 
 fn differing(a: &Film, b: &Film) -> (usize, f32) {
@@ -88,15 +116,26 @@ pub fn bench_scene(
         ..base.clone()
     };
     let general_same_build = RenderOptions { features: Features::ALL, ..specialised.clone() };
-    let forced = RenderOptions { features: Features::ALL, build: BuildHints::default(), ..base };
-    let modes = [&specialised, &general_same_build, &forced];
+    let forced = RenderOptions { features: Features::ALL, build: BuildHints::default(), ..base.clone() };
+    // An EXR's film, without and with the layers asked for.
+    let components =
+        RenderOptions { features: Features { split: true, guides: true, ..base.features }, ..base };
+    let mut layered =
+        RenderOptions { aovs: options.aovs.clone(), cryptomatte: options.cryptomatte, ..components.clone() };
+    if options.light_groups {
+        layered.aovs.extend(scene.light_groups.aovs().map_err(RenderError::Aovs)?);
+    }
+    let mut modes = vec![&specialised, &general_same_build, &forced];
+    if options.has_layers() {
+        modes.extend([&components, &layered]);
+    }
 
-    let mut rates: [Vec<f64>; 3] = Default::default();
-    let (mut speedup, mut build_speedup) = (Vec::new(), Vec::new());
-    let mut films: [Option<Film>; 3] = Default::default();
-    let mut stats = [RenderStats::default(); 3];
+    let mut rates: [Vec<f64>; 5] = Default::default();
+    let (mut speedup, mut build_speedup, mut cost) = (Vec::new(), Vec::new(), Vec::new());
+    let mut films: [Option<Film>; 5] = Default::default();
+    let mut stats = [RenderStats::default(); 5];
     for round in 0..options.rounds.max(1) {
-        let mut r = [0.0; 3];
+        let mut r = [0.0; 5];
         // Each round starts with another mode, so no mode always runs first.
         for k in 0..modes.len() {
             let i = (k + round) % modes.len();
@@ -111,9 +150,29 @@ pub fn bench_scene(
         }
         speedup.push(r[0] / r[2]);
         build_speedup.push(r[1] / r[2]);
+        if options.has_layers() {
+            // Both take the same samples: the ratio of their rates is that of their times.
+            cost.push(r[3] / r[4]);
+        }
     }
-    let [Some(specialised_film), Some(general_film), Some(forced_film)] = films else {
+    let [Some(specialised_film), Some(general_film), Some(forced_film), components_film, layered_film] =
+        films
+    else {
         unreachable!("round 0 renders every mode")
+    };
+    let layers = match (components_film, layered_film) {
+        (Some(a), Some(b)) => Some(LayersCost {
+            layers: layered
+                .aovs
+                .iter()
+                .map(|a| a.name.as_str())
+                .chain(layered.cryptomatte.then_some("cryptomatte"))
+                .collect::<Vec<_>>()
+                .join(","),
+            time_ratio: median(cost),
+            components_identical: a.components == b.components,
+        }),
+        _ => None,
     };
     let (integrator_pixels_differing, _) = differing(&specialised_film, &general_film);
     let (pixels_differing, max_relative_difference) = differing(&specialised_film, &forced_film);
@@ -121,13 +180,17 @@ pub fn bench_scene(
         scene: path.display().to_string(),
         features: specialised.features,
         embree: specialised.build,
-        samples_per_second: rates.map(median),
+        samples_per_second: {
+            let [a, b, c, ..] = rates;
+            [a, b, c].map(median)
+        },
         speedup: median(speedup),
         build_speedup: median(build_speedup),
         buffer_bytes: [stats[0].buffer_bytes, stats[2].buffer_bytes],
         integrator_pixels_differing,
         pixels_differing,
         max_relative_difference,
+        layers,
     })
 }
 
@@ -160,6 +223,21 @@ pub fn table(rows: &[FeaturesRow], options: &BenchFeaturesOptions) -> String {
                 String::new()
             }
         );
+    }
+    if rows.iter().any(|r| r.layers.is_some()) {
+        out += "\nThe layers' cost: an EXR's film (components and guides) with the layers over without, back to back\n\n";
+        out +=
+            "| scene | layers | time with / without | components identical |\n| --- | --- | ---: | --- |\n";
+        for (r, l) in rows.iter().filter_map(|r| r.layers.as_ref().map(|l| (r, l))) {
+            let name =
+                Path::new(&r.scene).file_name().map_or(r.scene.clone(), |n| n.to_string_lossy().into_owned());
+            out += &format!(
+                "| {name} | {} | {:.3}x | {} |\n",
+                l.layers,
+                l.time_ratio,
+                if l.components_identical { "yes" } else { "NO" }
+            );
+        }
     }
     out
 }

@@ -6,7 +6,7 @@ use lightsplit::metrics::regions::{by_region, Region};
 use lightsplit::output::OutputError;
 use lightsplit::{film, metrics};
 
-use crate::cli::{CompareArgs, FilterCommandArgs};
+use crate::cli::{CompareArgs, FilterCommandArgs, MatteArgs};
 use crate::Failure;
 
 pub fn filter_command(args: FilterCommandArgs) -> Result<(), Failure> {
@@ -132,6 +132,68 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
                 or_dash(r.detail, 2)
             );
         }
+    }
+    Ok(())
+}
+
+/// `lightsplit matte`: the summed coverage of the names asked for, from the ranks of one
+/// Cryptomatte type of an EXR, as a compositor's Cryptomatte node reads them.
+pub fn matte_command(args: MatteArgs) -> Result<(), Failure> {
+    use lightsplit::film::cryptomatte::{self, Matte};
+    film::check_output(&args.output)?;
+    film::check_not_an_input(&args.output, std::slice::from_ref(&args.input))?;
+    let at = |e: String| Failure::input(format!("{}: {e}", args.input.display()));
+    let (width, height, channels) = film::read_exr_channels(&args.input).map_err(at)?;
+    let meta = film::Metadata::of_exr(&args.input).map_err(at)?;
+    let mattes = Matte::read_all(&meta.extra, &channels, width as usize * height as usize).map_err(at)?;
+    let kinds: Vec<&str> = mattes.iter().map(|m| m.kind.as_str()).collect();
+    let Some(matte) = mattes.iter().find(|m| m.kind == args.kind) else {
+        return Err(at(match kinds.is_empty() {
+            true => "no Cryptomatte layers (`cryptomatte/…/name` header attributes)".into(),
+            false => format!("no Cryptomatte type `{}`; it has {}", args.kind, kinds.join(", ")),
+        }));
+    };
+    // A manifest lists the names; one the file does not list is a typing error, not an empty
+    // matte. (An empty manifest, `{}`, lists nothing to check against.)
+    let manifest: serde_json::Map<String, serde_json::Value> = serde_json::from_str(&matte.manifest)
+        .map_err(|e| at(format!("the `{}` manifest is not a JSON object: {e}", matte.kind)))?;
+    if let Some(name) = args.names.iter().find(|n| !manifest.is_empty() && !manifest.contains_key(n.as_str()))
+    {
+        let mut known: Vec<&str> = manifest.keys().map(String::as_str).collect();
+        known.truncate(20);
+        return Err(at(format!(
+            "`{name}` is not in the `{}` manifest ({}, ...)",
+            matte.kind,
+            known.join(", ")
+        )));
+    }
+    let ids: Vec<u32> = args.names.iter().map(|n| cryptomatte::name_id(n)).collect();
+    let values = matte.matte(&ids);
+    let image = film::Image { width, height, pixels: values.iter().map(|&v| glam::Vec3::splat(v)).collect() };
+    film::write(&image, &args.output, 0.0)?;
+    let covered = values.iter().filter(|&&v| v > 0.0).count();
+    let mean = values.iter().map(|&v| v as f64).sum::<f64>() / values.len().max(1) as f64;
+    if args.json {
+        say!(
+            "{}",
+            serde_json::json!({
+                "input": args.input.to_string_lossy(),
+                "output": args.output.to_string_lossy(),
+                "type": matte.kind,
+                "names": args.names,
+                "pixels_covered": covered,
+                "mean_coverage": mean,
+                "width": width,
+                "height": height,
+            })
+        );
+    } else {
+        eprintln!(
+            "{} of {}: {covered} pixels covered, mean coverage {mean:.4}; wrote {}",
+            args.names.join(", "),
+            matte.kind,
+            args.output.display()
+        );
     }
     Ok(())
 }

@@ -86,7 +86,18 @@ pub fn bench_features_command(args: BenchFeaturesArgs) -> Result<(), Failure> {
         rounds: args.rounds,
         threads: args.run.engine.threads,
         accel: args.run.engine.accel,
+        aovs: args.aovs.clone(),
+        light_groups: args.light_groups,
+        cryptomatte: args.cryptomatte,
     };
+    if let Some((path, ..)) =
+        scenes.iter().find(|(_, s, _)| args.light_groups && s.light_groups.names.is_empty())
+    {
+        return Err(Failure::input(format!(
+            "{}: --light-groups: the scene has no light groups",
+            path.display()
+        )));
+    }
     let bar = progress_bar(scenes.len() as u64, args.run.json);
     let mut rows = Vec::new();
     for (path, scene, filter) in &scenes {
@@ -160,7 +171,11 @@ pub fn converge_command(args: ConvergeArgs) -> Result<(), Failure> {
     options.threads = args.engine.threads;
     options.width = args.width.unwrap_or(options.width);
     options.height = args.height.unwrap_or(options.height);
-    scene::limits::check_render_memory(options.width, options.height)?;
+    scene::limits::check_render_memory(
+        options.width,
+        options.height,
+        lightsplit::render::layer_bytes(&options),
+    )?;
     // Compared against independent sampling, the base of the comparison: it goes first.
     let mut samplers = args.sampler.clone();
     samplers.sort_by_key(|s| *s != SamplerKind::Independent);

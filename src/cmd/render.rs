@@ -33,6 +33,7 @@ pub fn render_command(args: RenderArgs) -> Result<(), Failure> {
         guide: args.guide.clone(),
         aovs: args.aovs.clone(),
         light_groups: args.light_groups,
+        cryptomatte: args.cryptomatte,
         accel: args.run.engine.accel,
         threads: args.run.engine.threads,
         debug_nonfinite: args.debug_nonfinite,

@@ -301,7 +301,8 @@ impl Coverage {
         self.ids.iter().copied().zip(self.weights.iter().copied()).take(self.len())
     }
 
-    fn total_units(&self) -> u128 {
+    /// The pixel's total weight in units of 2⁻³² (exact; [`Coverage::total_weight`]).
+    pub fn total_units(&self) -> u128 {
         let kept: u128 = self.entries().map(|e| u128::from(e.1)).sum();
         kept + u128::from(self.none) + u128::from(self.dropped)
     }
@@ -417,6 +418,240 @@ impl Coverage {
         Ok((c, pos))
     }
 }
+
+/// The type of the object mattes: each shape's object name ([`crate::scene::Scene::objects`]).
+pub const OBJECT: &str = "CryptoObject";
+/// The type of the material mattes: each shape's material name
+/// ([`crate::scene::Scene::material_name`]).
+pub const MATERIAL: &str = "CryptoMaterial";
+
+/// One Cryptomatte type of a film: its name, the manifest of the names its ids hash, and its
+/// pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Matte {
+    /// The type's name (`CryptoObject`, `CryptoMaterial`): its layers' prefix.
+    pub kind: String,
+    /// The manifest JSON ([`manifest`]).
+    pub manifest: String,
+    pub pixels: MattePixels,
+}
+
+/// A matte's pixels: what a render accumulates, or what an image holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MattePixels {
+    /// Each pixel's coverage by id, exact ([`Coverage`]): a render's, a part file's.
+    Coverage(Vec<Coverage>),
+    /// The rank layers' channels (`<kind>00.R`, `<kind>00.G`, …), as an image read back has
+    /// them: written again unchanged.
+    Ranks(crate::film::Channels),
+}
+
+impl Matte {
+    /// A matte of type `kind` over the ids of `names`, for `pixels` pixels not yet sampled.
+    pub fn new(kind: &str, names: &[&str], pixels: usize) -> Matte {
+        Matte {
+            kind: kind.to_string(),
+            manifest: manifest(names),
+            pixels: MattePixels::Coverage(vec![Coverage::new(); pixels]),
+        }
+    }
+
+    /// The four header attributes of the type ([`header`]).
+    pub fn attributes(&self) -> Vec<(String, String)> {
+        attributes(&self.kind, ("manifest", self.manifest.clone()))
+    }
+
+    /// Each pixel's coverage, when the matte has them (not read from an image).
+    pub fn coverage(&self) -> Option<&[Coverage]> {
+        match &self.pixels {
+            MattePixels::Coverage(c) => Some(c),
+            MattePixels::Ranks(_) => None,
+        }
+    }
+
+    pub fn coverage_mut(&mut self) -> Option<&mut [Coverage]> {
+        match &mut self.pixels {
+            MattePixels::Coverage(c) => Some(c),
+            MattePixels::Ranks(_) => None,
+        }
+    }
+
+    /// Bytes of its pixels.
+    pub fn bytes(&self) -> u64 {
+        match &self.pixels {
+            MattePixels::Coverage(c) => (c.capacity() * size_of::<Coverage>()) as u64,
+            MattePixels::Ranks(r) => r.iter().map(|(_, v)| (v.capacity() * size_of::<f32>()) as u64).sum(),
+        }
+    }
+
+    /// The rank layers' channels, [`DEFAULT_RANKS`] ranks of the coverage (or those read).
+    pub fn rank_channels(&self) -> crate::film::Channels {
+        let coverage = match &self.pixels {
+            MattePixels::Ranks(r) => return r.clone(),
+            MattePixels::Coverage(c) => c,
+        };
+        let layers = DEFAULT_RANKS.div_ceil(2);
+        let mut px = vec![[0.0f32; 4]; layers];
+        let mut out: Vec<(String, Vec<f32>)> = channel_names(&self.kind, DEFAULT_RANKS)
+            .into_iter()
+            .map(|name| (name, Vec::with_capacity(coverage.len())))
+            .collect();
+        for c in coverage {
+            c.write_layers(&mut px);
+            for (k, (_, values)) in out.iter_mut().enumerate() {
+                values.push(px[k / 4][k % 4]);
+            }
+        }
+        out
+    }
+
+    /// The matte of the ids `ids` ([`name_id`]): each pixel's summed coverage of them, as a
+    /// compositor reads it from the rank layers.
+    pub fn matte(&self, ids: &[u32]) -> Vec<f32> {
+        let ranks = self.rank_channels();
+        let n = ranks.first().map_or(0, |(_, v)| v.len());
+        let mut out = vec![0.0f32; n];
+        for pair in ranks.chunks_exact(2) {
+            let (id, cov) = (&pair[0].1, &pair[1].1);
+            for ((o, i), c) in out.iter_mut().zip(id).zip(cov) {
+                if ids.contains(&i.to_bits()) && i.to_bits() != 0 {
+                    *o += c;
+                }
+            }
+        }
+        out
+    }
+
+    /// The mattes an image holds: one per `cryptomatte/<key>/name` attribute of `attributes`,
+    /// with its manifest (`{}` when the file has none or keeps it in a sidecar) and its rank
+    /// layers `<name>00`, `<name>01`, … from `channels` (at least one, each with R, G, B, A).
+    pub fn read_all(
+        attributes: &[(String, String)],
+        channels: &crate::film::Channels,
+        pixels: usize,
+    ) -> Result<Vec<Matte>, String> {
+        let find = |name: &str| channels.iter().find(|(c, _)| c == name);
+        let mut out = Vec::new();
+        for (kind, manifest) in Matte::types(attributes)? {
+            let mut ranks = Vec::new();
+            for layer in (0..100).map(|i| format!("{kind}{i:02}")) {
+                let found: Vec<_> = CHANNELS.iter().map(|c| find(&format!("{layer}.{c}"))).collect();
+                if found.iter().all(Option::is_none) {
+                    break;
+                }
+                for (c, f) in CHANNELS.iter().zip(found) {
+                    let (name, values) = f.ok_or_else(|| format!("no `{layer}.{c}` channel"))?;
+                    if values.len() != pixels {
+                        return Err("channel sizes do not match the image".into());
+                    }
+                    ranks.push((name.clone(), values.clone()));
+                }
+            }
+            if ranks.is_empty() {
+                return Err(format!("Cryptomatte `{kind}` has no `{kind}00` layer"));
+            }
+            out.push(Matte { kind, manifest, pixels: MattePixels::Ranks(ranks) });
+        }
+        Ok(out)
+    }
+
+    /// The types header attributes name (`cryptomatte/<key>/name`), each with its manifest
+    /// (`{}` when there is none or it is in a sidecar file), sorted by name.
+    pub fn types(attributes: &[(String, String)]) -> Result<Vec<(String, String)>, String> {
+        let mut out = Vec::new();
+        for (attr, kind) in attributes {
+            let Some(key) = attr.strip_prefix("cryptomatte/").and_then(|k| k.strip_suffix("/name")) else {
+                continue;
+            };
+            if !is_portable_type_name(kind) {
+                return Err(format!("Cryptomatte `{attr}` names `{kind}`, which cannot name layers"));
+            }
+            let manifest = attributes
+                .iter()
+                .find(|(a, _)| *a == format!("cryptomatte/{key}/manifest"))
+                .map_or_else(|| "{}".to_string(), |(_, m)| m.clone());
+            out.push((kind.clone(), manifest));
+        }
+        out.sort();
+        Ok(out)
+    }
+
+    /// The coverage as whole-number channels for a part file, exact: `<prefix>.none` and
+    /// `.dropped` (each a `.hi` and `.lo` word), then for each slot `k` below the most ids a
+    /// pixel has, `<prefix>.id<k>` and `<prefix>.w<k>` (`.hi`, `.lo`); a pixel's ids in ascending
+    /// order, its unused slots 0. Nothing for a matte read from an image.
+    pub fn words(&self, prefix: &str) -> crate::film::Words {
+        let Some(coverage) = self.coverage() else { return Vec::new() };
+        let slots = coverage.iter().map(Coverage::len).max().unwrap_or(0);
+        let mut out = Vec::new();
+        let mut wide = |name: String, of: &dyn Fn(&Coverage) -> u64| {
+            out.push((format!("{name}.hi"), coverage.iter().map(|c| (of(c) >> 32) as u32).collect()));
+            out.push((format!("{name}.lo"), coverage.iter().map(|c| of(c) as u32).collect()));
+        };
+        wide(format!("{prefix}.none"), &|c| c.none);
+        wide(format!("{prefix}.dropped"), &|c| c.dropped);
+        for k in 0..slots {
+            wide(format!("{prefix}.w{k}"), &|c| c.weights[k]);
+        }
+        for k in 0..slots {
+            out.push((format!("{prefix}.id{k}"), coverage.iter().map(|c| c.ids[k]).collect()));
+        }
+        out
+    }
+
+    /// A matte of type `kind` with `manifest` from the part file channels [`Matte::words`]
+    /// wrote, checked as [`Coverage::from_bytes`] checks its encoding.
+    pub fn from_words(
+        kind: &str,
+        manifest: String,
+        prefix: &str,
+        words: &crate::film::Words,
+        pixels: usize,
+    ) -> Result<Matte, String> {
+        let find = |name: &str| -> Option<&Vec<u32>> {
+            words.iter().find(|(w, _)| w == name).map(|(_, d)| d).filter(|d| d.len() == pixels)
+        };
+        let need =
+            |name: String| find(&name).ok_or_else(|| format!("no `{name}` channel of the image's size"));
+        let wide = |name: String| -> Result<Vec<u64>, String> {
+            let (hi, lo) = (need(format!("{name}.hi"))?, need(format!("{name}.lo"))?);
+            Ok(hi.iter().zip(lo).map(|(&h, &l)| u64::from(h) << 32 | u64::from(l)).collect())
+        };
+        let (none, dropped) = (wide(format!("{prefix}.none"))?, wide(format!("{prefix}.dropped"))?);
+        let mut slots = Vec::new();
+        while find(&format!("{prefix}.id{}", slots.len())).is_some() {
+            let k = slots.len();
+            if k == CAP {
+                return Err(format!("`{prefix}` has more than {CAP} ids a pixel"));
+            }
+            slots.push((need(format!("{prefix}.id{k}"))?, wide(format!("{prefix}.w{k}"))?));
+        }
+        let mut bytes = Vec::with_capacity(MAX_ENCODED_LEN);
+        let mut coverage = Vec::with_capacity(pixels);
+        for i in 0..pixels {
+            // The pixel's entries: its slots up to the first unused one, which all after must be.
+            let used = slots.iter().take_while(|(id, _)| id[i] != 0).count();
+            if slots[used..].iter().any(|(id, w)| id[i] != 0 || w[i] != 0) {
+                return Err(format!("`{prefix}`: pixel {i} has an unused slot before a used one"));
+            }
+            bytes.clear();
+            bytes.push(used as u8 | u8::from(none[i] != 0) << 5 | u8::from(dropped[i] != 0) << 6);
+            for extra in [none[i], dropped[i]] {
+                if extra != 0 {
+                    bytes.extend_from_slice(&extra.to_le_bytes());
+                }
+            }
+            for (id, w) in &slots[..used] {
+                bytes.extend_from_slice(&id[i].to_le_bytes());
+                bytes.extend_from_slice(&w[i].to_le_bytes());
+            }
+            let (c, _) = Coverage::from_bytes(&bytes).map_err(|e| format!("`{prefix}`: pixel {i}: {e}"))?;
+            coverage.push(c);
+        }
+        Ok(Matte { kind: kind.to_string(), manifest, pixels: MattePixels::Coverage(coverage) })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -714,6 +949,66 @@ mod tests {
         let mut empty = Vec::new();
         Coverage::new().to_bytes(&mut empty);
         assert_eq!(empty, [0]);
+    }
+
+    /// A part file's words give back every pixel exactly (none, dropped, up to [`CAP`] ids), and
+    /// a pixel with a used slot after an unused one, or a channel missing, is refused.
+    #[test]
+    fn part_file_words_round_trip_and_gaps_are_refused() {
+        let mut rng = Rng(5);
+        let pixels: Vec<Coverage> = (0..300)
+            .map(|_| {
+                let n = rng.below(24);
+                acc(&(0..n)
+                    .map(|_| ((rng.next() as u32) * (rng.below(5) != 0) as u32, rng.weight()))
+                    .collect::<Vec<_>>())
+            })
+            .collect();
+        assert!(pixels.iter().any(|c| c.dropped_weight() > 0.0) && pixels.iter().any(Coverage::is_empty));
+        let matte =
+            Matte { kind: OBJECT.into(), manifest: "{}".into(), pixels: MattePixels::Coverage(pixels) };
+        let words = matte.words("sums.CryptoObject");
+        let back = Matte::from_words(OBJECT, "{}".into(), "sums.CryptoObject", &words, 300).expect("reads");
+        assert_eq!(back, matte);
+        // Pixel 0's first id moved past an unused slot.
+        let mut gap = words.clone();
+        let last = (0..CAP)
+            .rev()
+            .find(|k| gap.iter().any(|(n, _)| *n == format!("sums.CryptoObject.id{k}")))
+            .unwrap();
+        let i = (0..300).find(|&i| matte.coverage().unwrap()[i].len() == 1).expect("a pixel of one id");
+        let slot = |k: usize| format!("sums.CryptoObject.id{k}");
+        let moved = gap.iter().find(|(n, _)| *n == slot(0)).unwrap().1[i];
+        gap.iter_mut().find(|(n, _)| *n == slot(0)).unwrap().1[i] = 0;
+        gap.iter_mut().find(|(n, _)| *n == slot(last)).unwrap().1[i] = moved;
+        let err = Matte::from_words(OBJECT, "{}".into(), "sums.CryptoObject", &gap, 300).unwrap_err();
+        assert!(err.contains("unused slot"), "{err}");
+        let missing: crate::film::Words =
+            words.into_iter().filter(|(n, _)| !n.ends_with(".none.lo")).collect();
+        assert!(Matte::from_words(OBJECT, "{}".into(), "sums.CryptoObject", &missing, 300).is_err());
+    }
+
+    /// The rank channels are [`DEFAULT_RANKS`] ranks in three RGBA layers, and a matte of ids
+    /// sums the coverage of the ranks holding them.
+    #[test]
+    fn rank_channels_and_mattes() {
+        let (a, b, c) = (id(1), id(2), id(3));
+        let pixels = vec![acc(&[(a, 1.0), (a, 1.0), (b, 1.0), (0, 1.0)]), acc(&[(c, 2.0)]), Coverage::new()];
+        let matte =
+            Matte { kind: OBJECT.into(), manifest: "{}".into(), pixels: MattePixels::Coverage(pixels) };
+        let ranks = matte.rank_channels();
+        let names: Vec<&str> = ranks.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, channel_names(OBJECT, DEFAULT_RANKS));
+        assert_eq!(ranks[0].1, [f32::from_bits(a), f32::from_bits(c), 0.0]);
+        assert_eq!(ranks[1].1, [0.5, 1.0, 0.0]);
+        assert_eq!(ranks[3].1, [0.25, 0.0, 0.0]);
+        assert_eq!(matte.matte(&[a]), [0.5, 0.0, 0.0]);
+        assert_eq!(matte.matte(&[a, b, c]), [0.75, 1.0, 0.0]);
+        // Read back from an image, the same ranks and mattes.
+        let attrs = matte.attributes();
+        let read = Matte::read_all(&attrs, &ranks, 3).expect("reads");
+        assert_eq!(read.len(), 1);
+        assert_eq!((read[0].rank_channels(), read[0].matte(&[b])), (ranks, vec![0.25, 0.0, 0.0]));
     }
 
     #[test]

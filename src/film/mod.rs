@@ -49,6 +49,8 @@ pub struct Film {
     /// The layers of light path expressions the render was asked for, in order (summed and
     /// averaged as the components are; no variance).
     pub aovs: Vec<AovLayer>,
+    /// The Cryptomatte types the render was asked for, by type name (`--cryptomatte`).
+    pub mattes: Vec<cryptomatte::Matte>,
 }
 
 /// An AOV's layer ([`crate::scene::Aov`]): the light of the paths its expression matches,
@@ -129,6 +131,7 @@ impl Film {
             variance: Vec::new(),
             component_variance: Split::from_fn(|_| Vec::new()),
             aovs: Vec::new(),
+            mattes: Vec::new(),
         };
         for layer in &layers::LAYERS {
             let on = match layer.group {
@@ -173,6 +176,12 @@ impl Film {
             + self.variance.capacity()
             + variance;
         (rgb + scalars * size_of::<f32>()) as u64
+            + self.mattes.iter().map(cryptomatte::Matte::bytes).sum::<u64>()
+    }
+
+    /// The header attributes of its Cryptomatte types ([`cryptomatte::Matte::attributes`]).
+    pub fn matte_attributes(&self) -> Vec<(String, String)> {
+        self.mattes.iter().flat_map(cryptomatte::Matte::attributes).collect()
     }
 
     /// `indirect` (L_r,d,d) of this film.
@@ -446,6 +455,9 @@ pub fn film_channels(film: Film, final_image: Image, indirect_filtered: Option<I
     for aov in std::mem::take(&mut film.aovs) {
         push_aov(&mut out, "", aov);
     }
+    for matte in std::mem::take(&mut film.mattes) {
+        out.extend(matte.rank_channels());
+    }
     out
 }
 
@@ -576,8 +588,12 @@ pub fn write_film(
     match Format::from_path(path)? {
         Format::Exr => {
             let (width, height) = (film.width, film.height);
+            // The Cryptomatte types' attributes, in place of any the metadata brought along.
+            let mut meta = meta.clone();
+            meta.extra.retain(|(name, _)| !name.starts_with("cryptomatte/"));
+            meta.extra.extend(film.matte_attributes());
             let channels = film_channels(film, final_image, indirect_filtered);
-            atomically(path, |tmp| write_exr_channels(channels, width, height, meta, tmp))
+            atomically(path, |tmp| write_exr_channels(channels, width, height, &meta, tmp))
         }
         _ => write_with(&final_image, path, exposure, meta),
     }
@@ -745,8 +761,10 @@ impl Metadata {
         put("sampler", self.sampler.as_deref().map(text));
         put("renderTimeSeconds", self.render_seconds.map(|v| V::F32(v as f32)));
         put("filter", self.filter.as_deref().map(text));
+        // lightsplit's own attributes and Cryptomatte's are UTF-8 (a manifest's names may be
+        // any), as Cryptomatte's specification says.
         for (name, value) in &self.extra {
-            put(name, Some(text(value)));
+            put(name, Some(V::Text(Text::from_slice_unchecked(value.as_bytes()))));
         }
         a
     }
@@ -770,8 +788,11 @@ impl Metadata {
             .other
             .iter()
             .filter_map(|(name, value)| match value {
-                V::Text(t) if name.to_string().starts_with("lightsplit.") => {
-                    Some((name.to_string(), t.to_string()))
+                V::Text(t)
+                    if name.to_string().starts_with("lightsplit.")
+                        || name.to_string().starts_with("cryptomatte/") =>
+                {
+                    Some((name.to_string(), String::from_utf8_lossy(t.bytes()).into_owned()))
                 }
                 _ => None,
             })
@@ -890,9 +911,12 @@ pub fn read_image(path: &Path) -> Result<Image, ReadError> {
 pub fn read_film(path: &Path) -> Result<Film, ReadError> {
     let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
     let at = |e: String| ReadError(format!("{}: {e}", path.display()));
-    let names = aov_names(&Metadata::of_exr(path).map_err(at)?).map_err(at)?;
+    let meta = Metadata::of_exr(path).map_err(at)?;
+    let names = aov_names(&meta).map_err(at)?;
     let mut film = Film::from_channels(width, height, &channels).map_err(at)?;
     film.aovs = aovs_from_channels(width, height, &channels, "", &names).map_err(at)?;
+    let pixels = width as usize * height as usize;
+    film.mattes = cryptomatte::Matte::read_all(&meta.extra, &channels, pixels).map_err(at)?;
     film.check_finite().map_err(at)?;
     Ok(film)
 }

@@ -173,6 +173,19 @@ impl Sums {
         for (x, y) in a.aovs.iter_mut().zip(&b.aovs) {
             x.image.pixels.iter_mut().zip(&y.image.pixels).for_each(|(p, q)| *p += *q);
         }
+        let kinds = |f: &Film| f.mattes.iter().map(|m| m.kind.as_str()).collect::<Vec<_>>().join(",");
+        if kinds(a) != kinds(b) {
+            return Err(format!("one has the Cryptomatte types [{}] and the other [{}]", kinds(b), kinds(a)));
+        }
+        for (x, y) in a.mattes.iter_mut().zip(&b.mattes) {
+            if x.manifest != y.manifest {
+                return Err(format!("their `{}` manifests differ (not of one scene)", x.kind));
+            }
+            match (x.coverage_mut(), y.coverage()) {
+                (Some(x), Some(y)) => x.iter_mut().zip(y).for_each(|(p, q)| p.merge(q)),
+                _ => return Err("a Cryptomatte read from an image cannot be summed".into()),
+            }
+        }
         let width = a.width;
         for layer in &layers::LAYERS {
             let (x, y) = (a.values_mut(layer.buffer), b.values(layer.buffer));

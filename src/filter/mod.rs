@@ -155,7 +155,6 @@ impl Setting {
 
 /// What the filter is applied to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Target {
     /// Only L_r,d,d, then added back (the paper's method).
     Indirect,
@@ -166,24 +165,68 @@ pub enum Target {
     Components,
     /// Nothing.
     None,
+    /// An AOV of the render (a light path expression's layer): the image is the beauty less
+    /// the AOV plus the AOV filtered. An AOV has no variance layer of its own: `atrous` reads
+    /// the beauty's.
+    Aov(AovName),
 }
 
 impl Target {
+    /// The targets that are not AOVs.
+    pub const NAMED: [Target; 4] = [Target::Indirect, Target::Image, Target::Components, Target::None];
+
     /// The name the command line, scene files and `results.csv` use.
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &str {
         match self {
             Target::Indirect => "indirect",
             Target::Image => "image",
             Target::Components => "components",
             Target::None => "none",
+            Target::Aov(name) => name.as_str(),
         }
     }
 
-    /// The target of a name, as [`Target::name`] writes it.
+    /// The target of a name, as [`Target::name`] writes it: one of [`Target::NAMED`], else an
+    /// AOV's name (whether the render has that AOV is checked where the film is known).
     pub fn from_name(name: &str) -> Option<Target> {
-        [Target::Indirect, Target::Image, Target::Components, Target::None]
-            .into_iter()
-            .find(|t| t.name() == name)
+        Target::NAMED.into_iter().find(|t| t.name() == name).or_else(|| AovName::new(name).map(Target::Aov))
+    }
+}
+
+/// An AOV's name as a filter target, kept inline so that a target stays `Copy`: letters,
+/// digits and `_`, not starting with a digit, at most [`AovName::MAX`] bytes (as
+/// [`crate::scene::Aov::new`] requires of every AOV's name).
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct AovName {
+    len: u8,
+    bytes: [u8; AovName::MAX],
+}
+
+impl AovName {
+    pub const MAX: usize = 63;
+
+    /// The name, if it can be an AOV's.
+    pub fn new(name: &str) -> Option<AovName> {
+        let valid = name.len() <= Self::MAX
+            && name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !valid {
+            return None;
+        }
+        let mut bytes = [0; Self::MAX];
+        bytes[..name.len()].copy_from_slice(name.as_bytes());
+        Some(AovName { len: name.len() as u8, bytes })
+    }
+
+    pub fn as_str(&self) -> &str {
+        // ASCII by construction.
+        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or_default()
+    }
+}
+
+impl std::fmt::Debug for AovName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.as_str())
     }
 }
 
@@ -597,6 +640,20 @@ pub fn composite<'a>(
     };
     let filtered: &[Component] = match target {
         Target::None => return (Cow::Borrowed(&film.raw), None),
+        Target::Aov(name) => {
+            // A film without that AOV (which the callers refuse first) is left unfiltered.
+            let Some(aov) = film.aovs.iter().find(|a| a.name == name.as_str()) else {
+                return (Cow::Borrowed(&film.raw), None);
+            };
+            let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
+            let mut out = filter_layers(&[FilterInput::new(&aov.image, variance)], kernel, film, stops);
+            let filtered = out.pop().unwrap_or_else(|| aov.image.clone());
+            let mut image = film.raw.clone();
+            for ((o, a), f) in image.pixels.iter_mut().zip(&aov.image.pixels).zip(&filtered.pixels) {
+                *o += *f - *a;
+            }
+            return (Cow::Owned(image), None);
+        }
         _ if !film.has_split() => &[],
         Target::Image => &[],
         Target::Indirect => &[Indirect],

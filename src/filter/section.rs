@@ -15,7 +15,7 @@ impl Setting {
         let target = match section.target.as_deref() {
             None => Target::Indirect,
             Some(name) => Target::from_name(name).ok_or_else(|| {
-                format!("unknown filter target `{name}` (indirect, image, components or none)")
+                format!("unknown filter target `{name}` (indirect, image, components, none or an AOV's name)")
             })?,
         };
         let stops = EdgeStops {
@@ -71,7 +71,7 @@ mod tests {
         for (extra, needle) in [
             ("kernel = \"gauss\"\n", "gauss"),
             ("kernel = [1, 2, 3, 4]\n", "odd square"),
-            ("kernel = \"box3\"\ntarget = \"all\"\n", "all"),
+            ("kernel = \"box3\"\ntarget = \"all-of-it\"\n", "all-of-it"),
             ("kernel = \"box3\"\nedge_normal = 0\n", "normal"),
             ("kernel = \"box3\"\nradius = 2\n", "radius"),
             ("kernel = \"atrous:passes=0\"\n", "passes"),

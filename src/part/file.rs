@@ -72,6 +72,9 @@ fn channels(sums: &Sums) -> (Channels, Words) {
         words.push((format!("{name}.hi"), squares.iter().map(|v| (v.to_bits() >> 32) as u32).collect()));
         words.push((format!("{name}.lo"), squares.iter().map(|v| v.to_bits() as u32).collect()));
     }
+    for matte in &film.mattes {
+        words.extend(matte.words(&format!("{SUMS}{}", matte.kind)));
+    }
     (out, words)
 }
 
@@ -86,8 +89,9 @@ pub fn write(path: &Path, sums: &Sums, header: &Header) -> Result<(), WriteError
             ("lightsplit.complete".into(), if header.complete { "yes" } else { "no" }.into()),
         ]
         .into_iter()
-        // The render's AOVs, which reading the sums needs.
+        // The render's AOVs and Cryptomatte types, which reading the sums needs.
         .chain(film::aov_attributes(&header.meta))
+        .chain(sums.film.matte_attributes())
         .collect(),
         ..header.meta.clone()
     };
@@ -137,6 +141,10 @@ pub fn read(path: &Path) -> Result<(Header, Sums), String> {
     let mut film = film_of(width, height, &channels)?;
     film.aovs = film::aovs_from_channels(width, height, &channels, SUMS, &film::aov_names(&header.meta)?)?;
     let n = film.raw.pixels.len();
+    for (kind, manifest) in film::cryptomatte::Matte::types(&header.meta.extra)? {
+        let prefix = format!("{SUMS}{kind}");
+        film.mattes.push(film::cryptomatte::Matte::from_words(&kind, manifest, &prefix, &words, n)?);
+    }
     let squares = if film.has_split() {
         let read = |layer: &str| -> Result<Vec<f64>, String> {
             let name = squares_name(layer);
@@ -322,6 +330,16 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
             let lum = |i: usize| crate::math::luminance(image.pixels[i]) as f64;
             let what = "not sums of as many samples as their count, by their sums of squares";
             refuse_any(&layer(name), what, n, w, |i| !moments_fit(samples[i], lum(i), sq[i]))?;
+        }
+    }
+    // A Cryptomatte's weights: each of the pixel's own samples weighs 1 with the pixel's box
+    // (splatted, the weights are the filter's, not checked).
+    for matte in f.mattes.iter().filter(|_| weights.is_empty()) {
+        if let Some(c) = matte.coverage() {
+            let what = "a total weight other than the pixel's sample count";
+            refuse_any(&layer(&matte.kind), what, n, w, |i| {
+                c[i].total_units() != u128::from(samples[i]) << 32
+            })?;
         }
     }
     Ok(())

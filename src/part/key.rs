@@ -71,5 +71,9 @@ pub fn run_key(scene: &Scene, options: &RenderOptions) -> Result<String, String>
     for aov in &o.aovs {
         key.bytes(format!("{}={}\0{}\0", aov.name.len(), aov.name, aov.lpe).as_bytes());
     }
+    if o.cryptomatte {
+        // After the AOVs, whose entries start with a digit.
+        key.bytes(b"+cryptomatte");
+    }
     Ok(key.finish())
 }

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::accel::{self, Accel, Backend, Ray};
 use crate::accel::{BuildHints, UseAccel, PACKET};
 use crate::component::Split;
-use crate::film::{self, Film, Sums};
+use crate::film::{self, cryptomatte, Film, Sums};
 use crate::scene::analysis::Analysis;
 use crate::scene::{Aov, Guiding, LightSamplerKind, Scene};
 use camera::PinholeCamera;
@@ -77,6 +77,9 @@ pub struct RenderOptions {
     pub part: Part,
     /// Output layers of light path expressions (the scene file's `[[aov]]`, then `--aov`).
     pub aovs: Vec<Aov>,
+    /// Cryptomatte's object and material mattes (`CryptoObject`, `CryptoMaterial`): each
+    /// pixel's coverage by the camera rays' first hits.
+    pub cryptomatte: bool,
 }
 
 /// A share of each pixel's samples: part `index` of `count` takes samples `index spp / count`
@@ -217,8 +220,54 @@ impl RenderOptions {
             adaptive: None,
             part: Part::default(),
             aovs: scene.aovs.clone(),
+            cryptomatte: false,
         }
     }
+}
+
+/// The bytes a pixel that a render's AOVs and Cryptomatte types add to its film at most: each
+/// AOV's sums, its copy in a tile's and its output channels; each type's coverage, twice (a
+/// splatted tile's), and its rank channels.
+pub fn layer_bytes(options: &RenderOptions) -> u64 {
+    let aov = 3 * size_of::<Vec3>() as u64;
+    let matte = 2 * size_of::<cryptomatte::Coverage>() as u64 + 4 * cryptomatte::DEFAULT_RANKS as u64;
+    options.aovs.len() as u64 * aov + matte_kinds(options).len() as u64 * matte
+}
+
+/// The Cryptomatte types a render with `options` writes, in the order a film keeps them.
+pub fn matte_kinds(options: &RenderOptions) -> Vec<&'static str> {
+    match options.cryptomatte {
+        true => vec![cryptomatte::MATERIAL, cryptomatte::OBJECT],
+        false => Vec::new(),
+    }
+}
+
+/// The films's Cryptomatte types for `scene` ([`matte_kinds`]), empty, over `pixels` pixels;
+/// and each shape's id in each, in the same order.
+fn mattes(scene: &Scene, options: &RenderOptions, pixels: usize) -> (Vec<cryptomatte::Matte>, Vec<[u32; 2]>) {
+    if !options.cryptomatte {
+        return (Vec::new(), Vec::new());
+    }
+    let object = |o: u32| -> std::borrow::Cow<'_, str> {
+        scene.objects.get(o as usize).map_or_else(|| format!("object{o}").into(), |n| n.as_str().into())
+    };
+    let materials: Vec<_> = (0..scene.materials.len() as u32).map(|m| scene.material_name(m)).collect();
+    let objects: Vec<_> = (0..scene.objects.len() as u32).map(object).collect();
+    fn names<'a>(v: &'a [std::borrow::Cow<'_, str>]) -> Vec<&'a str> {
+        v.iter().map(|n| n.as_ref()).collect()
+    }
+    let ids = scene
+        .shapes
+        .iter()
+        .map(|s| {
+            [cryptomatte::name_id(&scene.material_name(s.material)), cryptomatte::name_id(&object(s.object))]
+        })
+        .collect();
+    let mattes = vec![
+        cryptomatte::Matte::new(cryptomatte::MATERIAL, &names(&materials), pixels),
+        cryptomatte::Matte::new(cryptomatte::OBJECT, &names(&objects), pixels),
+    ];
+    (mattes, ids)
 }
 
 /// Counts from one render.
@@ -325,6 +374,12 @@ pub fn render_controlled(
         let names: Vec<&str> = aovs.iter().map(|a| a.name.as_str()).collect();
         if crate::film::aov_list(&f.aovs) != names.join(",") {
             return Err(RenderError::Resume("the checkpoint was rendered with other AOVs".into()));
+        }
+        let kinds: Vec<&str> = f.mattes.iter().map(|m| m.kind.as_str()).collect();
+        if kinds != matte_kinds(options) {
+            return Err(RenderError::Resume(
+                "the checkpoint was rendered with other Cryptomatte types".into(),
+            ));
         }
         let range = options.part.samples(options.spp.max(1));
         let first = r.samples.first().copied().unwrap_or(0);
@@ -450,6 +505,9 @@ struct TileSums {
     /// Each pixel's AOVs, `naovs` a pixel.
     aovs: Vec<Vec3>,
     naovs: usize,
+    /// Each pixel's coverage in each Cryptomatte type, `nmattes` a pixel.
+    mattes: Vec<cryptomatte::Coverage>,
+    nmattes: usize,
     guides: Vec<GuideSums>,
     /// The sums of the squared sample luminances, of the beauty then of each component (with
     /// the split only), in f64 as [`film::Squares`] keeps them.
@@ -474,6 +532,10 @@ impl TileSums {
             },
             aovs: (0..n).flat_map(|i| film.aovs.iter().map(move |a| a.image.pixels[at(i)])).collect(),
             naovs: film.aovs.len(),
+            mattes: (0..n)
+                .flat_map(|i| film.mattes.iter().filter_map(move |m| m.coverage().map(|c| c[at(i)])))
+                .collect(),
+            nmattes: film.mattes.len(),
             squares: if squares.is_empty() {
                 Vec::new()
             } else {
@@ -520,6 +582,12 @@ impl TileSums {
             for (layer, &v) in film.aovs.iter_mut().zip(self.aovs_of(i)) {
                 layer.image.pixels[at] = v;
             }
+            let mattes = self.mattes.get(i * self.nmattes..(i + 1) * self.nmattes).unwrap_or(&[]);
+            for (matte, c) in film.mattes.iter_mut().zip(mattes) {
+                if let Some(m) = matte.coverage_mut() {
+                    m[at] = *c;
+                }
+            }
             if let Some((beauty, components)) = self.squares.get(i) {
                 squares.beauty[at] = *beauty;
                 for (layer, &c) in squares.components.iter_mut().zip(components) {
@@ -542,6 +610,19 @@ impl TileSums {
     fn set_object(&mut self, i: usize, object: Option<u32>) {
         if let Some(g) = self.guides.get_mut(i) {
             g.object = object;
+        }
+    }
+
+    /// Adds a sample of pixel `i` (the pixel's own box: weight 1) to its Cryptomatte coverage:
+    /// the ids of what its camera ray hit first (`None`: nothing).
+    #[inline]
+    fn add_matte(&mut self, i: usize, ids: Option<&[u32; 2]>) {
+        let mattes = &mut self.mattes[i * self.nmattes..(i + 1) * self.nmattes];
+        for (k, c) in mattes.iter_mut().enumerate() {
+            match ids {
+                Some(ids) => c.add(ids[k], 1.0),
+                None => c.add_none(1.0),
+            }
         }
     }
 
@@ -750,11 +831,15 @@ fn render_features<A: Accel, const F: u8>(
     // A filter wider than the pixel is splatted; the pixel's own box is not.
     let weights =
         (!scene.film.pixel_filter.is_pixel_box()).then(|| splat::Weights::new(scene.film.pixel_filter));
+    // Cryptomatte's types, and each shape's id in each.
+    let (matte_films, matte_ids) = mattes(scene, options, width as usize * height as usize);
+    let nmattes = matte_films.len();
     let start_state = match &control.resume {
         Some(r) => r.clone(),
         None => {
             let mut sums = Sums::empty(width, height, split, guides, weights.is_some());
             sums.film = sums.film.with_aovs(&aov_names);
+            sums.film.mattes = matte_films;
             sums
         }
     };
@@ -764,9 +849,9 @@ fn render_features<A: Accel, const F: u8>(
         .flat_map(|ty| (0..width.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .map(|(x0, y0)| {
             let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-            let splat = weights
-                .as_ref()
-                .map(|wt| splat::TileSplat::new((x0, y0, w, h), (width, height), wt, split, naovs));
+            let splat = weights.as_ref().map(|wt| {
+                splat::TileSplat::new((x0, y0, w, h), (width, height), wt, split, (naovs, nmattes))
+            });
             Tile::new(x0, y0, w, h, adaptive.is_some(), done, splat)
         })
         .collect();
@@ -849,6 +934,13 @@ fn render_features<A: Accel, const F: u8>(
                     accel.intersect_coherent(&rays[..n], &mut hits[..n]);
                     for (j, sampler) in samplers.iter_mut().take(n).enumerate() {
                         aov.fill(Vec3::ZERO);
+                        // The Cryptomatte ids of the camera ray's first hit, whatever its light.
+                        let ids = hits[j].and_then(|h| matte_ids.get(h.shape as usize));
+                        match tile.splat.as_mut().zip(weights.as_ref()) {
+                            Some((splats, w)) if nmattes > 0 => splats.add_matte((x, y), offsets[j], w, ids),
+                            _ if nmattes > 0 => sums.add_matte(i, ids),
+                            _ => {}
+                        }
                         let s =
                             integrator.sample_from_into(rays[j], hits[j], sampler, &mut tile.rays, &mut aov);
                         if !sums.add(i, k + j as u32, (&s, &aov), split, tile.moments.get_mut(i)) {

@@ -53,7 +53,12 @@ impl PathExprs {
             .copied()
             .chain(aovs.iter().map(|a| (a.name.as_str(), a.lpe.as_str())))
             .collect();
-        let labels: Vec<&str> = groups.iter().map(String::as_str).collect();
+        // Only an AOV can name a group: without one, no labels (a scene of more groups than an
+        // automaton can label renders its components all the same; unknown labels are none).
+        let labels: Vec<&str> = match aovs.is_empty() {
+            true => Vec::new(),
+            false => groups.iter().map(String::as_str).collect(),
+        };
         let aovs = Aovs::compile(&exprs, &labels).map_err(|(i, e)| match exprs.get(i) {
             Some((name, expr)) => format!("AOV `{name}`: `{expr}`: {e}"),
             None => format!("the AOVs' expressions together: {e}"),

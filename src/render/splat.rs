@@ -9,6 +9,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::component::Split;
+use crate::film::cryptomatte::Coverage;
 use crate::film::Sums;
 use crate::scene::{PixelFilter, FILTER_STEPS};
 
@@ -52,6 +53,9 @@ pub struct TileSplat {
     /// Each pixel's AOVs, `naovs` a pixel.
     aovs: Vec<Vec3>,
     naovs: usize,
+    /// Each pixel's coverage in each Cryptomatte type, `nmattes` a pixel.
+    mattes: Vec<Coverage>,
+    nmattes: usize,
     weight: Vec<f32>,
     /// Whether anything was added since the last [`TileSplat::flush`].
     touched: bool,
@@ -59,13 +63,14 @@ pub struct TileSplat {
 
 impl TileSplat {
     /// The splats of the tile at (`x0`, `y0`), `w` x `h` pixels, in an image of `width` x
-    /// `height`, for `weights`; with the components when `split`, and `naovs` AOVs.
+    /// `height`, for `weights`; with the components when `split`, `naovs` AOVs and `nmattes`
+    /// Cryptomatte types.
     pub fn new(
         tile: (u32, u32, u32, u32),
         (width, height): (u32, u32),
         weights: &Weights,
         split: bool,
-        naovs: usize,
+        (naovs, nmattes): (usize, usize),
     ) -> Self {
         let (tx, ty, tw, th) = tile;
         let m = weights.margin;
@@ -81,6 +86,8 @@ impl TileSplat {
             components: if split { vec![Split::default(); n] } else { Vec::new() },
             aovs: vec![Vec3::ZERO; n * naovs],
             naovs,
+            mattes: vec![Coverage::new(); n * nmattes],
+            nmattes,
             weight: vec![0.0; n],
             touched: false,
         }
@@ -133,6 +140,35 @@ impl TileSplat {
         }
     }
 
+    /// Splats a sample of pixel (`x`, `y`) at `offset` in it into the Cryptomatte coverage: the
+    /// ids of what its camera ray hit first (`None`: nothing), with the filter's weights.
+    pub fn add_matte(&mut self, (x, y): (u32, u32), offset: Vec2, weights: &Weights, ids: Option<&[u32; 2]>) {
+        let m = weights.margin as i64;
+        let (px, py) = (x as f32 + offset.x, y as f32 + offset.y);
+        let (lo_x, hi_x) =
+            ((x as i64 - m).max(self.x0 as i64), (x as i64 + m).min((self.x0 + self.w) as i64 - 1));
+        let (lo_y, hi_y) =
+            ((y as i64 - m).max(self.y0 as i64), (y as i64 + m).min((self.y0 + self.h) as i64 - 1));
+        self.touched = true;
+        for qy in lo_y..=hi_y {
+            let wy = weights.at(py - (qy as f32 + 0.5));
+            for qx in lo_x..=hi_x {
+                let w = wy * weights.at(px - (qx as f32 + 0.5));
+                if w == 0.0 {
+                    continue;
+                }
+                let i = ((qy - self.y0 as i64) * self.w as i64 + (qx - self.x0 as i64)) as usize;
+                let mattes = &mut self.mattes[i * self.nmattes..(i + 1) * self.nmattes];
+                for (k, c) in mattes.iter_mut().enumerate() {
+                    match ids {
+                        Some(ids) => c.add(ids[k], w),
+                        None => c.add_none(w),
+                    }
+                }
+            }
+        }
+    }
+
     /// Adds the pass's splats to the render's sums and clears them for the next pass.
     pub fn flush(&mut self, sums: &mut Sums) {
         if !self.touched {
@@ -154,10 +190,17 @@ impl TileSplat {
                 for (layer, &v) in sums.film.aovs.iter_mut().zip(aovs) {
                     layer.image.pixels[at] += v;
                 }
+                let mattes = self.mattes.get(i * self.nmattes..(i + 1) * self.nmattes).unwrap_or(&[]);
+                for (matte, c) in sums.film.mattes.iter_mut().zip(mattes) {
+                    if let Some(m) = matte.coverage_mut() {
+                        m[at].merge(c);
+                    }
+                }
             }
         }
         self.beauty.fill(Vec3::ZERO);
         self.aovs.fill(Vec3::ZERO);
+        self.mattes.fill(Coverage::new());
         self.weight.fill(0.0);
         self.components.fill(Split::default());
         self.touched = false;
@@ -167,6 +210,7 @@ impl TileSplat {
         (self.beauty.capacity() * size_of::<Vec3>()
             + self.components.capacity() * size_of::<Split<Vec3>>()
             + self.aovs.capacity() * size_of::<Vec3>()
+            + self.mattes.capacity() * size_of::<Coverage>()
             + self.weight.capacity() * size_of::<f32>()) as u64
     }
 }
@@ -200,7 +244,7 @@ mod tests {
         let weights = Weights::new(PixelFilter::Tent { radius: 1.5 });
         let (width, height) = (6u32, 5u32);
         let mut sums = Sums::empty(width, height, false, false, true);
-        let mut tile = TileSplat::new((0, 0, 4, 4), (width, height), &weights, false, 0);
+        let mut tile = TileSplat::new((0, 0, 4, 4), (width, height), &weights, false, (0, 0));
         for y in 0..4 {
             for x in 0..4 {
                 tile.add((x, y), Vec2::new(0.3, 0.7), &weights, Vec3::splat(2.0), None, &[]);

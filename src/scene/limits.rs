@@ -126,8 +126,11 @@ pub fn check_memory(need: u64, what: &str) -> Result<(), String> {
 }
 
 /// Refuses a render that would not fit in the memory available.
-pub fn check_render_memory(width: u32, height: u32) -> Result<(), InputError> {
-    check_memory(render_bytes(width, height), &format!("a {width}x{height} render"))
+/// `layer_bytes` a pixel more are the layers a render adds to the film's ([`render_bytes`]):
+/// AOVs, Cryptomatte mattes.
+pub fn check_render_memory(width: u32, height: u32, layer_bytes: u64) -> Result<(), InputError> {
+    let bytes = render_bytes(width, height) + width as u64 * height as u64 * layer_bytes;
+    check_memory(bytes, &format!("a {width}x{height} render"))
         .map_err(|e| InputError(format!("{e}: render smaller")))
 }
 
@@ -151,9 +154,10 @@ mod tests {
     #[test]
     fn a_render_larger_than_memory_is_refused() {
         let have = available_bytes().expect("/proc/meminfo");
-        assert!(check_render_memory(64, 64).is_ok());
+        assert!(check_render_memory(64, 64, 0).is_ok());
+        assert!(check_render_memory(64, 64, have / 4096).is_err(), "the layers' bytes count");
         // The largest image allowed needs 1.7 TB.
         assert!(render_bytes(MAX_SIZE, MAX_SIZE) > have);
-        assert!(check_render_memory(MAX_SIZE, MAX_SIZE).is_err_and(|e| e.0.contains("GiB is available")));
+        assert!(check_render_memory(MAX_SIZE, MAX_SIZE, 0).is_err_and(|e| e.0.contains("GiB is available")));
     }
 }

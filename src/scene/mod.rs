@@ -409,12 +409,14 @@ impl Aov {
     /// `None`: the built-in called `name`), checked: a name of letters, digits and `_` that
     /// does not start with a digit, and an expression that parses.
     pub fn new(name: &str, lpe: Option<&str>) -> Result<Aov, String> {
-        let valid = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-        if !valid {
+        if crate::filter::AovName::new(name).is_none() {
             return Err(format!(
-                "AOV name `{name}`: use letters, digits and `_`, not starting with a digit (it names an EXR layer)"
+                "AOV name `{name}`: use letters, digits and `_`, not starting with a digit, at most {} of them (it names an EXR layer)",
+                crate::filter::AovName::MAX
             ));
+        }
+        if crate::film::layers::is_reserved(name) {
+            return Err(format!("AOV `{name}`: the film has a layer of that name already"));
         }
         let lpe = match lpe {
             Some(e) => crate::lpe::builtin(e).unwrap_or(e),
@@ -883,6 +885,10 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Object names; a shape's `object` indexes this.
     pub objects: Vec<String>,
+    /// The names of the materials that have one (by index in `materials`): the scene file's,
+    /// a glTF file's, an OBJ's `.mtl` names, a Mitsuba file's BSDF ids. [`Scene::material_name`]
+    /// names the rest.
+    pub material_names: Vec<(u32, String)>,
     /// The scene's own `[filter]` section, as written (`filter::Setting::of_scene` reads it; the
     /// command line can override it).
     pub filter: Option<FilterSection>,
@@ -998,6 +1004,14 @@ impl Maps {
 }
 
 impl Scene {
+    /// The name of material `m`: its own ([`Scene::material_names`]), else `material<m>`.
+    pub fn material_name(&self, m: u32) -> std::borrow::Cow<'_, str> {
+        match self.material_names.iter().find(|(i, _)| *i == m) {
+            Some((_, name)) => name.as_str().into(),
+            None => format!("material{m}").into(),
+        }
+    }
+
     /// What shape `shape` emits at texture coordinates `uvs` (the first set and the second):
     /// its emission, times its material's emissive texture there.
     #[inline(always)]

@@ -10,6 +10,8 @@ use glam::{DVec3, Vec2, Vec3};
 /// What the mesh's `.mtl` says about a part.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjMaterial {
+    /// `newmtl`.
+    pub name: String,
     /// `Kd`.
     pub diffuse: Vec3,
     /// `Ke`.
@@ -236,6 +238,7 @@ pub fn load(path: &Path) -> Result<Obj, String> {
         };
         let ior = m.optical_density.map(|n| n as f32);
         let material = ObjMaterial {
+            name: m.name.clone(),
             diffuse: three(m.diffuse).unwrap_or(Vec3::splat(0.8)),
             emission: three(m.emissive).unwrap_or(Vec3::ZERO),
             specular: three(m.specular).unwrap_or(Vec3::ZERO),

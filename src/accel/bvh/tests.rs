@@ -42,6 +42,7 @@ pub(super) fn scene_of(shapes: Vec<Geometry>) -> Scene {
             .collect(),
         lights: vec![],
         objects: vec![],
+        material_names: vec![],
         filter: Default::default(),
         textures: vec![],
         maps: vec![],

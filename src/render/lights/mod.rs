@@ -97,7 +97,11 @@ impl Lights {
         let mut power = Vec::new();
         let cutouts = crate::scene::cutout::Cutouts::new(scene).map(std::sync::Arc::new);
 
-        let label = |g: Option<u32>| g.map_or(0, |g| u16::try_from(g + 1).unwrap_or(0));
+        // Each light's and shape's group, looked up once (a linear search each was quadratic).
+        let groups = &scene.light_groups;
+        let of_light: std::collections::HashMap<u32, u32> = groups.lights.iter().copied().collect();
+        let of_shape: std::collections::HashMap<u32, u32> = groups.shapes.iter().copied().collect();
+        let label = |g: Option<&u32>| g.map_or(0, |&g| u16::try_from(g + 1).unwrap_or(0));
         for (l, light) in scene.lights.iter().enumerate() {
             let (emitter, phi, diffuse_source) = match *light {
                 Light::Point { position, intensity } => {
@@ -143,7 +147,7 @@ impl Lights {
                 }
                 lights.emitters.push(emitter);
                 lights.diffuse_source.push(diffuse_source);
-                lights.group.push(label(scene.light_groups.of_light(l as u32)));
+                lights.group.push(label(of_light.get(&(l as u32))));
                 power.push(phi);
             }
         }
@@ -181,7 +185,7 @@ impl Lights {
             lights.shape_light[i] = lights.emitters.len() as u32;
             lights.emitters.push(emitter);
             lights.diffuse_source.push(false);
-            lights.group.push(label(scene.light_groups.of_shape(i as u32)));
+            lights.group.push(label(of_shape.get(&(i as u32))));
             power.push(PI * area * luminance(scene.mean_emission(shape)));
         }
         lights.table = match kind {

@@ -306,6 +306,10 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         FilterSection { line, ..f.into_inner() }
     });
 
+    let mut material_names: Vec<(u32, String)> =
+        material_ids.iter().map(|(name, &m)| (m, name.clone())).collect();
+    material_names.sort_unstable();
+    material_names.append(&mut builder.material_names);
     Ok(Scene {
         filter,
         textures,
@@ -320,6 +324,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
         shapes: builder.shapes,
         lights,
         objects: builder.objects,
+        material_names,
         notes: builder.notes,
         parameters: Vec::new(),
         aovs,

@@ -140,6 +140,8 @@ pub(super) struct Builder {
     pub shapes: Vec<Shape>,
     pub objects: Vec<String>,
     object_ids: HashMap<String, u32>,
+    /// The names of the materials glTF shapes and OBJ libraries bring, by material index.
+    pub material_names: Vec<(u32, String)>,
     /// The material libraries the meshes read, and the files glTF shapes read (inputs of the
     /// scene).
     pub libraries: Vec<std::path::PathBuf>,
@@ -353,6 +355,7 @@ pub(super) fn add(
                             None => Material::Diffuse { albedo: m.diffuse },
                         });
                         let id = (materials.len() - 1) as u32;
+                        out.material_names.push((id, m.name.clone()));
                         let mut image_texture =
                             |t: &std::path::PathBuf, key: &str, read: Read| -> Result<u32, SceneError> {
                                 if let Some(&k) = images.get(&(t.clone(), read)) {
@@ -464,6 +467,7 @@ pub(super) fn add(
                 &mut object,
             );
             materials.extend(placed.materials);
+            out.material_names.extend(placed.material_names);
             out.textures.extend(placed.textures);
             out.maps.extend(placed.maps);
             let names = &placed.groups.names;

@@ -1077,6 +1077,8 @@ impl Placement {
 pub struct Placed {
     pub shapes: Vec<Shape>,
     pub materials: Vec<Material>,
+    /// The glTF materials' names, by material index in the scene.
+    pub material_names: Vec<(u32, String)>,
     /// Maps by material index in the scene.
     pub maps: Vec<(u32, Maps)>,
     pub textures: Vec<Texture>,
@@ -1163,6 +1165,9 @@ pub fn place(
         };
         if maps != Maps::default() {
             out.maps.push((first_material + k as u32, maps));
+        }
+        if k < g.materials.len() {
+            out.material_names.push((first_material + k as u32, m.name.clone()));
         }
     }
     let default_material = first_material + g.materials.len() as u32;
@@ -1389,6 +1394,7 @@ pub fn scene(path: &Path, choice: Option<&str>) -> Result<Scene, SceneError> {
             guiding: Default::default(),
         },
         materials: placed.materials,
+        material_names: placed.material_names,
         shapes: placed.shapes,
         lights,
         objects,

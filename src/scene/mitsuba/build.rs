@@ -93,6 +93,8 @@ struct Builder<'o> {
     shapes: Vec<Shape>,
     lights: Vec<Light>,
     objects: Vec<String>,
+    /// The ids of the BSDFs that have one, by material.
+    material_names: Vec<(u32, String)>,
     origin: DVec3,
     groups: HashMap<*const Object, Arc<Group>>,
     defaults: HashMap<bool, u32>,
@@ -118,6 +120,7 @@ impl<'o> Builder<'o> {
             shapes: Vec::new(),
             lights: Vec::new(),
             objects: Vec::new(),
+            material_names: Vec::new(),
             origin: DVec3::ZERO,
             groups: HashMap::new(),
             defaults: HashMap::new(),
@@ -238,6 +241,7 @@ impl<'o> Builder<'o> {
             shapes: self.shapes,
             lights: self.lights,
             objects: self.objects,
+            material_names: self.material_names,
             filter: None,
             textures: self.textures,
             maps,
@@ -592,6 +596,9 @@ impl<'o> Builder<'o> {
         self.materials.push(material);
         self.maps.push(maps);
         self.material_of.insert(b as *const Object, m);
+        if let Some(id) = &b.id {
+            self.material_names.push((m, id.clone()));
+        }
         Ok(m)
     }
 
