@@ -343,6 +343,10 @@ pub struct CompareArgs {
     /// block of N x N pixels (its mean's largest relative difference in a channel).
     #[arg(long, value_name = "N", value_parser = count::<u32>)]
     pub blocks: Option<u32>,
+    /// Compare this layer of two EXRs (`direct`, an AOV, any with R, G, B channels) instead of
+    /// their final images.
+    #[arg(long, value_name = "NAME", default_value = "final")]
+    pub layer: String,
     /// The EXR whose object-ID layer says which object each pixel shows (default: the test
     /// image), for --by-object and --region.
     #[arg(long, value_name = "EXR")]
@@ -452,7 +456,7 @@ pub struct RenderArgs {
     pub guide: Option<PathBuf>,
     /// An output layer of the light of the paths a light path expression matches (OSL's
     /// grammar; docs/usage.md): NAME=EXPR, or NAME alone for a built-in expression (emission,
-    /// diffuse_direct, diffuse_indirect, arnold_direct, arnold_indirect). Repeatable; added
+    /// diffuse_direct, diffuse_indirect, arnold_direct, arnold_indirect, arnold_albedo). Repeatable; added
     /// to the scene file's [[aov]] tables. Written as the EXR layer NAME.
     #[arg(long = "aov", value_name = "NAME=EXPR|NAME", value_parser = aov)]
     pub aovs: Vec<Aov>,

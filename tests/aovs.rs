@@ -352,3 +352,47 @@ fn a_filter_on_an_aov_replaces_that_aov_by_its_filtered_self() {
     let o = run(&["filter", &exr, "-o", &again, "--filter", "box3", "--filter-target", "glossy"]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `compare --layer`: a layer of two EXRs, not their final images; identical layers give a sum
+/// of squares of exactly 0, and a layer the file lacks is one error with status 2.
+#[test]
+fn compare_takes_any_layer() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.toml");
+    let scene = path.to_str().expect("utf-8 path");
+    let small = ["--width", "8", "--height", "8", "--spp", "2", "--aov", "d=direct"];
+    for (name, seed) in [("a.exr", "1"), ("b.exr", "1"), ("c.exr", "2")] {
+        let o = run(&[&["render", scene, "-o", &out(name), "--seed", seed][..], &small].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let sse = |a: &str, b: &str, layer: &str| -> f64 {
+        let o = run(&["compare", &out(a), &out(b), "--layer", layer, "--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+        json["sse"].as_f64().expect("sse")
+    };
+    assert_eq!(sse("a.exr", "b.exr", "direct"), 0.0);
+    assert!(sse("a.exr", "c.exr", "direct") > 0.0);
+    assert!(sse("a.exr", "c.exr", "d") > 0.0);
+    let o = run(&["compare", &out("a.exr"), &out("b.exr"), "--layer", "glossy"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no layer `glossy`"));
+}
+
+/// Arnold's albedo (`arnold_albedo`, `C[DGSV]A`) in the Cornell box, all diffuse: each pixel's mean albedo of
+/// its first hits, the guide buffers' albedo layer (the same first diffuse vertex); and the
+/// components are the same bits with it as without it (an albedo is not light).
+#[test]
+fn the_albedo_aov_is_the_first_surfaces_albedo() {
+    let cornell = scene("cornell.toml");
+    let with =
+        sums(&cornell, &[Aov::new("arnold_albedo", None).expect("a built-in")], Part::default()).into_means();
+    let without = sums(&cornell, &[], Part::default()).into_means();
+    assert!(with.components == without.components && with.raw == without.raw, "the light changed");
+    let albedo = &layer(&with, "arnold_albedo").image.pixels;
+    assert!(albedo.iter().any(|p| p.max_element() > 0.5), "a black albedo");
+    for (i, (a, b)) in albedo.iter().zip(&with.albedo.pixels).enumerate() {
+        assert!((*a - *b).abs().max_element() <= 1e-6, "pixel {i}: {a} against the guide's {b}");
+    }
+}

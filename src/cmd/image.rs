@@ -46,8 +46,8 @@ pub fn compare_command(args: CompareArgs) -> Result<(), Failure> {
         film::check_not_an_input(diff, &inputs)?;
     }
     let regions = args.regions.iter().map(|r| Region::parse(r)).collect::<Result<Vec<_>, _>>()?;
-    let test = film::read_image(&args.test)?;
-    let reference = film::read_image(&args.reference)?;
+    let test = film::read_layer(&args.test, &args.layer)?;
+    let reference = film::read_layer(&args.reference, &args.layer)?;
     let errors = metrics::compare(&test, &reference)?;
     let by_region = if args.by_object || !regions.is_empty() {
         let (width, height, ids) = film::read_object_ids(args.ids.as_ref().unwrap_or(&args.test))?;

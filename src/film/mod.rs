@@ -907,6 +907,25 @@ pub fn read_image(path: &Path) -> Result<Image, ReadError> {
     }
 }
 
+/// Layer `layer` of an EXR, its channels `LAYER.R`, `.G` and `.B` (`final`: the image, `R`, `G`,
+/// `B`), as an image.
+pub fn read_layer(path: &Path, layer: &str) -> Result<Image, ReadError> {
+    if layer == "final" {
+        return read_image(path);
+    }
+    let at = |e: String| ReadError(format!("{}: {e}", path.display()));
+    let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
+    let find = |c: &str| channels.iter().find(|(n, _)| *n == format!("{layer}.{c}")).map(|(_, v)| v);
+    let [Some(r), Some(g), Some(b)] = ["R", "G", "B"].map(find) else {
+        let mut layers: Vec<&str> =
+            channels.iter().filter_map(|(n, _)| n.rsplit_once('.').map(|p| p.0)).collect();
+        layers.dedup();
+        return Err(at(format!("no layer `{layer}` (R, G, B); it has {}", layers.join(", "))));
+    };
+    let pixels = r.iter().zip(g).zip(b).map(|((&r, &g), &b)| Vec3::new(r, g, b)).collect();
+    Ok(Image { width, height, pixels })
+}
+
 /// The film of a multi-layer EXR that `lightsplit render` wrote ([`Film::from_channels`]).
 pub fn read_film(path: &Path) -> Result<Film, ReadError> {
     let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;

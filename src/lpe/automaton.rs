@@ -13,7 +13,7 @@ const PAIRS: usize = Type::ALL.len() * Scatter::ALL.len();
 /// have one, `V` may have either.
 pub(crate) fn valid(ty: Type, sc: Scatter) -> bool {
     match ty {
-        Type::Camera | Type::Light | Type::Object | Type::Background => sc == Scatter::None,
+        Type::Camera | Type::Light | Type::Object | Type::Background | Type::Albedo => sc == Scatter::None,
         Type::Reflection | Type::Transmission => sc != Scatter::None,
         Type::Volume => true,
     }
@@ -305,7 +305,7 @@ mod tests {
 
     fn random_event(r: &mut Rng) -> Ev {
         loop {
-            let (ty, sc) = (Type::ALL[r.below(7)], Scatter::ALL[r.below(4)]);
+            let (ty, sc) = (Type::ALL[r.below(Type::ALL.len())], Scatter::ALL[r.below(4)]);
             if valid(ty, sc) {
                 return (ty, sc, r.below(4) as u16);
             }

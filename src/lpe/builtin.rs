@@ -10,7 +10,8 @@
 /// components have: `arnold_direct`, `arnold_indirect`. Arnold has no `G`, its `S` is every
 /// non-diffuse lobe, so its `[DSV]` is our `[DGSV]`. Arnold's emissive meshes are `O` events and
 /// go to its indirect; ours are lights (`L`), so a diffuse bounce onto one is `arnold_direct`.
-/// Arnold's `albedo` (`C[DSV]A`) is left out: we produce no `A` event.
+/// Arnold's `albedo` (`C[DSV]A`) is `arnold_albedo`, `C[DGSV]A` (the film's `albedo` layer
+/// is the guide buffers'): the albedo of the first surface's lobes.
 pub const BUILTINS: &[(&str, &str)] = &[
     ("emitted", "C[GS]*[LO]"),
     ("direct", "C[GS]*DL"),
@@ -21,6 +22,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("diffuse_direct", "C<RD>L"),
     ("diffuse_indirect", "C<RD>[DGSVOB].*"),
     ("emission", "C[LO]"),
+    ("arnold_albedo", "C[DGSV]A"),
 ];
 
 /// The built-in expression called `name`, if there is one.
@@ -40,7 +42,24 @@ mod tests {
             assert!(Aovs::compile(&[(name, expr)], &[]).is_ok(), "{name}");
         }
         assert_eq!(builtin("direct"), Some("C[GS]*DL"));
-        assert_eq!(builtin("albedo"), None);
+        assert_eq!(builtin("arnold_albedo"), Some("C[DGSV]A"));
+        assert_eq!(builtin("nonesuch"), None);
+    }
+
+    /// Albedo events: Arnold's `albedo` takes the first surface's, of any lobe; only an `A`
+    /// written out matches one, so expressions of light (`C.*`, `C[^L]`) never hold an albedo.
+    #[test]
+    fn albedo_events_match_only_where_named() {
+        let exprs =
+            [("arnold_albedo", "C[DGSV]A"), ("all", "C.*"), ("not_light", "C[^L]"), ("diffuse", "C<RD>A")];
+        assert_eq!(builtin("arnold_albedo"), Some(exprs[0].1));
+        let aovs = Aovs::compile(&exprs, &[]).unwrap();
+        let at = |p: &str| run(&aovs, &path(p, aovs.labels()));
+        assert_eq!(at("C RD A"), 0b1001);
+        assert_eq!(at("C TS A"), 0b0001);
+        assert_eq!(at("C RD RD A"), 0);
+        assert_eq!(at("C RG"), 0b0110);
+        assert_eq!(at("C RG L"), 0b0010);
     }
 
     /// Every `C (R|T)(D|G|S) ... (L|O)` path of up to 7 events is in exactly one component.
@@ -96,8 +115,8 @@ mod tests {
         let four = Aovs::compile(&BUILTINS[..4], &[]).unwrap();
         let all = Aovs::compile(BUILTINS, &["key", "fill"]).unwrap();
         show("the paper's four together", &four);
-        show("all nine together", &all);
+        show("all ten together", &all);
         // Minimal DFAs are unique, so these only move if the languages change.
-        assert_eq!((four.states(), all.states()), (11, 28));
+        assert_eq!((four.states(), all.states()), (11, 29));
     }
 }

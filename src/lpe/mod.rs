@@ -14,9 +14,10 @@
 //! | `O`    | `Object`        | an emitter flagged "diffuse source" (stands for diffusely reflected surroundings) |
 //! | `B`    | `Background`    | the path left the scene and found nothing                   |
 //! | `V`    | `Volume`        | volume scattering (parsed; never produced today)            |
+//! | `A`    | `Albedo`        | the albedo of a vertex's lobes of the scattering before it (Arnold's `A`) |
 //!
 //! Scattering ([`Scatter`]): `D` diffuse, `G` glossy, `S` singular (delta), and `x` for
-//! none (the scattering of `C`, `L`, `O`, `B` events; `R` and `T` always scatter, `V` may
+//! none (the scattering of `C`, `L`, `O`, `B`, `A` events; `R` and `T` always scatter, `V` may
 //! do either). Other pairs (a diffuse `L`, an `R` without scattering) are not events: they
 //! send every state to the dead one. The label is none (id 0) or one of the light-group
 //! names the scene defines ([`Labels`]).
@@ -24,7 +25,7 @@
 //! # Grammar
 //! Whitespace is ignored (except inside `'labels'`, and see the shorthand below).
 //! * `<t s l>` — one event; each position is a letter, `.` (any), a set `[..]` or a
-//!   negated set `[^..]`. `t` takes `C R T L O B V`, `s` takes `D G S x`, `l` takes
+//!   negated set `[^..]`. `t` takes `C R T L O B V A`, `s` takes `D G S x`, `l` takes
 //!   `'name'` or `x` (no label). Missing trailing positions mean any: `<RD>` = `<RD.>`.
 //!   A label written early fills the skipped positions with `.`: `<L'key'>` = `<L.'key'>`.
 //! * A bare letter outside `<>`: a type letter means that type with any scattering and
@@ -52,6 +53,8 @@
 //! * Sets hold single-event items only (OSL allows sub-expressions in `[..]`); a negated
 //!   bare set mixing types and scatterings is the complement of the union (`[^LD]` =
 //!   neither light nor diffuse), where OSL warns and negates one position only.
+//! * Only an `A` written out (a letter, in `<>` or in a set) matches an albedo event: `.`,
+//!   negated sets and scattering letters leave it out, so `C.*` never holds an albedo.
 //! * An event has at most one label (`<RD'a''b'>` is an error); an unlabelled event
 //!   matches `[^'coat']` and `x` in the label position (OSL needs a label there).
 //!
@@ -91,18 +94,21 @@ pub enum Type {
     Background,
     /// `V`: volume scattering (never produced today).
     Volume,
+    /// `A`: the albedo of the lobes of the scattering event before it. Only an `A` (or `<A>`)
+    /// written out matches one: `.` and negated sets do not, so `C.*` never holds an albedo.
+    Albedo,
 }
 
 impl Type {
     /// Every type, in symbol order.
-    pub const ALL: [Type; 7] = {
+    pub const ALL: [Type; 8] = {
         use Type::*;
-        [Camera, Reflection, Transmission, Light, Object, Background, Volume]
+        [Camera, Reflection, Transmission, Light, Object, Background, Volume, Albedo]
     };
 
     /// The letter that names this type in expressions.
     pub fn letter(self) -> char {
-        char::from(b"CRTLOBV"[self as usize])
+        char::from(b"CRTLOBVA"[self as usize])
     }
 
     fn from_letter(c: char) -> Option<Type> {
@@ -274,6 +280,12 @@ impl Aovs {
     #[inline]
     pub fn is_dead(&self, s: State) -> bool {
         s == State::DEAD
+    }
+
+    /// The expressions some path ending in `sym` matches: bit `i` set when a state's successor
+    /// on `sym` accepts expression `i`.
+    pub fn accepted_after(&self, sym: Symbol) -> u64 {
+        (0..self.states()).fold(0, |m, s| m | self.accepts(self.next(State(s as u16), sym)))
     }
 
     /// Bit `i` is set if expression `i` matches the path that led to `s`.

@@ -25,6 +25,15 @@ pub(crate) enum Pred {
 }
 
 impl Pred {
+    /// Whether the predicate allows type `ty` by naming it (not by `.` or a negation).
+    fn names(&self, ty: Type) -> bool {
+        match self {
+            Pred::Types(m) => m & (1 << ty as u8) != 0,
+            Pred::And(v) | Pred::Or(v) => v.iter().any(|p| p.names(ty)),
+            Pred::Any | Pred::Scatters(_) | Pred::Label(_) | Pred::Not(_) => false,
+        }
+    }
+
     /// Whether the event `(ty, sc, label name)` satisfies the predicate.
     pub(crate) fn matches(&self, ty: Type, sc: Scatter, label: Option<&str>) -> bool {
         match self {
@@ -261,6 +270,12 @@ impl Parser {
                 let p = self.item(Slot::Bare)?;
                 self.shorthand(p, false)?
             }
+        };
+        // An albedo event is matched only where the expression names it (`A`, `<A>`, `[AL]`):
+        // `.`, negated sets and scattering letters leave it out.
+        let pred = match pred.names(Type::Albedo) {
+            true => pred,
+            false => and(vec![pred, Pred::Not(Box::new(Pred::Types(1 << Type::Albedo as u8)))]),
         };
         Ok(Node::Event(pred))
     }

@@ -624,6 +624,20 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
             return None;
         }
         let before = walk.path.lpe;
+        // AOVs of albedo events (`C[DGSV]A`): each kind of lobe here reports its albedo, times
+        // the throughput to here, to the AOVs an `A` after it completes. Not light: the beauty
+        // and the components take nothing.
+        if F & SPLIT != 0 && self.paths.has_albedo() {
+            for kind in bsdf.kinds().iter() {
+                let mut m = self.paths.albedo(before, kind) >> Component::ALL.len();
+                while m != 0 {
+                    if let Some(a) = walk.aovs.get_mut(m.trailing_zeros() as usize) {
+                        *a += walk.path.beta * bsdf.albedo(kind);
+                    }
+                    m &= m - 1;
+                }
+            }
+        }
         // A BSDF of one kind of lobe makes its vertex's kind known now, so the guides see it
         // even when the path ends here; one of several lobes, once a lobe is sampled.
         let travelled = walk.path.travelled;

@@ -29,6 +29,10 @@ pub struct PathExprs {
     light: Vec<Symbol>,
     /// Emission from a surface the light list lacks.
     unlisted: Symbol,
+    /// The albedo event `A`, and the AOVs a path ending in one can match (none: no albedo is
+    /// looked at).
+    albedo: Symbol,
+    albedo_aovs: u64,
 }
 
 /// The mask bits of the paper's components, in [`Component::ALL`] order.
@@ -70,7 +74,10 @@ impl PathExprs {
             aovs.symbol(ty, Scatter::None, group)
         };
         let group = |i: usize| lights.group.get(i).copied().unwrap_or(0);
+        let albedo = aovs.symbol(Type::Albedo, Scatter::None, 0);
         Ok(PathExprs {
+            albedo,
+            albedo_aovs: aovs.accepted_after(albedo) & !COMPONENT_BITS,
             start: aovs.next(aovs.start(), aovs.symbol(Type::Camera, Scatter::None, 0)),
             scatter: [scatter(Type::Reflection), scatter(Type::Transmission)],
             light: lights.diffuse_source.iter().enumerate().map(|(i, &s)| emits(s, group(i))).collect(),
@@ -100,6 +107,19 @@ impl PathExprs {
             Lobe::Delta => 2,
         };
         self.aovs.next(s, self.scatter[transmitted as usize][k])
+    }
+
+    /// Whether an AOV holds albedos (its expression ends in `A`).
+    #[inline(always)]
+    pub fn has_albedo(&self) -> bool {
+        self.albedo_aovs != 0
+    }
+
+    /// The AOVs that take the albedo of a vertex's `lobe` kind, the path having reached the
+    /// vertex in state `s` (the albedo event after that lobe's reflection).
+    #[inline(always)]
+    pub fn albedo(&self, s: State, lobe: Lobe) -> u64 {
+        self.aovs.accepts(self.aovs.next(self.scatter(s, lobe, false), self.albedo)) & self.albedo_aovs
     }
 
     /// The expressions matched by light from `light` (its index in the light list; `None`, a

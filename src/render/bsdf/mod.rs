@@ -87,6 +87,25 @@ pub struct BsdfSample {
 }
 
 /// One material's scattering at one shading point.
+/// A set of lobe kinds ([`Bsdf::kinds`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Kinds(u8);
+
+impl Kinds {
+    pub fn of(lobe: Lobe) -> Kinds {
+        Kinds(1 << lobe as u8)
+    }
+
+    pub fn with(self, lobe: Lobe) -> Kinds {
+        Kinds(self.0 | 1 << lobe as u8)
+    }
+
+    /// The kinds in the set, in [`Lobe`] order.
+    pub fn iter(self) -> impl Iterator<Item = Lobe> {
+        [Lobe::Diffuse, Lobe::Specular, Lobe::Delta].into_iter().filter(move |&l| self.0 & 1 << l as u8 != 0)
+    }
+}
+
 pub trait Bsdf {
     /// The kind of every direction it scatters into, when it has one kind; `None` when it has
     /// several lobes, whose kind is known only once a direction has been sampled.
@@ -99,6 +118,12 @@ pub trait Bsdf {
 
     /// The colour a lobe reflects, for the albedo guide buffer.
     fn albedo(&self, lobe: Lobe) -> Vec3;
+
+    /// The kinds of its lobes, whose albedos ([`Bsdf::albedo`]) light path expressions' `A`
+    /// events report: its one kind, or (several lobes) a diffuse base and a glossy lobe.
+    fn kinds(&self) -> Kinds {
+        self.lobe().map_or(Kinds::of(Lobe::Diffuse).with(Lobe::Specular), Kinds::of)
+    }
 
     /// A direction toward which light arriving along `-wo` leaves, or `None` when none can be
     /// used. Draws from `u` only the numbers it needs (a mirror none), so the dimensions a path

@@ -10,7 +10,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3};
 
 use super::microfacet::Microfacet;
-use super::{fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, Lobe};
+use super::{fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, Kinds, Lobe};
 use crate::math::{cosine_hemisphere, Frame};
 use crate::render::sampler::{Dim, Sampler};
 
@@ -153,6 +153,10 @@ impl Bsdf for Plastic<'_> {
 
     fn scatters(&self, wo: Vec3) -> bool {
         self.frame.to_local(wo).z > 0.0
+    }
+
+    fn kinds(&self) -> Kinds {
+        Kinds::of(Lobe::Diffuse).with(self.coat_tag())
     }
 
     fn albedo(&self, lobe: Lobe) -> Vec3 {

@@ -28,7 +28,9 @@ use glam::{Vec2, Vec3};
 
 use super::ggx::schlick_to;
 use super::sheen::{SheenAlbedo, SheenLobe};
-use super::{fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, GlossyLobes, Lobe, SpecularAlbedo};
+use super::{
+    fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, GlossyLobes, Kinds, Lobe, SpecularAlbedo,
+};
 use crate::math::{cosine_hemisphere, luminance, Frame};
 use crate::render::sampler::{Dim, Sampler};
 
@@ -445,6 +447,13 @@ impl Bsdf for Principled {
 
     fn scatters(&self, wo: Vec3) -> bool {
         self.frame.to_local(wo).z > 0.0
+    }
+
+    fn kinds(&self) -> Kinds {
+        match self.lobe() {
+            Some(l) => Kinds::of(l),
+            None => LOBES.iter().fold(Kinds::default(), |k, &w| k.with(self.tag(w))),
+        }
     }
 
     fn albedo(&self, lobe: Lobe) -> Vec3 {

@@ -5,7 +5,7 @@
 use glam::Vec3;
 
 use super::microfacet::Microfacet;
-use super::{fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, Lobe};
+use super::{fresnel_dielectric, reflect, refract, Bsdf, BsdfSample, Kinds, Lobe};
 use crate::math::Frame;
 use crate::render::sampler::{Dim, Sampler};
 
@@ -89,6 +89,11 @@ impl RoughDielectric {
 impl Bsdf for RoughDielectric {
     fn lobe(&self) -> Option<Lobe> {
         None
+    }
+
+    /// One kind for its albedo, the transmittance (its reflection's colour is white).
+    fn kinds(&self) -> Kinds {
+        Kinds::of(Lobe::Delta)
     }
 
     fn albedo(&self, _: Lobe) -> Vec3 {
