@@ -585,7 +585,6 @@ fn samples(text: &str) -> Result<u32, String> {
     number(text, |n| (1..=limits::MAX_SPP).contains(&n), &format!("1 to {}", limits::MAX_SPP))
 }
 
-/// An AOV: NAME=EXPR, or the name of a built-in expression.
 /// `--filter-target`: a target's name or an AOV's.
 fn target(text: &str) -> Result<Target, String> {
     Target::from_name(text)
@@ -600,6 +599,7 @@ fn named_target(text: &str) -> Result<Target, String> {
         .ok_or_else(|| format!("`{text}` is not indirect, components, image or none"))
 }
 
+/// An AOV: NAME=EXPR, or the name of a built-in expression.
 fn aov(text: &str) -> Result<Aov, String> {
     match text.split_once('=') {
         Some((name, expr)) => Aov::new(name.trim(), Some(expr)),

@@ -166,6 +166,8 @@ fn bad_aovs_are_one_error_with_status_2() {
         (["--aov", "x=CQ"], "column 2"),
         (["--aov", "2x=CL"], "letters, digits"),
         (["--aov", "direct=CL"], "has a layer of that name"),
+        (["--aov", "image=CL"], "a filter target's"),
+        (["--aov", "final=CL"], "the final image's"),
         (["--aov", "nonesuch"], "not a built-in"),
     ] {
         let o = run(&[&["render", scene, "-o", &exr, "--width", "8", "--height", "8"][..], &args].concat());

@@ -218,6 +218,12 @@ fn the_exr_has_the_specifications_layers_through_parts_merge_filter_and_matte() 
     }
     let material = out("brick.pfm");
     ok(run(&["matte", &whole, "brick", "--type", "CryptoMaterial", "-o", &material]));
+    let image = film::read_image(Path::new(&material)).expect("reads");
+    for (i, p) in image.pixels.iter().enumerate() {
+        let want = share(&film, cryptomatte::MATERIAL, "brick", i);
+        assert!((p.x - want).abs() < 1e-6, "brick pixel {i}: {} against {want}", p.x);
+    }
+    assert!(image.pixels.iter().any(|p| p.x == 1.0));
 }
 
 /// Bad requests: a matte that is not an EXR layer, a name or type the file does not have, a

@@ -535,7 +535,11 @@ impl Matte {
         for (kind, manifest) in Matte::types(attributes)? {
             let mut ranks = Vec::new();
             for layer in (0..100).map(|i| format!("{kind}{i:02}")) {
-                let found: Vec<_> = CHANNELS.iter().map(|c| find(&format!("{layer}.{c}"))).collect();
+                // Some writers name the channels `r g b a`.
+                let find_either = |c: &str| {
+                    find(&format!("{layer}.{c}")).or_else(|| find(&format!("{layer}.{}", c.to_lowercase())))
+                };
+                let found: Vec<_> = CHANNELS.iter().map(|c| find_either(c)).collect();
                 if found.iter().all(Option::is_none) {
                     break;
                 }
@@ -563,7 +567,8 @@ impl Matte {
             let Some(key) = attr.strip_prefix("cryptomatte/").and_then(|k| k.strip_suffix("/name")) else {
                 continue;
             };
-            if !is_portable_type_name(kind) {
+            // Read more widely than written: Blender names its types `ViewLayer.CryptoObject`.
+            if kind.is_empty() || kind.chars().any(char::is_control) {
                 return Err(format!("Cryptomatte `{attr}` names `{kind}`, which cannot name layers"));
             }
             let manifest = attributes
@@ -1008,7 +1013,21 @@ mod tests {
         let attrs = matte.attributes();
         let read = Matte::read_all(&attrs, &ranks, 3).expect("reads");
         assert_eq!(read.len(), 1);
-        assert_eq!((read[0].rank_channels(), read[0].matte(&[b])), (ranks, vec![0.25, 0.0, 0.0]));
+        assert_eq!((read[0].rank_channels(), read[0].matte(&[b])), (ranks.clone(), vec![0.25, 0.0, 0.0]));
+        // Blender's naming: a view layer's prefix in the type, lower-case channels.
+        let kind = "ViewLayer.CryptoObject";
+        let attrs = attributes(kind, ("manifest", "{}".to_string()));
+        let lower: crate::film::Channels = ranks
+            .iter()
+            .map(|(n, v)| {
+                (
+                    n.replacen(OBJECT, kind, 1).to_lowercase().replacen(&kind.to_lowercase(), kind, 1),
+                    v.clone(),
+                )
+            })
+            .collect();
+        let read = Matte::read_all(&attrs, &lower, 3).expect("reads Blender's");
+        assert_eq!(read[0].matte(&[a]), [0.5, 0.0, 0.0]);
     }
 
     #[test]

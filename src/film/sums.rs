@@ -175,7 +175,7 @@ impl Sums {
         }
         let kinds = |f: &Film| f.mattes.iter().map(|m| m.kind.as_str()).collect::<Vec<_>>().join(",");
         if kinds(a) != kinds(b) {
-            return Err(format!("one has the Cryptomatte types [{}] and the other [{}]", kinds(b), kinds(a)));
+            return Err(format!("one has the Cryptomatte types [{}] and the other [{}]", kinds(a), kinds(b)));
         }
         for (x, y) in a.mattes.iter_mut().zip(&b.mattes) {
             if x.manifest != y.manifest {

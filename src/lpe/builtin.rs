@@ -56,7 +56,7 @@ mod tests {
         let aovs = Aovs::compile(&exprs, &[]).unwrap();
         let at = |p: &str| run(&aovs, &path(p, aovs.labels()));
         assert_eq!(at("C RD A"), 0b1001);
-        assert_eq!(at("C TS A"), 0b0001);
+        assert_eq!(at("C RS A"), 0b0001);
         assert_eq!(at("C RD RD A"), 0);
         assert_eq!(at("C RG"), 0b0110);
         assert_eq!(at("C RG L"), 0b0010);

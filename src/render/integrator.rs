@@ -632,7 +632,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
                 let mut m = self.paths.albedo(before, kind) >> Component::ALL.len();
                 while m != 0 {
                     if let Some(a) = walk.aovs.get_mut(m.trailing_zeros() as usize) {
-                        *a += walk.path.beta * bsdf.albedo(kind);
+                        *a += walk.path.beta * bsdf.kind_albedo(kind);
                     }
                     m &= m - 1;
                 }

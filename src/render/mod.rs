@@ -225,12 +225,16 @@ impl RenderOptions {
     }
 }
 
-/// The bytes a pixel that a render's AOVs and Cryptomatte types add to its film at most: each
-/// AOV's sums, its copy in a tile's and its output channels; each type's coverage, twice (a
-/// splatted tile's), and its rank channels.
+/// The bytes a pixel that a render's AOVs and Cryptomatte types add to its film at most. Each
+/// AOV: its sums, a splatted tile's over the tile and its margin (up to about twice the
+/// pixels), the copy a part keeps and its output channels. Each type: its coverage in the
+/// film, in splatted tiles (twice) and in the copy a part keeps, its part file's words (at
+/// most 2 + 3 x 16 words) and its rank channels (12 floats).
 pub fn layer_bytes(options: &RenderOptions) -> u64 {
-    let aov = 3 * size_of::<Vec3>() as u64;
-    let matte = 2 * size_of::<cryptomatte::Coverage>() as u64 + 4 * cryptomatte::DEFAULT_RANKS as u64;
+    let aov = 5 * size_of::<Vec3>() as u64;
+    let coverage = size_of::<cryptomatte::Coverage>() as u64;
+    let matte =
+        4 * coverage + 4 * (4 + 3 * cryptomatte::CAP as u64) + 4 * 2 * cryptomatte::DEFAULT_RANKS as u64;
     options.aovs.len() as u64 * aov + matte_kinds(options).len() as u64 * matte
 }
 
@@ -242,30 +246,36 @@ pub fn matte_kinds(options: &RenderOptions) -> Vec<&'static str> {
     }
 }
 
-/// The films's Cryptomatte types for `scene` ([`matte_kinds`]), empty, over `pixels` pixels;
-/// and each shape's id in each, in the same order.
+/// The id at index `i` of `ids`, or the empty name's.
+fn id_of(ids: &[u32], i: u32) -> u32 {
+    ids.get(i as usize).copied().unwrap_or_else(|| cryptomatte::name_id(""))
+}
+
+/// The film's Cryptomatte types for `scene` ([`matte_kinds`], whose order, by name, a part
+/// file's also has), empty, over `pixels` pixels; and each shape's id in each, in that order.
 fn mattes(scene: &Scene, options: &RenderOptions, pixels: usize) -> (Vec<cryptomatte::Matte>, Vec<[u32; 2]>) {
     if !options.cryptomatte {
         return (Vec::new(), Vec::new());
     }
-    let object = |o: u32| -> std::borrow::Cow<'_, str> {
-        scene.objects.get(o as usize).map_or_else(|| format!("object{o}").into(), |n| n.as_str().into())
+    let materials = scene.material_name_list();
+    let materials: Vec<&str> = materials.iter().map(|m| m.as_ref()).collect();
+    let objects: Vec<&str> = scene.objects.iter().map(String::as_str).collect();
+    // Each name hashed once; a shape's index past the lists (none is) takes the empty name's.
+    let id = |names: &[&str], i: u32| {
+        names.get(i as usize).map_or(cryptomatte::name_id(""), |n| cryptomatte::name_id(n))
     };
-    let materials: Vec<_> = (0..scene.materials.len() as u32).map(|m| scene.material_name(m)).collect();
-    let objects: Vec<_> = (0..scene.objects.len() as u32).map(object).collect();
-    fn names<'a>(v: &'a [std::borrow::Cow<'_, str>]) -> Vec<&'a str> {
-        v.iter().map(|n| n.as_ref()).collect()
-    }
+    let (material_ids, object_ids): (Vec<u32>, Vec<u32>) = (
+        (0..materials.len() as u32).map(|m| id(&materials, m)).collect(),
+        (0..objects.len() as u32).map(|o| id(&objects, o)).collect(),
+    );
     let ids = scene
         .shapes
         .iter()
-        .map(|s| {
-            [cryptomatte::name_id(&scene.material_name(s.material)), cryptomatte::name_id(&object(s.object))]
-        })
+        .map(|s| [id_of(&material_ids, s.material), id_of(&object_ids, s.object)])
         .collect();
     let mattes = vec![
-        cryptomatte::Matte::new(cryptomatte::MATERIAL, &names(&materials), pixels),
-        cryptomatte::Matte::new(cryptomatte::OBJECT, &names(&objects), pixels),
+        cryptomatte::Matte::new(cryptomatte::MATERIAL, &materials, pixels),
+        cryptomatte::Matte::new(cryptomatte::OBJECT, &objects, pixels),
     ];
     (mattes, ids)
 }

@@ -116,7 +116,8 @@ impl PathExprs {
     }
 
     /// The AOVs that take the albedo of a vertex's `lobe` kind, the path having reached the
-    /// vertex in state `s` (the albedo event after that lobe's reflection).
+    /// vertex in state `s`: the albedo event after that kind's reflection (`R`), whatever side
+    /// the lobe scatters to (an albedo is what a surface reflects).
     #[inline(always)]
     pub fn albedo(&self, s: State, lobe: Lobe) -> u64 {
         self.aovs.accepts(self.aovs.next(self.scatter(s, lobe, false), self.albedo)) & self.albedo_aovs

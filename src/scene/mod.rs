@@ -418,6 +418,10 @@ impl Aov {
         if crate::film::layers::is_reserved(name) {
             return Err(format!("AOV `{name}`: the film has a layer of that name already"));
         }
+        // Names the filter's targets and `compare --layer` take for themselves.
+        if crate::filter::Target::NAMED.iter().any(|t| t.name() == name) || name == "final" {
+            return Err(format!("AOV `{name}`: the name is a filter target's or the final image's"));
+        }
         let lpe = match lpe {
             Some(e) => crate::lpe::builtin(e).unwrap_or(e),
             None => crate::lpe::builtin(name).ok_or_else(|| {
@@ -1004,12 +1008,17 @@ impl Maps {
 }
 
 impl Scene {
-    /// The name of material `m`: its own ([`Scene::material_names`]), else `material<m>`.
-    pub fn material_name(&self, m: u32) -> std::borrow::Cow<'_, str> {
-        match self.material_names.iter().find(|(i, _)| *i == m) {
-            Some((_, name)) => name.as_str().into(),
-            None => format!("material{m}").into(),
+    /// The name of every material, by index: its own ([`Scene::material_names`]), else
+    /// `material<m>`.
+    pub fn material_name_list(&self) -> Vec<std::borrow::Cow<'_, str>> {
+        let mut out: Vec<std::borrow::Cow<'_, str>> =
+            (0..self.materials.len()).map(|m| format!("material{m}").into()).collect();
+        for (m, name) in &self.material_names {
+            if let Some(slot) = out.get_mut(*m as usize) {
+                *slot = name.as_str().into();
+            }
         }
+        out
     }
 
     /// What shape `shape` emits at texture coordinates `uvs` (the first set and the second):

@@ -86,7 +86,6 @@ pub struct BsdfSample {
     pub lobe: Lobe,
 }
 
-/// One material's scattering at one shading point.
 /// A set of lobe kinds ([`Bsdf::kinds`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Kinds(u8);
@@ -106,6 +105,7 @@ impl Kinds {
     }
 }
 
+/// One material's scattering at one shading point.
 pub trait Bsdf {
     /// The kind of every direction it scatters into, when it has one kind; `None` when it has
     /// several lobes, whose kind is known only once a direction has been sampled.
@@ -123,6 +123,12 @@ pub trait Bsdf {
     /// events report: its one kind, or (several lobes) a diffuse base and a glossy lobe.
     fn kinds(&self) -> Kinds {
         self.lobe().map_or(Kinds::of(Lobe::Diffuse).with(Lobe::Specular), Kinds::of)
+    }
+
+    /// The albedo of all its lobes of kind `kind`, which an `A` event reports (by default
+    /// [`Bsdf::albedo`]).
+    fn kind_albedo(&self, kind: Lobe) -> Vec3 {
+        self.albedo(kind)
     }
 
     /// A direction toward which light arriving along `-wo` leaves, or `None` when none can be

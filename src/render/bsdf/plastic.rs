@@ -159,6 +159,12 @@ impl Bsdf for Plastic<'_> {
         Kinds::of(Lobe::Diffuse).with(self.coat_tag())
     }
 
+    /// The base's and, when a rough coat counts as diffuse too, the coat's.
+    fn kind_albedo(&self, kind: Lobe) -> Vec3 {
+        let base = if kind == Lobe::Diffuse { self.diffuse } else { Vec3::ZERO };
+        base + if kind == self.coat_tag() { self.specular } else { Vec3::ZERO }
+    }
+
     fn albedo(&self, lobe: Lobe) -> Vec3 {
         if lobe == Lobe::Diffuse {
             self.diffuse
