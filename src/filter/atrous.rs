@@ -50,6 +50,10 @@ pub struct Atrous {
     pub direct: Strength,
     /// The same for the caustic light (`caustic_sigma_l`, `caustic_passes`).
     pub caustic: Strength,
+    /// `clamp=K`: no pixel's channel moves by more than K standard deviations of its mean
+    /// (the layer's variance, scaled to the channel), so a filter can take away noise but
+    /// not detail the noise cannot explain; unset, no bound.
+    pub clamp: Option<f32>,
 }
 
 /// One component's colour stop and passes, where they differ from the filter's own.
@@ -70,6 +74,7 @@ impl Default for Atrous {
             taps: 5,
             direct: Strength::default(),
             caustic: Strength::default(),
+            clamp: None,
         }
     }
 }
@@ -102,10 +107,11 @@ impl Atrous {
                 "direct_passes" => a.direct.passes = Some(whole(key, number)?),
                 "caustic_sigma_l" => a.caustic.sigma_l = Some(number),
                 "caustic_passes" => a.caustic.passes = Some(whole(key, number)?),
+                "clamp" => a.clamp = Some(number),
                 other => {
                     return Err(format!(
                         "unknown atrous setting `{other}` (passes, sigma_l, sigma_n, sigma_z, taps, \
-                         direct_sigma_l, direct_passes, caustic_sigma_l, caustic_passes)"
+                         direct_sigma_l, direct_passes, caustic_sigma_l, caustic_passes, clamp)"
                     ))
                 }
             }
@@ -137,6 +143,9 @@ impl Atrous {
                 return Err(format!("atrous {name} must be a positive number, not {v}"));
             }
         }
+        if let Some(k) = self.clamp.filter(|k| !(k.is_finite() && *k >= 0.0)) {
+            return Err(format!("atrous clamp must be a non-negative number, not {k}"));
+        }
         if self.taps != 3 && self.taps != 5 {
             return Err(format!("atrous taps must be 3 or 5, not {}", self.taps));
         }
@@ -165,6 +174,9 @@ impl Atrous {
             if let Some(p) = s.passes {
                 out.push_str(&format!(":{name}_passes={p}"));
             }
+        }
+        if let Some(k) = self.clamp {
+            out.push_str(&format!(":clamp={k}"));
         }
         out
     }
@@ -276,14 +288,28 @@ pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Ve
     }
     // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
     // first made again as it was.
+    // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
+    // the layer's luminance deviation, scaled to a channel brighter than the luminance.
+    let bound = a.clamp;
     for (c, &li) in live.iter().enumerate() {
+        let variance = layers[li].variance;
         let image = &mut out[li];
         image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let base = (y * k + c) * PLANES * w;
             for (x, px) in row.iter_mut().enumerate() {
-                let a = albedo(y * w + x);
+                let i = y * w + x;
+                let albedo = albedo(i);
                 let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
-                *px += a * (last - demodulate(*px, a));
+                let change = albedo * (last - demodulate(*px, albedo));
+                *px += match (bound, variance) {
+                    (Some(k), Some(v)) => {
+                        let lum = luminance(*px);
+                        let scale = if lum > 0.0 { (*px / lum).max(Vec3::ONE) } else { Vec3::ONE };
+                        let limit = k * v[i].max(0.0).sqrt() * scale;
+                        change.clamp(-limit, limit)
+                    }
+                    _ => change,
+                };
             }
         });
     }
@@ -1085,6 +1111,41 @@ mod tests {
         assert_ne!(one[0], image);
         assert_eq!(one, run(2));
         assert_eq!(one, run(3));
+    }
+
+    /// `clamp=K` bounds each channel's change by K deviations of the pixel's mean: 0 changes
+    /// nothing, a bound the filter never reaches changes nothing either, and in between no
+    /// channel moves further than its bound.
+    #[test]
+    fn clamp_bounds_the_change_by_the_noise() {
+        let film = random_film(37, 23, 7);
+        let mut next = stream(17);
+        let mut image = Image::new(37, 23);
+        image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
+        let variance: Vec<f32> = (0..37 * 23).map(|_| 0.01 * next()).collect();
+        let run = |clamp: Option<f32>| {
+            let a = Atrous { clamp, ..Atrous::default() };
+            filter(&[FilterInput::new(&image, Some(&variance))], &film, &a, false).remove(0)
+        };
+        let free = run(None);
+        assert_ne!(free, image);
+        assert_eq!(run(Some(0.0)), image);
+        assert_eq!(run(Some(1e9)), free);
+        let k = 1.0;
+        let bounded = run(Some(k));
+        assert!(bounded != free && bounded != image, "the bound bit nowhere, or everywhere");
+        for (i, (b, p)) in bounded.pixels.iter().zip(&image.pixels).enumerate() {
+            let lum = luminance(*p);
+            let scale = if lum > 0.0 { (*p / lum).max(Vec3::ONE) } else { Vec3::ONE };
+            let limit = k * variance[i].sqrt() * scale;
+            assert!(
+                ((*b - *p).abs() - limit).max_element() <= 1e-6,
+                "pixel {i}: {b} from {p}, bound {limit}"
+            );
+        }
+        assert_eq!(Atrous::parse("atrous:clamp=2").map(|a| a.clamp), Ok(Some(2.0)));
+        assert_eq!(Atrous::parse("atrous:clamp=2").map(|a| a.name()), Ok("atrous:clamp=2".to_string()));
+        assert!(Atrous::parse("atrous:clamp=-1").is_err());
     }
 
     #[test]

@@ -146,6 +146,7 @@ impl Setting {
                 // light is the noisiest: a loose stop.
                 direct: Strength { sigma_l: Some(1.5), passes: Some(1) },
                 caustic: Strength { sigma_l: Some(24.0), passes: None },
+                clamp: None,
             })),
             target: Target::Components,
             stops: EdgeStops { pure: true, ..EdgeStops::default() },
