@@ -93,80 +93,51 @@ impl TileSplat {
         }
     }
 
-    /// Splats a sample of pixel (`x`, `y`) at `offset` in it ([0, 1)^2): its beauty and, with the
+    /// Splats a sample of pixel `at` at `offset` in it ([0, 1)^2): its beauty and, with the
     /// split, its components and its AOVs.
     #[inline]
     pub fn add(
         &mut self,
-        (x, y): (u32, u32),
+        at: (u32, u32),
         offset: Vec2,
         weights: &Weights,
         beauty: Vec3,
         components: Option<&Split<Vec3>>,
         aovs: &[Vec3],
     ) {
-        let m = weights.margin as i64;
-        let (px, py) = (x as f32 + offset.x, y as f32 + offset.y);
-        let (lo_x, hi_x) =
-            ((x as i64 - m).max(self.x0 as i64), (x as i64 + m).min((self.x0 + self.w) as i64 - 1));
-        let (lo_y, hi_y) =
-            ((y as i64 - m).max(self.y0 as i64), (y as i64 + m).min((self.y0 + self.h) as i64 - 1));
         self.touched = true;
-        for qy in lo_y..=hi_y {
-            let wy = weights.at(py - (qy as f32 + 0.5));
-            if wy == 0.0 {
-                continue;
-            }
-            for qx in lo_x..=hi_x {
-                let w = wy * weights.at(px - (qx as f32 + 0.5));
-                if w == 0.0 {
-                    continue;
-                }
-                let i = ((qy - self.y0 as i64) * self.w as i64 + (qx - self.x0 as i64)) as usize;
-                self.beauty[i] += w * beauty;
-                self.weight[i] += w;
-                if let (Some(sum), Some(c)) = (self.components.get_mut(i), components) {
-                    for (a, &c) in sum.iter_mut().zip(c.iter()) {
-                        *a += w * c;
-                    }
-                }
-                if self.naovs > 0 {
-                    let sum = &mut self.aovs[i * self.naovs..(i + 1) * self.naovs];
-                    for (a, &v) in sum.iter_mut().zip(aovs) {
-                        *a += w * v;
-                    }
+        let area = (self.x0, self.y0, self.w, self.h);
+        reach(area, at, offset, weights, |i, w| {
+            self.beauty[i] += w * beauty;
+            self.weight[i] += w;
+            if let (Some(sum), Some(c)) = (self.components.get_mut(i), components) {
+                for (a, &c) in sum.iter_mut().zip(c.iter()) {
+                    *a += w * c;
                 }
             }
-        }
+            if self.naovs > 0 {
+                let sum = &mut self.aovs[i * self.naovs..(i + 1) * self.naovs];
+                for (a, &v) in sum.iter_mut().zip(aovs) {
+                    *a += w * v;
+                }
+            }
+        });
     }
 
-    /// Splats a sample of pixel (`x`, `y`) at `offset` in it into the Cryptomatte coverage: the
-    /// ids of what its camera ray hit first (`None`: nothing), with the filter's weights.
-    pub fn add_matte(&mut self, (x, y): (u32, u32), offset: Vec2, weights: &Weights, ids: Option<&[u32; 2]>) {
-        let m = weights.margin as i64;
-        let (px, py) = (x as f32 + offset.x, y as f32 + offset.y);
-        let (lo_x, hi_x) =
-            ((x as i64 - m).max(self.x0 as i64), (x as i64 + m).min((self.x0 + self.w) as i64 - 1));
-        let (lo_y, hi_y) =
-            ((y as i64 - m).max(self.y0 as i64), (y as i64 + m).min((self.y0 + self.h) as i64 - 1));
+    /// Splats a sample of pixel `at` at `offset` in it into the Cryptomatte coverage: the ids
+    /// of what its camera ray hit first (`None`: nothing), with the filter's weights.
+    pub fn add_matte(&mut self, at: (u32, u32), offset: Vec2, weights: &Weights, ids: Option<&[u32; 2]>) {
         self.touched = true;
-        for qy in lo_y..=hi_y {
-            let wy = weights.at(py - (qy as f32 + 0.5));
-            for qx in lo_x..=hi_x {
-                let w = wy * weights.at(px - (qx as f32 + 0.5));
-                if w == 0.0 {
-                    continue;
-                }
-                let i = ((qy - self.y0 as i64) * self.w as i64 + (qx - self.x0 as i64)) as usize;
-                let mattes = &mut self.mattes[i * self.nmattes..(i + 1) * self.nmattes];
-                for (k, c) in mattes.iter_mut().enumerate() {
-                    match ids {
-                        Some(ids) => c.add(ids[k], w),
-                        None => c.add_none(w),
-                    }
+        let area = (self.x0, self.y0, self.w, self.h);
+        reach(area, at, offset, weights, |i, w| {
+            let mattes = &mut self.mattes[i * self.nmattes..(i + 1) * self.nmattes];
+            for (k, c) in mattes.iter_mut().enumerate() {
+                match ids {
+                    Some(ids) => c.add(ids[k], w),
+                    None => c.add_none(w),
                 }
             }
-        }
+        });
     }
 
     /// Adds the pass's splats to the render's sums and clears them for the next pass.
@@ -212,6 +183,35 @@ impl TileSplat {
             + self.aovs.capacity() * size_of::<Vec3>()
             + self.mattes.capacity() * size_of::<Coverage>()
             + self.weight.capacity() * size_of::<f32>()) as u64
+    }
+}
+
+/// Calls `f` with the index in a tile's splats (over `area`: its corner, width and height) and
+/// the filter's weight of every pixel that a sample of pixel (`x`, `y`) at `offset` in it
+/// reaches with a weight other than 0.
+#[inline(always)]
+fn reach(
+    (x0, y0, width, height): (u32, u32, u32, u32),
+    (x, y): (u32, u32),
+    offset: Vec2,
+    weights: &Weights,
+    mut f: impl FnMut(usize, f32),
+) {
+    let m = weights.margin as i64;
+    let (px, py) = (x as f32 + offset.x, y as f32 + offset.y);
+    let (lo_x, hi_x) = ((x as i64 - m).max(x0 as i64), (x as i64 + m).min((x0 + width) as i64 - 1));
+    let (lo_y, hi_y) = ((y as i64 - m).max(y0 as i64), (y as i64 + m).min((y0 + height) as i64 - 1));
+    for qy in lo_y..=hi_y {
+        let wy = weights.at(py - (qy as f32 + 0.5));
+        if wy == 0.0 {
+            continue;
+        }
+        for qx in lo_x..=hi_x {
+            let w = wy * weights.at(px - (qx as f32 + 0.5));
+            if w != 0.0 {
+                f(((qy - y0 as i64) * width as i64 + (qx - x0 as i64)) as usize, w);
+            }
+        }
     }
 }
 
