@@ -25,7 +25,8 @@
 #                        with `atrous:...:clamp=2`)
 #
 # Prints a Markdown table (also OUT/table.md): per model and spp the unfiltered and denoised
-# RMSE and relMSE and their ratios, and the verdict (denoised not above unfiltered in both).
+# RMSE and relMSE and their ratios, and the verdict: denoised not above unfiltered in both
+# (holds), above by less than 1e-4 of it (same: the filter left the image as it was), or WORSE.
 # Exit status: 0 when every row holds, 1 when one does not or a command fails, 2 on bad options.
 set -euo pipefail
 
@@ -85,9 +86,14 @@ for model in ${models//,/ }; do
         python3 - "$model" "$n" "$rmse0" "$rmse1" "$rel0" "$rel1" >>"$table" <<'EOF' || failed=1
 import sys
 model, n, r0, r1, q0, q1 = sys.argv[1], sys.argv[2], *map(float, sys.argv[3:])
-ok = r1 <= r0 and q1 <= q0
-print(f"| {model} | {n} | {r0:.4g} | {r1:.4g} | {r1 / r0:.3f}x | {q0:.4g} | {q1:.4g} | {q1 / q0:.3f}x | {'holds' if ok else 'WORSE'} |")
-sys.exit(0 if ok else 1)
+# "same": above the unfiltered error by less than 1e-4 of it in either metric, far below what
+# the reference's own noise lets this measure (its 2,048 samples leave it about 1/sqrt(2) of the
+# 1024-spp row's error from the truth); the filter then left the image as it was, to 4 digits.
+better = r1 <= r0 and q1 <= q0
+same = r1 <= r0 * (1 + 1e-4) and q1 <= q0 * (1 + 1e-4)
+verdict = "holds" if better else "same" if same else "WORSE"
+print(f"| {model} | {n} | {r0:.4g} | {r1:.4g} | {r1 / r0:.4f}x | {q0:.4g} | {q1:.4g} | {q1 / q0:.4f}x | {verdict} |")
+sys.exit(0 if better or same else 1)
 EOF
     done
 done

@@ -60,3 +60,82 @@ fn the_estimated_variance_matches_the_spread_across_seeds() {
         assert!(film.variance.iter().chain(film.component_variance.iter().flatten()).all(|&v| v >= 0.0));
     }
 }
+
+/// Renders `scenes/NAME` at 32x24 with `spp` and `seed`, `set` changing the options further.
+fn render_of(name: &str, spp: u32, seed: u64, set: impl Fn(&mut RenderOptions)) -> lightsplit::film::Film {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
+    let scene = scene::load(&path).expect("loads");
+    let mut options = RenderOptions::from_scene(&scene);
+    (options.width, options.height, options.spp, options.seed) = (32, 24, spp, seed);
+    set(&mut options);
+    render(&scene, &options, &|_| {}).expect("renders").film
+}
+
+#[test]
+fn the_second_half_is_the_render_of_its_samples() {
+    // At 16 spp the second half is samples 8 to 15, part 1 of 2: its mean, scaled by its share
+    // (a power of two, so exact), is the whole render's half layer, bit for bit.
+    let whole = render_of("cornell.toml", 16, 3, |_| {});
+    let part = render_of("cornell.toml", 16, 3, |o| o.part = lightsplit::render::Part { index: 1, count: 2 });
+    assert!(whole.has_halves() && whole.half_share.iter().all(|&s| s == 0.5));
+    let scaled = |image: &lightsplit::film::Image| image.pixels.iter().map(|&p| p * 0.5).collect::<Vec<_>>();
+    assert_eq!(scaled(&part.raw), whole.half.pixels);
+    for c in Component::ALL {
+        assert_eq!(scaled(&part.components[c]), whole.component_half[c].pixels, "{c:?}");
+    }
+    // At 24 spp the second half is samples 8 to 15 again (bit 8 of the index): a third.
+    let film = render_of("cornell.toml", 24, 3, |_| {});
+    assert!(film.half_share.iter().all(|&s| (s - 1.0 / 3.0).abs() < 1e-6));
+}
+
+#[test]
+fn the_halves_estimate_a_sobol_renders_noise() {
+    // With Sobol the samples of a pixel are not independent, and their sample variance
+    // overstates the noise of the mean; the halves' estimate follows it. Over 8 seeds, the
+    // estimates' total against the total spread of the pixels' means across seeds: within a
+    // factor of 1.8 either way (the halves' correlation, film::tests); the spread itself, from
+    // 8 seeds, within 1 +- 4 sqrt(2 / (7 pixels)) of its own expectation over the image.
+    let seeds = 8u64;
+    let films: Vec<_> = (0..seeds).map(|seed| render_of("sky-sphere.toml", 32, seed, |_| {})).collect();
+    let pixels = films[0].raw.pixels.len();
+    let (mut estimated, mut empirical) = (0.0, 0.0);
+    for p in 0..pixels {
+        let means: Vec<f64> = films.iter().map(|f| luminance(f.raw.pixels[p]) as f64).collect();
+        let m = means.iter().sum::<f64>() / seeds as f64;
+        empirical += means.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+        estimated += films.iter().map(|f| f.variance[p] as f64).sum::<f64>() / seeds as f64;
+    }
+    assert!(empirical > 0.0, "no noise to measure");
+    let ratio = estimated / empirical;
+    assert!((0.55..1.8).contains(&ratio), "halves' estimate over the spread across seeds: {ratio}");
+}
+
+#[test]
+fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
+    use lightsplit::filter::{composite, Setting};
+    // A noisy render (4 spp): `--denoise` changes it, and the check keeps most of the filter.
+    let film = render_of("cornell.toml", 4, 1, |_| {});
+    let setting = Setting::denoise();
+    let method = setting.method.as_ref().expect("a method");
+    let (checked, _) = composite(&film, Some(method), setting.target, &setting.stops);
+    assert_ne!(checked.pixels, film.raw.pixels, "the filter was dropped on a noisy render");
+    // Halves that agree measure no noise: the filter is kept whole, as without the check.
+    let mut agreeing = film.clone();
+    for c in Component::ALL {
+        agreeing.component_half[c].pixels =
+            film.components[c].pixels.iter().zip(&film.half_share).map(|(&p, &s)| p * s).collect();
+    }
+    let unchecked = {
+        let mut f = agreeing.clone();
+        for layer in lightsplit::film::layers::LAYERS
+            .iter()
+            .filter(|l| l.group == lightsplit::film::layers::Group::Halves)
+        {
+            f.set_values(layer.buffer, Vec::new());
+        }
+        assert!(!f.has_halves());
+        composite(&f, Some(method), setting.target, &setting.stops).0.into_owned()
+    };
+    let kept = composite(&agreeing, Some(method), setting.target, &setting.stops).0.into_owned();
+    assert_eq!(kept.pixels, unchecked.pixels);
+}

@@ -32,6 +32,14 @@ pub enum Buffer {
     Variance,
     /// The same for a component.
     ComponentVariance(Component),
+    /// The beauty's share from one half of each pixel's samples (its sum over the samples of
+    /// the second half, divided by all the samples): with [`Buffer::HalfShare`], the two halves'
+    /// means, whose difference measures the noise of a Sobol render ([`super::halves`]).
+    Half,
+    /// The same for a component.
+    ComponentHalf(Component),
+    /// The share of each pixel's samples in its second half.
+    HalfShare,
 }
 
 /// Which buffers a buffer is kept with: a render computes the split and the guides only when
@@ -43,6 +51,9 @@ pub enum Group {
     Guides,
     /// Made from the sums of squares at the end of a render; a part file holds the squares.
     Variance,
+    /// The second half's share of the beauty and the components: kept with the split, all or
+    /// none (files written before them have none, and a splatted film none).
+    Halves,
 }
 
 /// How a render's sum of a buffer over a pixel's samples becomes its value, and so how parts
@@ -112,7 +123,7 @@ use Rule as R;
 
 /// Every layer of a film, in the order of its EXR's layers.
 #[rustfmt::skip]
-pub const LAYERS: [LayerDef; 16] = [
+pub const LAYERS: [LayerDef; 22] = [
     row(B::Raw, &["raw.R", "raw.G", "raw.B"], G::Beauty, true, 0.0, M::Average, R::Light),
     row(B::Component(Emitted), &["emitted.R", "emitted.G", "emitted.B"], G::Split, true, 0.0, M::Average, R::Light),
     row(B::Component(Direct), &["direct.R", "direct.G", "direct.B"], G::Split, true, 0.0, M::Average, R::Light),
@@ -129,6 +140,12 @@ pub const LAYERS: [LayerDef; 16] = [
     row(B::ComponentVariance(Direct), &["direct_variance.Y"], G::Variance, false, 0.0, M::FromSquares, R::None),
     row(B::ComponentVariance(Caustic), &["caustic_variance.Y"], G::Variance, false, 0.0, M::FromSquares, R::None),
     row(B::ComponentVariance(Indirect), &["indirect_variance.Y"], G::Variance, false, 0.0, M::FromSquares, R::None),
+    row(B::Half, &["raw_half.R", "raw_half.G", "raw_half.B"], G::Halves, false, 0.0, M::Average, R::Light),
+    row(B::ComponentHalf(Emitted), &["emitted_half.R", "emitted_half.G", "emitted_half.B"], G::Halves, false, 0.0, M::Average, R::Light),
+    row(B::ComponentHalf(Direct), &["direct_half.R", "direct_half.G", "direct_half.B"], G::Halves, false, 0.0, M::Average, R::Light),
+    row(B::ComponentHalf(Caustic), &["caustic_half.R", "caustic_half.G", "caustic_half.B"], G::Halves, false, 0.0, M::Average, R::Light),
+    row(B::ComponentHalf(Indirect), &["indirect_half.R", "indirect_half.G", "indirect_half.B"], G::Halves, false, 0.0, M::Average, R::Light),
+    row(B::HalfShare, &["half_share.Y"], G::Halves, false, 0.0, M::Average, R::Count),
 ];
 
 /// Whether `name` is taken by a layer the film or a part file has (an AOV may not have it).
@@ -178,6 +195,9 @@ impl Film {
             B::Alpha => &self.alpha,
             B::Variance => &self.variance,
             B::ComponentVariance(c) => &self.component_variance[c],
+            B::Half => bytemuck::cast_slice(&self.half.pixels),
+            B::ComponentHalf(c) => bytemuck::cast_slice(&self.component_half[c].pixels),
+            B::HalfShare => &self.half_share,
         }
     }
 
@@ -194,6 +214,9 @@ impl Film {
             B::Alpha => &mut self.alpha,
             B::Variance => &mut self.variance,
             B::ComponentVariance(c) => &mut self.component_variance[c],
+            B::Half => bytemuck::cast_slice_mut(&mut self.half.pixels),
+            B::ComponentHalf(c) => bytemuck::cast_slice_mut(&mut self.component_half[c].pixels),
+            B::HalfShare => &mut self.half_share,
         }
     }
 
@@ -215,6 +238,9 @@ impl Film {
             B::Alpha => std::mem::take(&mut self.alpha),
             B::Variance => std::mem::take(&mut self.variance),
             B::ComponentVariance(c) => std::mem::take(&mut self.component_variance[c]),
+            B::Half => image(&mut self.half),
+            B::ComponentHalf(c) => image(&mut self.component_half[c]),
+            B::HalfShare => std::mem::take(&mut self.half_share),
         }
     }
 
@@ -237,6 +263,9 @@ impl Film {
             B::Alpha => self.alpha = values,
             B::Variance => self.variance = values,
             B::ComponentVariance(c) => self.component_variance[c] = values,
+            B::Half => self.half = image(values, size),
+            B::ComponentHalf(c) => self.component_half[c] = image(values, size),
+            B::HalfShare => self.half_share = values,
         }
     }
 
@@ -252,9 +281,24 @@ mod tests {
 
     #[test]
     fn every_buffer_has_one_row_and_every_channel_one_name() {
-        let buffers = [B::Raw, B::Albedo, B::Normal, B::Depth, B::Object, B::Coverage, B::Alpha, B::Variance]
-            .into_iter()
-            .chain(Component::ALL.into_iter().flat_map(|c| [B::Component(c), B::ComponentVariance(c)]));
+        let buffers = [
+            B::Raw,
+            B::Albedo,
+            B::Normal,
+            B::Depth,
+            B::Object,
+            B::Coverage,
+            B::Alpha,
+            B::Variance,
+            B::Half,
+            B::HalfShare,
+        ]
+        .into_iter()
+        .chain(
+            Component::ALL
+                .into_iter()
+                .flat_map(|c| [B::Component(c), B::ComponentVariance(c), B::ComponentHalf(c)]),
+        );
         for b in buffers {
             assert_eq!(LAYERS.iter().filter(|l| l.buffer == b).count(), 1, "{b:?}");
             assert_eq!(layer(b).buffer, b);
@@ -269,7 +313,7 @@ mod tests {
     #[test]
     fn a_film_holds_the_values_of_each_layer_it_has() {
         let mut film = Film::with_buffers(2, 1, true, false);
-        assert_eq!(film.layers().count(), 1 + 4 + 5, "the beauty, the split and its variances");
+        assert_eq!(film.layers().count(), 1 + 4 + 5 + 6, "the beauty, the split, its variances and halves");
         film.set_values(B::Component(Direct), vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
         assert_eq!(film.components[Direct].pixels[1], glam::Vec3::new(4.0, 5.0, 6.0));
         film.values_mut(B::Variance)[0] = 7.0;

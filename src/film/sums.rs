@@ -4,7 +4,7 @@
 use glam::Vec3;
 
 use super::layers::{self, Buffer, Mean};
-use super::{variance_of_mean, Film, Image};
+use super::{variance_of_halves, variance_of_mean, Film, Image};
 use crate::component::{Component, Split};
 
 /// A render's per-pixel sums, what a part or checkpoint file keeps: [`Sums::add`] merges
@@ -80,6 +80,12 @@ impl Sums {
                 _ => {}
             }
         }
+        if splat {
+            // The halves are of each pixel's own samples, and a splatted beauty is not.
+            for layer in layers::LAYERS.iter().filter(|l| l.group == layers::Group::Halves) {
+                film.set_values(layer.buffer, Vec::new());
+            }
+        }
         let n = width as usize * height as usize;
         let weights = if splat { vec![0.0; n] } else { Vec::new() };
         Sums { film, squares: Squares::zeros(n, split), samples: vec![0; n], weights }
@@ -99,22 +105,31 @@ impl Sums {
     pub fn into_means(self) -> Film {
         let Sums { mut film, squares, samples, weights } = self;
         if !squares.is_empty() {
-            // From the sums, before they become means.
-            let variance = |n: u32, sum: Vec3, sum_sq: f64| {
-                let v = variance_of_mean(n, crate::math::luminance(sum) as f64, sum_sq);
+            // From the sums, before they become means: from the two halves where the film
+            // has them and both halves have samples, else from the sums of squares.
+            let variance = |n: u32, sum: Vec3, sum_sq: f64, half: Option<(f32, Vec3)>| {
+                let lum = |v: Vec3| crate::math::luminance(v) as f64;
+                let v = half
+                    .and_then(|(n_b, b)| variance_of_halves(n, n_b.round() as u32, lum(sum), lum(b)))
+                    .unwrap_or_else(|| variance_of_mean(n, lum(sum), sum_sq));
                 v.min(f32::MAX as f64) as f32
             };
-            let of = |sums: &Image, squares: &[f64]| -> Vec<f32> {
+            let of = |sums: &Image, squares: &[f64], half: &Image| -> Vec<f32> {
                 samples
                     .iter()
                     .zip(&sums.pixels)
                     .zip(squares)
-                    .map(|((&n, &s), &q)| variance(n, s, q))
+                    .enumerate()
+                    .map(|(i, ((&n, &s), &q))| {
+                        let h = half.pixels.get(i).zip(film.half_share.get(i)).map(|(&b, &n_b)| (n_b, b));
+                        variance(n, s, q, h)
+                    })
                     .collect()
             };
-            film.variance = of(&film.raw, &squares.beauty);
+            film.variance = of(&film.raw, &squares.beauty, &film.half);
             for c in Component::ALL {
-                film.component_variance[c] = of(&film.components[c], &squares.components[c]);
+                film.component_variance[c] =
+                    of(&film.components[c], &squares.components[c], &film.component_half[c]);
             }
         }
         let inv: Vec<f32> = samples.iter().map(|&n| if n > 0 { 1.0 / n as f32 } else { 0.0 }).collect();
@@ -159,6 +174,11 @@ impl Sums {
             || self.squares.is_empty() != other.squares.is_empty()
         {
             return Err("one has the component split or the guide buffers and the other not".into());
+        }
+        if a.has_halves() != b.has_halves() {
+            return Err(
+                "one has the halves of its samples and the other not (one written before them?)".into()
+            );
         }
         if self.weights.is_empty() != other.weights.is_empty() {
             return Err("one has splatted filter weights and the other not".into());

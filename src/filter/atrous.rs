@@ -54,6 +54,10 @@ pub struct Atrous {
     /// (the layer's variance, scaled to the channel), so a filter can take away noise but
     /// not detail the noise cannot explain; unset, no bound.
     pub clamp: Option<f32>,
+    /// `cross=1` (the default): where the film has the halves of its samples, each layer is
+    /// also filtered half by half and kept only where that check says it lowers the error
+    /// ([`super::cross`]); `cross=0` filters without the check.
+    pub cross: bool,
 }
 
 /// One component's colour stop and passes, where they differ from the filter's own.
@@ -75,6 +79,7 @@ impl Default for Atrous {
             direct: Strength::default(),
             caustic: Strength::default(),
             clamp: None,
+            cross: true,
         }
     }
 }
@@ -108,10 +113,12 @@ impl Atrous {
                 "caustic_sigma_l" => a.caustic.sigma_l = Some(number),
                 "caustic_passes" => a.caustic.passes = Some(whole(key, number)?),
                 "clamp" => a.clamp = Some(number),
+                "cross" if number == 0.0 || number == 1.0 => a.cross = number == 1.0,
+                "cross" => return Err(format!("atrous setting cross: `{value}` is not 0 or 1")),
                 other => {
                     return Err(format!(
                         "unknown atrous setting `{other}` (passes, sigma_l, sigma_n, sigma_z, taps, \
-                         direct_sigma_l, direct_passes, caustic_sigma_l, caustic_passes, clamp)"
+                         direct_sigma_l, direct_passes, caustic_sigma_l, caustic_passes, clamp, cross)"
                     ))
                 }
             }
@@ -218,12 +225,16 @@ pub struct FilterInput<'a> {
     /// The light-path component the layer holds, if it is one: [`Atrous::direct`] and
     /// [`Atrous::caustic`] apply to theirs.
     pub component: Option<Component>,
+    /// The layer's second half and its share of the samples ([`crate::film::Film::half`],
+    /// [`crate::film::Film::half_share`]), when the film has them: the filter is then checked
+    /// against the layer's own noise ([`super::cross`]).
+    pub halves: Option<(&'a Image, &'a [f32])>,
 }
 
 impl<'a> FilterInput<'a> {
     /// A layer that is no particular component.
     pub fn new(image: &'a Image, variance: Option<&'a [f32]>) -> FilterInput<'a> {
-        FilterInput { image, variance, component: None }
+        FilterInput { image, variance, component: None, halves: None }
     }
 }
 
@@ -1165,8 +1176,12 @@ mod tests {
             caustic: Strength { sigma_l: None, passes: Some(0) },
             ..Atrous::default()
         };
-        let layer =
-            |image, component| FilterInput { image, variance: Some(&variance), component: Some(component) };
+        let layer = |image, component| FilterInput {
+            image,
+            variance: Some(&variance),
+            component: Some(component),
+            halves: None,
+        };
         let together = filter(
             &[
                 layer(&direct, Component::Direct),

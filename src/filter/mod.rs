@@ -8,6 +8,7 @@
 //! target, which filters direct, caustic and indirect light each on its own.
 
 pub mod atrous;
+pub mod cross;
 mod section;
 
 use std::borrow::Cow;
@@ -147,6 +148,7 @@ impl Setting {
                 direct: Strength { sigma_l: Some(1.5), passes: Some(1) },
                 caustic: Strength { sigma_l: Some(24.0), passes: None },
                 clamp: None,
+                cross: true,
             })),
             target: Target::Components,
             stops: EdgeStops { pure: true, ..EdgeStops::default() },
@@ -284,8 +286,73 @@ pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) ->
 pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Image> {
     match Plan::of(method) {
         Plan::Local(window) => layers.iter().map(|l| local(l.image, &window, film, stops)).collect(),
+        Plan::Wavelet(a) if a.cross && layers.iter().any(|l| l.halves.is_some()) => {
+            checked(layers, film, a, stops)
+        }
         Plan::Wavelet(a) => atrous::filter(layers, film, a, stops.pure),
     }
+}
+
+/// À-trous on `layers`, each layer with halves also filtered half by half and kept only where
+/// that says it lowers the error ([`cross`]). All the images are filtered in one call.
+fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -> Vec<Image> {
+    // Each half's variance: the whole's over the half's share of the samples.
+    let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<Vec<f32>> {
+        let v = variance?;
+        Some(
+            v.iter()
+                .zip(share)
+                .map(|(&v, &s)| {
+                    let part = if second { s } else { 1.0 - s };
+                    if part > 0.0 && part < 1.0 {
+                        v / part
+                    } else {
+                        v
+                    }
+                })
+                .collect(),
+        )
+    };
+    struct Halved {
+        layer: usize,
+        halves: (Image, Image),
+        variances: (Option<Vec<f32>>, Option<Vec<f32>>),
+        share: Vec<f32>,
+    }
+    let halved: Vec<Halved> = layers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let (half, share) = l.halves?;
+            Some(Halved {
+                layer: i,
+                halves: cross::halves(l.image, half, share),
+                variances: (scaled(l.variance, share, false), scaled(l.variance, share, true)),
+                share: share.to_vec(),
+            })
+        })
+        .collect();
+    let mut inputs: Vec<FilterInput> = layers.iter().map(|l| FilterInput { halves: None, ..*l }).collect();
+    for h in &halved {
+        let component = layers[h.layer].component;
+        for (image, variance) in [(&h.halves.0, &h.variances.0), (&h.halves.1, &h.variances.1)] {
+            inputs.push(FilterInput { image, variance: variance.as_deref(), component, halves: None });
+        }
+    }
+    let mut out = atrous::filter(&inputs, film, a, stops.pure);
+    let halves_filtered = out.split_off(layers.len());
+    for (h, pair) in halved.iter().zip(halves_filtered.chunks_exact(2)) {
+        let whole = &out[h.layer];
+        let blended = cross::blend(
+            layers[h.layer].image,
+            whole,
+            (&h.halves.0, &h.halves.1),
+            (&pair[0], &pair[1]),
+            &h.share,
+        );
+        out[h.layer] = blended;
+    }
+    out
 }
 
 /// How a method runs: over a local window, pixel by pixel (the paper's filters), or as the
@@ -638,6 +705,7 @@ pub fn composite<'a>(
         image: &film.components[c],
         variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
         component: Some(c),
+        halves: film.has_halves().then(|| (&film.component_half[c], film.half_share.as_slice())),
     };
     let filtered: &[Component] = match target {
         Target::None => return (Cow::Borrowed(&film.raw), None),
@@ -662,7 +730,9 @@ pub fn composite<'a>(
     };
     if filtered.is_empty() {
         let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
-        let mut out = filter_layers(&[FilterInput::new(&film.raw, variance)], kernel, film, stops);
+        let halves = film.has_halves().then_some((&film.half, film.half_share.as_slice()));
+        let input = FilterInput { halves, ..FilterInput::new(&film.raw, variance) };
+        let mut out = filter_layers(&[input], kernel, film, stops);
         return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
     }
     let layers: Vec<FilterInput> = filtered.iter().map(|&c| layer(c)).collect();

@@ -350,11 +350,13 @@ fn find<'a>(channels: &'a Channels, name: &str) -> Result<&'a Vec<f32>, String> 
 }
 
 /// The sums film of a part file's `sums.` channels: the split and the guides when it has them,
-/// each of their layers required ([`film::layers::LAYERS`]); no variances (the merge makes them
-/// from the sums of squares).
+/// each of their layers required ([`film::layers::LAYERS`]); the halves with the split when it
+/// has them (a file of a splatted render, or of before them, has none); no variances (the merge
+/// makes them from the sums of squares).
 fn film_of(width: u32, height: u32, channels: &Channels) -> Result<Film, String> {
     let has = |name: &str| channels.iter().any(|(n, _)| n == &format!("{SUMS}{name}"));
     let (split, guides) = (has("direct.R"), has("objectid.ID"));
+    let halves = split && has("raw_half.R");
     film::film_from_layers(
         width,
         height,
@@ -365,6 +367,7 @@ fn film_of(width: u32, height: u32, channels: &Channels) -> Result<Film, String>
             Group::Split => split,
             Group::Guides => guides,
             Group::Variance => false,
+            Group::Halves => halves,
         },
         false,
     )

@@ -522,14 +522,19 @@ struct TileSums {
     /// The sums of the squared sample luminances, of the beauty then of each component (with
     /// the split only), in f64 as [`film::Squares`] keeps them.
     squares: Vec<(f64, Split<f64>)>,
+    /// The sums over the samples of each pixel's second half ([`film::half_of`]) of the beauty
+    /// and the components, and their count (with the split and unsplatted only).
+    halves: Vec<(Vec3, Split<Vec3>, u32)>,
+    /// The render's samples per pixel, which say each sample's half.
+    spp: u32,
     /// Whether the beauty and the components are splatted ([`splat`]): then a sample adds
     /// them to its tile's splats, not to its pixel's sums here.
     splatted: bool,
 }
 
 impl TileSums {
-    /// The sums of `tile`'s pixels so far, from the render's.
-    fn load(tile: &Tile, sums: &Sums) -> TileSums {
+    /// The sums of `tile`'s pixels so far, from the render's (of `spp` samples per pixel).
+    fn load(tile: &Tile, sums: &Sums, spp: u32) -> TileSums {
         let (film, squares) = (&sums.film, &sums.squares);
         let n = (tile.w * tile.h) as usize;
         let at = |i: usize| tile.pixel(i, film.width).0;
@@ -556,6 +561,18 @@ impl TileSums {
                     })
                     .collect()
             },
+            halves: if film.has_halves() {
+                (0..n)
+                    .map(|i| {
+                        let at = at(i);
+                        let components = Split::from_fn(|c| film.component_half[c].pixels[at]);
+                        (film.half.pixels[at], components, film.half_share[at] as u32)
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            },
+            spp,
             splatted: !sums.weights.is_empty(),
             guides: if film.has_guides() {
                 (0..n)
@@ -603,6 +620,13 @@ impl TileSums {
                 for (layer, &c) in squares.components.iter_mut().zip(components) {
                     layer[at] = c;
                 }
+            }
+            if let Some((beauty, components, n)) = self.halves.get(i) {
+                film.half.pixels[at] = *beauty;
+                for (layer, &c) in film.component_half.iter_mut().zip(components) {
+                    layer.pixels[at] = c;
+                }
+                film.half_share[at] = *n as f32;
             }
             if let Some(g) = self.guides.get(i) {
                 film.albedo.pixels[at] = g.albedo;
@@ -659,6 +683,11 @@ impl TileSums {
             g.same += (s.object == g.object) as u32;
             g.hits += s.object.is_some() as u32;
         }
+        // A dropped sample counts as a zero sample, in its half too.
+        let half = film::half_of(k, self.spp);
+        if let Some(h) = self.halves.get_mut(i).filter(|_| half) {
+            h.2 += 1;
+        }
         if !s.beauty.is_finite()
             || (split && s.components.iter().any(|c| !c.is_finite()))
             || aovs.iter().any(|a| !a.is_finite())
@@ -689,6 +718,12 @@ impl TileSums {
             *beauty += sq(s.beauty);
             for (a, c) in components.iter_mut().zip(s.components) {
                 *a += sq(c);
+            }
+        }
+        if let Some((beauty, components, _)) = self.halves.get_mut(i).filter(|_| half) {
+            *beauty += s.beauty;
+            for (a, c) in components.iter_mut().zip(s.components) {
+                *a += c;
             }
         }
         if let Some(g) = self.guides.get_mut(i) {
@@ -906,7 +941,7 @@ fn render_features<A: Accel, const F: u8>(
             break;
         }
         tiles.par_iter_mut().filter(|t| !t.done()).for_each(|tile| {
-            let mut sums = TileSums::load(tile, &lock());
+            let mut sums = TileSums::load(tile, &lock(), options.spp.max(1));
             let mut taken = 0u64;
             // One sample's AOVs.
             let mut aov = vec![Vec3::ZERO; naovs];
