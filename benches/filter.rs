@@ -28,6 +28,14 @@ fn noisy_film(width: u32, height: u32) -> Film {
         film.component_variance[Indirect][i] = 0.01;
         film.normal.pixels[i] = Vec3::Z;
         film.depth[i] = 1.0;
+        // Two halves of 32 samples that differ by the noise: the check runs as on a render.
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        let q = Vec3::splat((state >> 8) as f32 / 16_777_216.0);
+        film.component_half[Indirect].pixels[i] = 0.5 * q;
+        film.component_half[Direct].pixels[i] = 0.5 * film.components[Direct].pixels[i];
+        film.half_share[i] = 0.5;
     }
     film
 }
@@ -50,9 +58,19 @@ fn bench(c: &mut Criterion) {
         // The à-trous filter through `composite`, as `render` runs it: on indirect alone, and
         // on every component (caustic is zero, so two layers are filtered).
         // What `--denoise` runs, the time budget: 10 ms at 256x256, 1.5 s at 4K.
+        // With the check against the halves (the default), and without it (`cross=0`).
         let denoise = lightsplit::filter::Setting::denoise();
         group.bench_function(BenchmarkId::new("denoise", denoise.target.name()), |b| {
             b.iter(|| composite(&film, denoise.method.as_ref(), denoise.target, &denoise.stops))
+        });
+        let unchecked = match denoise.method.clone() {
+            Some(Method::Atrous(a)) => {
+                Method::Atrous(lightsplit::filter::atrous::Atrous { cross: false, ..a })
+            }
+            other => other.expect("a method"),
+        };
+        group.bench_function(BenchmarkId::new("denoise-cross0", denoise.target.name()), |b| {
+            b.iter(|| composite(&film, Some(&unchecked), denoise.target, &denoise.stops))
         });
         for (spec, target) in [
             ("atrous:taps=3:passes=4:sigma_l=6:sigma_n=32:sigma_z=2", Target::Indirect),

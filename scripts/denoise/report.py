@@ -34,7 +34,8 @@ kept: a pixel half on the sky holds half an object's light, and
 gathering full-coverage neighbours biases it. Telling those apart needs the share of a pixel's
 samples that missed every object, which the film does not keep yet. The reference's own noise
 is about 4.5e-4 of the gallery's relMSE (2.9e-2 at 64 independent samples, over 64): about half
-of ours and 60% of OIDN's, so the true gap is larger than the table's 1.25x.
+of ours and 60% of OIDN's, so the true gap is larger than the table's (1.25x before issue 41's
+check, 1.32x with it).
 
 **Settings measured** (64 spp, seeds 1 and 2, `filter` of the same films; RMSE / relMSE):
 - One colour stop for every component (`sigma_l=6`, 4 passes, `sigma_n=128`, `sigma_z=1`, the
@@ -60,7 +61,8 @@ nearly clean, indirect noise everywhere, no caustics) on this 2-core machine:
 
 | | 256x256 | 3840x2160 | budget |
 |---|---|---|---|
-| `--denoise` (3x3, 4 passes, components) | 15.6 ms | 1.93 s | 10 ms, 1.5 s: **missed**, 1.56x and 1.29x |
+| `--denoise` (3x3, 4 passes, components), checked against the halves (`cross=1`, issue 41) | 72.9 ms | 9.23 s | 10 ms, 1.5 s: **missed**, 7.3x and 6.2x |
+| the same unchecked (`cross=0`; before issue 41, `--denoise`) | 15.0 ms (15.6 before) | 2.53 s (1.93 before) | **missed**, 1.5x and 1.7x |
 | the same on indirect alone | 9.4 ms | 1.28 s | met |
 | `atrous` defaults (5x5, 5 passes), indirect | 23.4 ms | 2.84 s | |
 | `atrous` defaults, components | 40.0 ms | 4.83 s | |
@@ -82,8 +84,13 @@ ms); one fused geometry-and-weight loop for a single layer (28 to 27 ms); no cop
 pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped; one vector division to
 demodulate and a vectorised end of row (gallery 24.7 to 23.9 ms). This round, `--denoise`'s one pass
 for the direct light (criterion, the bench film: 18.2 to 14.9 ms at 256x256, 2.07 to 1.88 s at
-4K; 15.6 ms and 1.93 s in the run of the table).
-OIDN's times are 10 to 15 times ours."""
+4K; 15.6 ms and 1.93 s in the run of the table). Issue 41's check against the halves of the
+samples filters each layer three times, and costs 4.9x at 256x256 and 3.6x at 4K on the bench
+film (criterion, the two rows above, one run). A profile of it (`perf record`, 256x256) puts 28%
+in the kernel zeroing and faulting in fresh pages of the working buffers, 20% in the tap loop
+and 2% in the check's own blend: the next steps are working buffers reused across layers and
+calls, and the whole image's filter replaced by the mean of the halves' (two runs, not three).
+OIDN's times are 4 to 5 times ours with the check (10 to 15 times without)."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 

@@ -323,7 +323,8 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
         .iter()
         .enumerate()
         .filter_map(|(i, l)| {
-            let (half, share) = l.halves?;
+            // Without a pixel of two sampled halves (1 spp) there is nothing to check.
+            let (half, share) = l.halves.filter(|(_, share)| share.iter().any(|&s| s > 0.0 && s < 1.0))?;
             Some(Halved {
                 layer: i,
                 halves: cross::halves(l.image, half, share),
