@@ -381,6 +381,10 @@ fn m5_non_finite_or_negative_sums_in_a_part_file_are_refused() {
         ("sums.raw.B", -1.0, "sums.raw"),
         ("sums.indirect.R", -0.5, "sums.indirect"),
         ("sums.objectid.coverage", -1.0, "sums.objectid.coverage"),
+        // The halves of the samples: a half above its whole, a NaN, a share not a count.
+        ("sums.raw_half.R", 1e6, "sums.raw_half"),
+        ("sums.indirect_half.G", f32::NAN, "sums.indirect_half"),
+        ("sums.half_share.Y", 0.5, "sums.half_share"),
     ];
     for (channel, value, layer) in cases {
         copy(d, "p1.exr", "bad.exr");
@@ -406,6 +410,12 @@ fn m5_non_finite_or_negative_sums_in_a_part_file_are_refused() {
     );
     let o = run(d, &["merge", "p0.exr", "bad.exr", "-o", "m.exr"]);
     refused(&o, &["bad.exr", "sums.raw_squares", "NaN"], "a NaN square");
+    // A whole count of the second half, but not the part's (samples 2 and 3 of 4 are all in
+    // it).
+    copy(d, "p1.exr", "bad.exr");
+    set_channel(&d.join("bad.exr"), "sums.half_share.Y", Some(3), 1.0);
+    let o = run(d, &["merge", "p0.exr", "bad.exr", "-o", "m.exr"]);
+    refused(&o, &["bad.exr", "sums.half_share", "second half"], "a forged half count");
     assert!(!d.join("m.exr").exists() && !d.join("r.exr").exists(), "nothing written");
 }
 

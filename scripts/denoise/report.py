@@ -90,7 +90,7 @@ film (criterion, the two rows above, one run). A profile of it (`perf record`, 2
 in the kernel zeroing and faulting in fresh pages of the working buffers, 20% in the tap loop
 and 2% in the check's own blend: the next steps are working buffers reused across layers and
 calls, and the whole image's filter replaced by the mean of the halves' (two runs, not three).
-OIDN's times are 4 to 5 times ours with the check (10 to 15 times without)."""
+OIDN's times are 3.6 to 5.2 times ours with the check (10 to 15 times without)."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 

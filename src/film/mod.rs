@@ -120,8 +120,8 @@ pub fn variance_of_mean(n: u32, sum: f64, sum_sq: f64) -> f64 {
 /// samples.
 ///
 /// A render's samples of a pixel split into two halves by their index ([`half_of`]): each
-/// half of a Sobol render is a set of whole aligned blocks of the sequence, so each is itself
-/// well stratified, and the difference of their means measures the noise of the whole. With
+/// half of a Sobol render is a union of aligned power-of-two blocks of the sequence, so each is
+/// itself well stratified, and the difference of their means measures the noise of the whole. With
 /// means `a` and `b` of `n_a` and `n_b` samples, `(a - b)² n_a n_b / n²` is unbiased for
 /// independent samples (each mean's variance σ²/n_a and σ²/n_b, the whole's σ²/n). The sample
 /// variance ([`variance_of_mean`]) assumes independent samples, and overstates a Sobol
@@ -134,9 +134,9 @@ pub fn variance_of_halves(n: u32, n_b: u32, sum: f64, sum_b: f64) -> Option<f64>
 }
 
 /// Which half of a pixel's samples sample `index` of a render of `spp` belongs to: the second
-/// when its bit `2^(floor(log2 spp) - 1)` is set. Both halves are unions of whole aligned
-/// blocks of that many samples, each a stratified set of a Sobol sequence, and at a power of
-/// two they are its first and second halves.
+/// when its bit `2^(floor(log2 spp) - 1)` is set. Both halves are unions of aligned
+/// power-of-two blocks of samples, each a stratified set of a Sobol sequence, and at a power
+/// of two they are its first and second halves.
 #[inline]
 pub fn half_of(index: u32, spp: u32) -> bool {
     let shift = spp.max(2).ilog2() - 1;
@@ -921,17 +921,19 @@ impl Film {
     pub fn check_finite(&self) -> Result<(), String> {
         let images = [("raw", &self.raw), ("albedo", &self.albedo), ("normal", &self.normal)]
             .into_iter()
-            .chain(self.components.named().map(|(c, l)| (c.name(), l)))
-            .chain(self.aovs.iter().map(|a| (a.name.as_str(), &a.image)))
-            .map(|(name, l)| {
-                (name.to_string(), bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len())
-            });
+            .map(|(name, l)| (name.to_string(), l))
+            .chain(self.components.named().map(|(c, l)| (c.name().to_string(), l)))
+            .chain(self.aovs.iter().map(|a| (a.name.clone(), &a.image)))
+            .chain(std::iter::once(("raw_half".to_string(), &self.half)))
+            .chain(self.component_half.named().map(|(c, l)| (format!("{}_half", c.name()), l)))
+            .map(|(name, l)| (name, bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len()));
         let scalars = [
             ("depth", &self.depth),
             ("objectid", &self.object),
             ("objectid.coverage", &self.coverage),
             ("A", &self.alpha),
             ("raw_variance", &self.variance),
+            ("half_share", &self.half_share),
         ]
         .into_iter()
         .map(|(name, v)| (name.to_string(), v))
@@ -942,12 +944,43 @@ impl Film {
             let per = values.len().checked_div(pixels).unwrap_or(1).max(1);
             (name, values.chunks(per).filter(|p| p.iter().any(|x| !x.is_finite())).count(), pixels)
         });
-        match bad.into_iter().find(|(_, count, _)| *count > 0) {
-            None => Ok(()),
-            Some((name, count, of)) => Err(format!(
+        if let Some((name, count, of)) = bad.into_iter().find(|(_, count, _)| *count > 0) {
+            return Err(format!(
                 "{count} of the {of} pixels of its `{name}` layer are NaN or infinite: it cannot be filtered"
-            )),
+            ));
         }
+        self.check_halves()
+    }
+
+    /// The halves a file holds fit its means: each share from 0 to 1, and each half's light at
+    /// most the layer's own, channel by channel (a half's sum over fewer samples, divided by
+    /// all of them, never exceeds the whole sum's, up to the rounding of a 32-bit sum). Light
+    /// is never negative, so a half above its layer was not made by a render.
+    pub fn check_halves(&self) -> Result<(), String> {
+        if !self.has_halves() {
+            return Ok(());
+        }
+        if let Some(at) = self.half_share.iter().position(|s| !(0.0..=1.0).contains(s)) {
+            return Err(format!(
+                "`half_share` at pixel {at} is {}, not a share from 0 to 1",
+                self.half_share[at]
+            ));
+        }
+        let layers = std::iter::once(("raw", &self.raw, &self.half))
+            .chain(self.components.named().map(|(c, l)| (c.name(), l, &self.component_half[c])));
+        for (name, whole, half) in layers {
+            let above = |w: f32, h: f32| h > w + w.abs() * 1e-3 + f32::MIN_POSITIVE;
+            let bad = whole.pixels.iter().zip(&half.pixels).position(|(w, h)| {
+                above(w.x, h.x) || above(w.y, h.y) || above(w.z, h.z) || h.min_element() < 0.0
+            });
+            if let Some(at) = bad {
+                return Err(format!(
+                    "`{name}_half` at pixel {at} is {}, beyond its layer's {} (or negative): not the half of its samples",
+                    half.pixels[at], whole.pixels[at]
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1032,6 +1065,24 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn halves_beyond_their_layer_or_shares_beyond_one_are_refused() {
+        let mut film = Film::new(2, 1);
+        film.raw.pixels = vec![Vec3::splat(1.0); 2];
+        film.half.pixels = vec![Vec3::splat(0.5); 2];
+        film.half_share = vec![0.5; 2];
+        assert_eq!(film.check_finite(), Ok(()));
+        let mut bad = film.clone();
+        bad.half.pixels[1].y = 1.5;
+        assert!(bad.check_finite().is_err_and(|e| e.contains("raw_half") && e.contains("pixel 1")));
+        let mut bad = film.clone();
+        bad.half_share[0] = 1.5;
+        assert!(bad.check_finite().is_err_and(|e| e.contains("half_share")));
+        let mut bad = film.clone();
+        bad.component_half[Component::Direct].pixels[0] = Vec3::NAN;
+        assert!(bad.check_finite().is_err_and(|e| e.contains("direct_half")));
     }
 
     #[test]

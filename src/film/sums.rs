@@ -176,9 +176,11 @@ impl Sums {
             return Err("one has the component split or the guide buffers and the other not".into());
         }
         if a.has_halves() != b.has_halves() {
-            return Err(
-                "one has the halves of its samples and the other not (one written before them?)".into()
-            );
+            // A part written before the halves existed: the sum has none (its variance comes
+            // of the squares, and the filter runs unchecked).
+            for layer in layers::LAYERS.iter().filter(|l| l.group == layers::Group::Halves) {
+                a.set_values(layer.buffer, Vec::new());
+            }
         }
         if self.weights.is_empty() != other.weights.is_empty() {
             return Err("one has splatted filter weights and the other not".into());

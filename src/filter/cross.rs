@@ -16,9 +16,10 @@
 //! Single pixels' estimates are noise, so both are summed over a window (`2 RADIUS + 1`
 //! pixels square) and the filtered image's weight is `w = clamp(2 (1 - Σe_F / Σe_U), 0, 1)`:
 //! all of it where filtering halves the error or better, none where it does not lower it, and
-//! the output is `U + w (F - U)`. Pixels whose halves are not both sampled count in no sum; a
-//! window with no measured noise keeps the filtered image (the filter changes nothing there
-//! that noise would call for). Measured on four Khronos models and the denoising scenes in
+//! the output is `U + w (F - U)`. Pixels whose halves are not both sampled (adaptive sampling
+//! stopped them before the second half) count in no sum, and a window of only such pixels
+//! keeps the unfiltered image. A window of checked pixels without measured noise keeps the
+//! filtered image (the filter changes nothing there that noise would call for). Measured on four Khronos models and the denoising scenes in
 //! docs/RESULTS.md ("Denoising third-party models").
 
 use glam::Vec3;
@@ -62,23 +63,21 @@ fn errors(a: Vec3, b: Vec3, fa: Vec3, fb: Vec3, s: f32) -> Option<(f64, f64)> {
 }
 
 /// Sums of `v` (row-major, `w` by `h`) over the window around each pixel, clipped at the
-/// borders, through a summed-area table.
+/// borders: a sum along each row, then along each column, each of the window's own pixels (no
+/// running sums, whose rounding would carry one bright pixel's error across the image).
 fn window_sums(v: &[f64], w: usize, h: usize) -> Vec<f64> {
-    let mut table = vec![0.0f64; (w + 1) * (h + 1)];
+    let mut rows = vec![0.0; w * h];
     for y in 0..h {
-        let mut row = 0.0;
+        let row = &v[y * w..(y + 1) * w];
         for x in 0..w {
-            row += v[y * w + x];
-            table[(y + 1) * (w + 1) + x + 1] = table[y * (w + 1) + x + 1] + row;
+            rows[y * w + x] = row[x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w)].iter().sum();
         }
     }
     let mut out = vec![0.0; w * h];
     for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(RADIUS), (y + RADIUS + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(RADIUS), (x + RADIUS + 1).min(w));
-            let at = |x: usize, y: usize| table[y * (w + 1) + x];
-            out[y * w + x] = at(x1, y1) - at(x0, y1) - at(x1, y0) + at(x0, y0);
+        for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
+            let (o, r) = (&mut out[y * w..(y + 1) * w], &rows[yy * w..(yy + 1) * w]);
+            o.iter_mut().zip(r).for_each(|(o, r)| *o += r);
         }
     }
     out
@@ -102,7 +101,9 @@ pub fn blend(
     out
 }
 
-/// Each pixel's weight of the filtered image ([`blend`]).
+/// Each pixel's weight of the filtered image ([`blend`]): 0 in a window without a pixel of two
+/// sampled halves (adaptive sampling stopped them early: the check cannot speak there, and the
+/// pixels it stopped were the clean ones).
 fn weights(
     w: usize,
     h: usize,
@@ -111,16 +112,21 @@ fn weights(
     share: &[f32],
 ) -> Vec<f32> {
     let n = w * h;
-    let (mut e_u, mut e_f) = (vec![0.0; n], vec![0.0; n]);
+    let (mut e_u, mut e_f, mut checked) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     for i in 0..n {
         if let Some((u, f)) = errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i]) {
-            (e_u[i], e_f[i]) = (u, f);
+            (e_u[i], e_f[i], checked[i]) = (u, f, 1.0);
         }
     }
-    let (e_u, e_f) = (window_sums(&e_u, w, h), window_sums(&e_f, w, h));
+    let (e_u, e_f, checked) = (window_sums(&e_u, w, h), window_sums(&e_f, w, h), window_sums(&checked, w, h));
     e_u.iter()
         .zip(&e_f)
-        .map(|(&u, &f)| if u > 0.0 { (2.0 * (1.0 - f / u)).clamp(0.0, 1.0) as f32 } else { 1.0 })
+        .zip(&checked)
+        .map(|((&u, &f), &c)| match (c > 0.0, u > 0.0) {
+            (false, _) => 0.0,
+            (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0) as f32,
+            (true, false) => 1.0,
+        })
         .collect()
 }
 
@@ -171,6 +177,9 @@ mod tests {
         // Without measured noise (equal halves), the filtered image is kept.
         let same = blend(&t, &off, (&t, &t), (&off, &off), &share);
         assert_eq!(same, off);
+        // Without a pixel of two sampled halves the check cannot speak: the unfiltered image.
+        let none = vec![0.0; share.len()];
+        assert_eq!(blend(&u, &t, (&a, &b), (&t, &t), &none), u);
     }
 
     #[test]

@@ -332,6 +332,34 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
             refuse_any(&layer(name), what, n, w, |i| !moments_fit(samples[i], lum(i), sq[i]))?;
         }
     }
+    if f.has_halves() {
+        // Halves are of a pixel's own samples: never with a splatted filter.
+        if !weights.is_empty() {
+            return Err(format!("{SUMS}half_share: halves beside a splatted filter's weights"));
+        }
+        // Without adaptive sampling a pixel's samples are the first of its part's range, so
+        // which of them are in the second half is known.
+        if header.adaptive.is_none() {
+            let second = |taken: u32| {
+                let end = range.start.saturating_add(taken).min(range.end);
+                (range.start..end).filter(|&k| film::half_of(k, header.spp)).count() as f32
+            };
+            refuse_any(&layer("half_share"), "not the count of the samples in the second half", n, w, |i| {
+                f.half_share[i] != second(samples[i])
+            })?;
+        }
+        // A half's light, the sum of some of the samples, is at most the whole sum (light is
+        // never negative), up to the rounding of a 32-bit sum over the samples.
+        let halves = std::iter::once(("raw_half", &f.raw, &f.half))
+            .chain(f.components.named().map(|(c, l)| (c.name(), l, &f.component_half[c])));
+        for (name, whole, half) in halves {
+            let name = if name == "raw_half" { name.to_string() } else { format!("{name}_half") };
+            refuse_any(&layer(&name), "more than the whole sum of the pixel's samples", n, w, |i| {
+                let (a, b) = (whole.pixels[i], half.pixels[i]);
+                (b - a).max_element() > a.max_element() * 1e-3 + f32::MIN_POSITIVE
+            })?;
+        }
+    }
     // A Cryptomatte's weights: each of the pixel's own samples weighs 1 with the pixel's box
     // (splatted, the weights are the filter's, not checked).
     for matte in f.mattes.iter().filter(|_| weights.is_empty()) {
