@@ -924,8 +924,7 @@ impl Film {
             .map(|(name, l)| (name.to_string(), l))
             .chain(self.components.named().map(|(c, l)| (c.name().to_string(), l)))
             .chain(self.aovs.iter().map(|a| (a.name.clone(), &a.image)))
-            .chain(std::iter::once(("raw_half".to_string(), &self.half)))
-            .chain(self.component_half.named().map(|(c, l)| (format!("{}_half", c.name()), l)))
+            .chain(self.halves_named().map(|(name, _, half)| (name, half)))
             .map(|(name, l)| (name, bytemuck::cast_slice::<Vec3, f32>(&l.pixels), l.pixels.len()));
         let scalars = [
             ("depth", &self.depth),
@@ -952,6 +951,14 @@ impl Film {
         self.check_halves()
     }
 
+    /// Each half layer by name (`raw_half`, `direct_half`, ...) with its whole layer: the
+    /// beauty's, then each component's.
+    pub fn halves_named(&self) -> impl Iterator<Item = (String, &Image, &Image)> {
+        std::iter::once(("raw_half".to_string(), &self.raw, &self.half)).chain(
+            self.components.named().map(|(c, l)| (format!("{}_half", c.name()), l, &self.component_half[c])),
+        )
+    }
+
     /// The halves a file holds fit its means: each share from 0 to 1, and each half's light at
     /// most the layer's own, channel by channel (a half's sum over fewer samples, divided by
     /// all of them, never exceeds the whole sum's, up to the rounding of a 32-bit sum). Light
@@ -966,16 +973,14 @@ impl Film {
                 self.half_share[at]
             ));
         }
-        let layers = std::iter::once(("raw", &self.raw, &self.half))
-            .chain(self.components.named().map(|(c, l)| (c.name(), l, &self.component_half[c])));
-        for (name, whole, half) in layers {
+        for (name, whole, half) in self.halves_named() {
             let above = |w: f32, h: f32| h > w + w.abs() * 1e-3 + f32::MIN_POSITIVE;
             let bad = whole.pixels.iter().zip(&half.pixels).position(|(w, h)| {
                 above(w.x, h.x) || above(w.y, h.y) || above(w.z, h.z) || h.min_element() < 0.0
             });
             if let Some(at) = bad {
                 return Err(format!(
-                    "`{name}_half` at pixel {at} is {}, beyond its layer's {} (or negative): not the half of its samples",
+                    "`{name}` at pixel {at} is {}, beyond its layer's {} (or negative): not the half of its samples",
                     half.pixels[at], whole.pixels[at]
                 ));
             }

@@ -1105,13 +1105,20 @@ mod tests {
         assert!(spread(&out[0], m_out) < 0.5 * spread(&image, m_in));
     }
 
+    /// A `w` by `h` layer of uniform random colours from stream `seed`, and a random variance
+    /// of up to `scale` for each pixel.
+    fn noisy_layer(w: u32, h: u32, seed: u32, scale: f32) -> (Image, Vec<f32>) {
+        let mut next = stream(seed);
+        let mut image = Image::new(w, h);
+        image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
+        let variance = (0..w * h).map(|_| scale * next()).collect();
+        (image, variance)
+    }
+
     #[test]
     fn the_result_does_not_depend_on_the_thread_count() {
         let film = random_film(57, 33, 3);
-        let mut next = stream(5);
-        let mut image = Image::new(57, 33);
-        image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
-        let variance: Vec<f32> = (0..57 * 33).map(|_| 0.1 * next()).collect();
+        let (image, variance) = noisy_layer(57, 33, 5, 0.1);
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
             pool.install(|| {
@@ -1130,10 +1137,7 @@ mod tests {
     #[test]
     fn clamp_bounds_the_change_by_the_noise() {
         let film = random_film(37, 23, 7);
-        let mut next = stream(17);
-        let mut image = Image::new(37, 23);
-        image.pixels.iter_mut().for_each(|p| *p = Vec3::new(next(), next(), next()));
-        let variance: Vec<f32> = (0..37 * 23).map(|_| 0.01 * next()).collect();
+        let (image, variance) = noisy_layer(37, 23, 17, 0.01);
         let run = |clamp: Option<f32>| {
             let a = Atrous { clamp, ..Atrous::default() };
             filter(&[FilterInput::new(&image, Some(&variance))], &film, &a, false).remove(0)

@@ -313,11 +313,11 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
                 .collect(),
         )
     };
-    struct Halved {
+    struct Halved<'a> {
         layer: usize,
         halves: (Image, Image),
         variances: (Option<Vec<f32>>, Option<Vec<f32>>),
-        share: Vec<f32>,
+        share: &'a [f32],
     }
     let halved: Vec<Halved> = layers
         .iter()
@@ -329,7 +329,7 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
                 layer: i,
                 halves: cross::halves(l.image, half, share),
                 variances: (scaled(l.variance, share, false), scaled(l.variance, share, true)),
-                share: share.to_vec(),
+                share,
             })
         })
         .collect();
@@ -349,7 +349,7 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
             whole,
             (&h.halves.0, &h.halves.1),
             (&pair[0], &pair[1]),
-            &h.share,
+            h.share,
         );
         out[h.layer] = blended;
     }

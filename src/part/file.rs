@@ -350,10 +350,7 @@ fn check_sums(header: &Header, sums: &Sums) -> Result<(), String> {
         }
         // A half's light, the sum of some of the samples, is at most the whole sum (light is
         // never negative), up to the rounding of a 32-bit sum over the samples.
-        let halves = std::iter::once(("raw_half", &f.raw, &f.half))
-            .chain(f.components.named().map(|(c, l)| (c.name(), l, &f.component_half[c])));
-        for (name, whole, half) in halves {
-            let name = if name == "raw_half" { name.to_string() } else { format!("{name}_half") };
+        for (name, whole, half) in f.halves_named() {
             refuse_any(&layer(&name), "more than the whole sum of the pixel's samples", n, w, |i| {
                 let (a, b) = (whole.pixels[i], half.pixels[i]);
                 (b - a).max_element() > a.max_element() * 1e-3 + f32::MIN_POSITIVE
