@@ -119,7 +119,11 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
     let method = setting.method.as_ref().expect("a method");
     let (checked, _) = composite(&film, Some(method), setting.target, &setting.stops);
     assert_ne!(checked.pixels, film.raw.pixels, "the filter was dropped on a noisy render");
-    // Halves that agree measure no noise: the filter is kept whole, as without the check.
+    // Halves that agree measure no noise: the filter is kept whole. Each half is filtered as a
+    // mean of half the samples (at 4 spp each half has two of the four), with twice the
+    // variance, and the halves' filtered images are then equal: the unchecked filter with the
+    // variances doubled.
+    assert!(film.half_share.iter().all(|&s| s == 0.5), "halves of equal size at 4 spp");
     let mut agreeing = film.clone();
     for c in Component::ALL {
         agreeing.component_half[c].pixels =
@@ -134,6 +138,9 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
             f.set_values(layer.buffer, Vec::new());
         }
         assert!(!f.has_halves());
+        for c in Component::ALL {
+            f.component_variance[c].iter_mut().for_each(|v| *v *= 2.0);
+        }
         composite(&f, Some(method), setting.target, &setting.stops).0.into_owned()
     };
     let kept = composite(&agreeing, Some(method), setting.target, &setting.stops).0.into_owned();

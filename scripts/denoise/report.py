@@ -61,8 +61,8 @@ nearly clean, indirect noise everywhere, no caustics) on this 2-core machine:
 
 | | 256x256 | 3840x2160 | budget |
 |---|---|---|---|
-| `--denoise` (3x3, 4 passes, components), checked against the halves (`cross=1`, issue 41) | 72.9 ms | 9.23 s | 10 ms, 1.5 s: **missed**, 7.3x and 6.2x |
-| the same unchecked (`cross=0`; before issue 41, `--denoise`) | 15.0 ms (15.6 before) | 2.53 s (1.93 before) | **missed**, 1.5x and 1.7x |
+| `--denoise` (3x3, 4 passes, components), checked against the halves (`cross=1`, issue 41) | 43.7 ms (72.9 before the steps below) | 5.20 s (9.23 before) | 10 ms, 1.5 s: **missed**, 4.4x and 3.5x |
+| the same unchecked (`cross=0`; before issue 41, `--denoise`) | 13.5 ms (15.6 before issue 41) | 2.53 s (1.93 before) | **missed**, 1.35x and 1.7x |
 | the same on indirect alone | 9.4 ms | 1.28 s | met |
 | `atrous` defaults (5x5, 5 passes), indirect | 23.4 ms | 2.84 s | |
 | `atrous` defaults, components | 40.0 ms | 4.83 s | |
@@ -85,12 +85,29 @@ pass (3x3 on indirect: 15.5 to 12.9 ms); noiseless pixels skipped; one vector di
 demodulate and a vectorised end of row (gallery 24.7 to 23.9 ms). This round, `--denoise`'s one pass
 for the direct light (criterion, the bench film: 18.2 to 14.9 ms at 256x256, 2.07 to 1.88 s at
 4K; 15.6 ms and 1.93 s in the run of the table). Issue 41's check against the halves of the
-samples filters each layer three times, and costs 4.9x at 256x256 and 3.6x at 4K on the bench
-film (criterion, the two rows above, one run). A profile of it (`perf record`, 256x256) puts 28%
-in the kernel zeroing and faulting in fresh pages of the working buffers, 20% in the tap loop
-and 2% in the check's own blend: the next steps are working buffers reused across layers and
-calls, and the whole image's filter replaced by the mean of the halves' (two runs, not three).
-OIDN's times are 3.6 to 5.2 times ours with the check (10 to 15 times without)."""
+samples first filtered each layer three times (whole and each half) and cost 4.9x at 256x256
+(72.9 ms) and 3.6x at 4K (9.23 s). Three steps since, each measured on the bench film
+(criterion, AMD EPYC, AVX2 without AVX-512):
+- The whole image's filter replaced by the filtered halves weighted by their shares of the
+  samples (two runs, not three): 72.9 to 51.5 ms. The check's estimate holds for that mix
+  (`src/filter/cross.rs`). Kept; it costs a little error where the filter was already right
+  (paper-sky relMSE 0.27x to 0.285x the unfiltered, the gallery's 0.050x to 0.051x, the Cornell
+  box unchanged; the four models' rows within 1.7% of the ratios before, none above the
+  unfiltered).
+- The check's window sums in parallel, plane by plane, without image-sized buffers (one column
+  sum and one row sum a thread), and the halves made in parallel: 51.5 to 44 ms (45.4 and
+  43.8 in two runs). Kept; the same bits (the sums add in the same order).
+- The passes compiled for AVX2 where the CPU has it (`Avx2::run` in the BVH's SIMD module,
+  detected at run time; the same bits as the portable build, tested): 45.4 against 43.7 ms
+  (medians of three rounds alternated, the portable build first), 5.40 against 5.20 s at 4K:
+  3.7% at both sizes. Kept, at the edge of the run-to-run spread.
+
+A profile now (`perf record`, 256x256): the passes 44% (the tap loop, then the colour stops'
+3x3 blur), page faults of the fresh buffers about 10%, the check's window sums 7%, and the
+rest demodulation, the halves and scheduling. The next steps: the tap loop with a block of
+centres in registers, the luminance plane dropped from the working buffers (computed from r, g,
+b), and the direct light's halves, a single pass, filtered in the same run as the indirect's
+first. OIDN's times are 5 to 8 times ours with the check (10 to 15 times without)."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 

@@ -1,17 +1,19 @@
-//! The à-trous filter checked against the render's own noise: each layer is filtered three
-//! times, whole and each half of its samples on its own ([`crate::film::half_of`]), and each
-//! half's filtered image is compared with the other half's unfiltered one. That measures the
-//! filtered image's error (its bias and the noise it leaves) against the unfiltered image's
-//! noise, and the filtered image is kept only where it wins, down to not at all.
+//! The à-trous filter checked against the render's own noise: each half of a layer's samples
+//! ([`crate::film::half_of`]) is filtered on its own, and each half's filtered image is compared
+//! with the other half's unfiltered one. That measures the filtered image's error (its bias and
+//! the noise it leaves) against the unfiltered image's noise, and the filtered image is kept
+//! only where it wins, down to not at all. The filtered image is the filtered halves weighted by
+//! their shares of the samples, `F = (1 - s) F_A + s F_B`: two runs of the filter, not three.
 //!
 //! Per pixel, with `A` and `B` the halves' means, `s` the second half's share of the samples,
-//! `F_A`, `F_B` and `F` the filtered halves and whole, and squares summed over the channels:
+//! `F_A`, `F_B` the filtered halves, and squares summed over the channels:
 //! - the unfiltered image's error is its variance, `e_U = |A - B|² s (1 - s)` (the variance
 //!   of a mean of independent samples; [`crate::film::variance_of_halves`] for the luminance);
 //! - each filtered half's error against the truth is its distance from the other half less
 //!   that half's variance: `e_A = |F_A - B|² - |A - B|² (1 - s)`, `e_B = |F_B - A|² - |A - B|² s`;
-//! - their noise is what `F_A` and `F_B` disagree by, `D = |F_A - F_B|²`, of which the whole
-//!   keeps `D s (1 - s)`, so `e_F = (e_A - D s + e_B - D (1 - s)) / 2 + D s (1 - s)`.
+//! - their noise is what `F_A` and `F_B` disagree by, `D = |F_A - F_B|²`, of which the mix `F`
+//!   keeps `D s (1 - s)` (each half's noise variance is inversely proportional to its share),
+//!   so `e_F = (e_A - D s + e_B - D (1 - s)) / 2 + D s (1 - s)`: both brackets are the bias.
 //!
 //! Single pixels' estimates are noise, so both are summed over a window (`2 RADIUS + 1`
 //! pixels square) and the filtered image's weight is `w = clamp(2 (1 - Σe_F / Σe_U), 0, 1)`:
@@ -23,6 +25,7 @@
 //! docs/RESULTS.md ("Denoising third-party models").
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::film::Image;
 
@@ -36,12 +39,12 @@ pub const RADIUS: usize = 7;
 /// in both.
 pub fn halves(u: &Image, half: &Image, share: &[f32]) -> (Image, Image) {
     let (mut a, mut b) = (u.clone(), u.clone());
-    for (((a, b), &h), &s) in a.pixels.iter_mut().zip(&mut b.pixels).zip(&half.pixels).zip(share) {
+    a.pixels.par_iter_mut().zip(&mut b.pixels).zip(&half.pixels).zip(share).for_each(|(((a, b), &h), &s)| {
         if s > 0.0 && s < 1.0 {
             *b = h / s;
             *a = (*a - h) / (1.0 - s);
         }
-    }
+    });
     (a, b)
 }
 
@@ -62,42 +65,58 @@ fn errors(a: Vec3, b: Vec3, fa: Vec3, fb: Vec3, s: f32) -> Option<(f64, f64)> {
     (e_u.is_finite() && e_f.is_finite()).then_some((e_u, e_f))
 }
 
-/// Sums of `v` (row-major, `w` by `h`) over the window around each pixel, clipped at the
-/// borders: a sum along each row, then along each column, each of the window's own pixels (no
-/// running sums, whose rounding would carry one bright pixel's error across the image).
-fn window_sums(v: &[f64], w: usize, h: usize) -> Vec<f64> {
-    let mut rows = vec![0.0; w * h];
-    for y in 0..h {
-        let row = &v[y * w..(y + 1) * w];
-        for x in 0..w {
-            rows[y * w + x] = row[x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w)].iter().sum();
-        }
-    }
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
-            let (o, r) = (&mut out[y * w..(y + 1) * w], &rows[yy * w..(yy + 1) * w]);
-            o.iter_mut().zip(r).for_each(|(o, r)| *o += r);
-        }
-    }
-    out
+/// Sums of each plane of `v` (row-major, `w` by `h`) over the window around each pixel,
+/// clipped at the borders, handed row by row to `row(sums, out)` with the row of `out`: for
+/// each output row the window's rows summed along each column, then the columns along the row,
+/// each of the window's own pixels (no running sums, whose rounding would carry one bright
+/// pixel's error across the image), in f64. Rows run in parallel, each with its own two rows of
+/// scratch; the loops add whole slices, which vectorise.
+fn window_sums<const N: usize>(
+    v: [&[f32]; N],
+    w: usize,
+    h: usize,
+    out: &mut [f32],
+    row: impl Fn([&[f64]; N], &mut [f32]) + Sync,
+) {
+    let r = RADIUS as isize;
+    out.par_chunks_mut(w.max(1)).enumerate().for_each_init(
+        || (vec![0.0f64; N * w], vec![0.0f64; N * w]),
+        |(columns, sums), (y, o)| {
+            columns.fill(0.0);
+            sums.fill(0.0);
+            for (k, plane) in v.iter().enumerate() {
+                let column = &mut columns[k * w..(k + 1) * w];
+                for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
+                    column.iter_mut().zip(&plane[yy * w..(yy + 1) * w]).for_each(|(c, &p)| *c += p as f64);
+                }
+                let sum = &mut sums[k * w..(k + 1) * w];
+                // sum[x] += column[x + d], from the window's left end to its right.
+                for d in -r..=r {
+                    let (x0, x1) = ((-d).max(0) as usize, (w as isize - d.max(0)).max(0) as usize);
+                    if x0 < x1 {
+                        let shifted = &column[(x0 as isize + d) as usize..(x1 as isize + d) as usize];
+                        sum[x0..x1].iter_mut().zip(shifted).for_each(|(s, &c)| *s += c);
+                    }
+                }
+            }
+            row(std::array::from_fn(|k| &sums[k * w..(k + 1) * w]), o);
+        },
+    );
 }
 
-/// The filtered layer `f` kept where the halves say it beats the unfiltered `u` (module docs):
-/// `u + w (f - u)` per pixel, from the halves `a`, `b`, their filtered images `fa`, `fb` and
-/// the second half's share of the samples `share`.
-pub fn blend(
-    u: &Image,
-    f: &Image,
-    (a, b): (&Image, &Image),
-    (fa, fb): (&Image, &Image),
-    share: &[f32],
-) -> Image {
+/// The filtered layer kept where the halves say it beats the unfiltered `u` (module docs):
+/// `u + w (F - u)` per pixel with `F = (1 - s) F_A + s F_B`, from the halves `a`, `b`, their
+/// filtered images `fa`, `fb` and the second half's share of the samples `share`.
+pub fn blend(u: &Image, (a, b): (&Image, &Image), (fa, fb): (&Image, &Image), share: &[f32]) -> Image {
     let weights = weights(u.width as usize, u.height as usize, (a, b), (fa, fb), share);
     let mut out = u.clone();
-    for ((o, &f), &w) in out.pixels.iter_mut().zip(&f.pixels).zip(&weights) {
-        *o += w * (f - *o);
-    }
+    out.pixels.par_iter_mut().enumerate().for_each(|(i, o)| {
+        let s = share[i].clamp(0.0, 1.0);
+        // (1 - s) F_A + s F_B, exactly F_A where the two agree.
+        let f = fa.pixels[i] + s * (fb.pixels[i] - fa.pixels[i]);
+        // All of the filtered image exactly where it is kept whole.
+        *o = if weights[i] == 1.0 { f } else { *o + weights[i] * (f - *o) };
+    });
     out
 }
 
@@ -111,23 +130,28 @@ fn weights(
     (fa, fb): (&Image, &Image),
     share: &[f32],
 ) -> Vec<f32> {
-    let n = w * h;
-    let (mut e_u, mut e_f, mut checked) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    for i in 0..n {
-        if let Some((u, f)) = errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i]) {
-            (e_u[i], e_f[i], checked[i]) = (u, f, 1.0);
+    // Per pixel e_U, e_F and whether it counts (module docs), plane by plane.
+    let (mut e_u, mut e_f, mut checked) = (vec![0.0f32; w * h], vec![0.0f32; w * h], vec![0.0f32; w * h]);
+    e_u.par_iter_mut().zip(&mut e_f).zip(&mut checked).enumerate().for_each(|(i, ((u, f), c))| {
+        // Stored as f32, summed as f64; a pixel whose errors f32 cannot hold counts in no
+        // sum, as one whose halves are not both sampled.
+        if let Some((eu, ef)) = errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i]) {
+            if (eu as f32).is_finite() && (ef as f32).is_finite() {
+                (*u, *f, *c) = (eu as f32, ef as f32, 1.0);
+            }
         }
-    }
-    let (e_u, e_f, checked) = (window_sums(&e_u, w, h), window_sums(&e_f, w, h), window_sums(&checked, w, h));
-    e_u.iter()
-        .zip(&e_f)
-        .zip(&checked)
-        .map(|((&u, &f), &c)| match (c > 0.0, u > 0.0) {
-            (false, _) => 0.0,
-            (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0) as f32,
-            (true, false) => 1.0,
-        })
-        .collect()
+    });
+    let mut weights = vec![0.0; w * h];
+    window_sums([&e_u, &e_f, &checked], w, h, &mut weights, |[u, f, checked], out| {
+        for (((o, &u), &f), &checked) in out.iter_mut().zip(u).zip(f).zip(checked) {
+            *o = match (checked > 0.0, u > 0.0) {
+                (false, _) => 0.0,
+                (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0) as f32,
+                (true, false) => 1.0,
+            };
+        }
+    });
+    weights
 }
 
 #[cfg(test)]
@@ -169,32 +193,39 @@ mod tests {
         let share = vec![0.5; (w * h) as usize];
         // A perfect filter: the truth, from either half.
         let t = image(w, h, truth);
-        let kept = blend(&u, &t, (&a, &b), (&t, &t), &share);
+        let kept = blend(&u, (&a, &b), (&t, &t), &share);
         assert_eq!(kept, t, "a filter that removes all the noise is kept whole");
         // A filter that returns a constant far from the truth (all bias).
         let off = image(w, h, |_| Vec3::splat(3.0));
-        assert_eq!(blend(&u, &off, (&a, &b), (&off, &off), &share), u, "all bias: not kept");
+        assert_eq!(blend(&u, (&a, &b), (&off, &off), &share), u, "all bias: not kept");
         // Without measured noise (equal halves), the filtered image is kept.
-        let same = blend(&t, &off, (&t, &t), (&off, &off), &share);
+        let same = blend(&t, (&t, &t), (&off, &off), &share);
         assert_eq!(same, off);
         // Without a pixel of two sampled halves the check cannot speak: the unfiltered image.
         let none = vec![0.0; share.len()];
-        assert_eq!(blend(&u, &t, (&a, &b), (&t, &t), &none), u);
+        assert_eq!(blend(&u, (&a, &b), (&t, &t), &none), u);
     }
 
     #[test]
     fn window_sums_equal_a_direct_sum() {
-        let (w, h) = (23usize, 17usize);
-        let v: Vec<f64> = (0..w * h).map(|i| noise(i, 3) as f64).collect();
-        let sums = window_sums(&v, w, h);
-        for (x, y) in [(0usize, 0usize), (5, 9), (22, 16), (11, 3)] {
-            let mut want = 0.0;
-            for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
-                for xx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
-                    want += v[yy * w + xx];
+        for (w, h) in [(23usize, 17usize), (5, 3), (1, 20)] {
+            let planes: Vec<Vec<f32>> =
+                (0..2).map(|k| (0..w * h).map(|i| noise(i, 3 + k)).collect()).collect();
+            let mut sums = vec![0.0f32; w * h];
+            // The second plane's sum, through the row callback.
+            window_sums([&planes[0], &planes[1]], w, h, &mut sums, |[_, s], out| {
+                out.iter_mut().zip(s).for_each(|(o, s)| *o = *s as f32)
+            });
+            for (x, y) in [(0usize, 0usize), (5, 9), (22, 16), (11, 3), (w - 1, h - 1)] {
+                let (x, y) = (x.min(w - 1), y.min(h - 1));
+                let mut want = 0.0f64;
+                for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
+                    for xx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
+                        want += planes[1][yy * w + xx] as f64;
+                    }
                 }
+                assert!((sums[y * w + x] as f64 - want).abs() < 1e-5, "{w}x{h} ({x}, {y})");
             }
-            assert!((sums[y * w + x] - want).abs() < 1e-9, "({x}, {y})");
         }
     }
 }

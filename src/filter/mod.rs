@@ -293,14 +293,14 @@ pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops
     }
 }
 
-/// À-trous on `layers`, each layer with halves also filtered half by half and kept only where
-/// that says it lowers the error ([`cross`]). All the images are filtered in one call.
+/// À-trous on `layers`, each layer with halves filtered half by half and kept only where that
+/// says it lowers the error ([`cross`]). All the images are filtered in one call.
 fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -> Vec<Image> {
     // Each half's variance: the whole's over the half's share of the samples.
     let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<Vec<f32>> {
         let v = variance?;
         Some(
-            v.iter()
+            v.par_iter()
                 .zip(share)
                 .map(|(&v, &s)| {
                     let part = if second { s } else { 1.0 - s };
@@ -333,27 +333,32 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
             })
         })
         .collect();
-    let mut inputs: Vec<FilterInput> = layers.iter().map(|l| FilterInput { halves: None, ..*l }).collect();
+    // The layers without halves are filtered whole. Those with halves are filtered only half by
+    // half, and their whole is the filtered halves weighted by their shares of the samples (the
+    // check's estimate is that mix's error: [`cross`]).
+    let whole: Vec<usize> = (0..layers.len()).filter(|&i| !halved.iter().any(|h| h.layer == i)).collect();
+    let mut inputs: Vec<FilterInput> =
+        whole.iter().map(|&i| FilterInput { halves: None, ..layers[i] }).collect();
     for h in &halved {
         let component = layers[h.layer].component;
         for (image, variance) in [(&h.halves.0, &h.variances.0), (&h.halves.1, &h.variances.1)] {
             inputs.push(FilterInput { image, variance: variance.as_deref(), component, halves: None });
         }
     }
-    let mut out = atrous::filter(&inputs, film, a, stops.pure);
-    let halves_filtered = out.split_off(layers.len());
-    for (h, pair) in halved.iter().zip(halves_filtered.chunks_exact(2)) {
-        let whole = &out[h.layer];
-        let blended = cross::blend(
-            layers[h.layer].image,
-            whole,
-            (&h.halves.0, &h.halves.1),
-            (&pair[0], &pair[1]),
-            h.share,
-        );
-        out[h.layer] = blended;
-    }
-    out
+    let mut filtered = atrous::filter(&inputs, film, a, stops.pure).into_iter();
+    let mut whole = filtered.by_ref().take(whole.len()).collect::<Vec<_>>().into_iter();
+    let halves_filtered: Vec<Image> = filtered.collect();
+    let checked = halved.iter().zip(halves_filtered.chunks_exact(2));
+    layers
+        .iter()
+        .enumerate()
+        .map(|(i, l)| match checked.clone().find(|(h, _)| h.layer == i) {
+            Some((h, pair)) => {
+                cross::blend(l.image, (&h.halves.0, &h.halves.1), (&pair[0], &pair[1]), h.share)
+            }
+            None => whole.next().unwrap_or_else(|| l.image.clone()),
+        })
+        .collect()
 }
 
 /// How a method runs: over a local window, pixel by pixel (the paper's filters), or as the
