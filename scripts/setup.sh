@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Installs what lightsplit needs to build on Debian or Ubuntu: Embree (3.13 on Debian 12 /
-# Ubuntu 22.04, 4.x on Debian 13 / Ubuntu 24.04) with its headers, and libclang for bindgen.
+# Ubuntu 22.04, 4.x on Debian 13 / Ubuntu 24.04) with its headers, libclang for bindgen, and
+# Python 3 with venv (the Python module's build reads the interpreter; its tests run in a venv).
 # Does nothing when everything is already there. Needs root or sudo for apt-get.
 set -euo pipefail
 
-packages=(libembree-dev libclang-dev pkg-config)
+packages=(libembree-dev libclang-dev pkg-config python3 python3-venv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -137,6 +137,14 @@ pub struct Job<'s> {
 /// A render done, not yet written ([`Job::write`]).
 pub struct Rendered(render::RenderOutput);
 
+impl Rendered {
+    /// The render itself, for a caller that keeps it in memory instead of writing it (the
+    /// Python module).
+    pub fn into_output(self) -> render::RenderOutput {
+        self.0
+    }
+}
+
 /// A finished (or stopped) job.
 pub struct Done {
     pub stats: RenderStats,
