@@ -90,10 +90,10 @@ samples first filtered each layer three times (whole and each half) and cost 4.9
 (criterion, AMD EPYC, AVX2 without AVX-512):
 - The whole image's filter replaced by the filtered halves weighted by their shares of the
   samples (two runs, not three): 72.9 to 51.5 ms. The check's estimate holds for that mix
-  (`src/filter/cross.rs`). Kept; it costs a little error where the filter was already right
-  (paper-sky relMSE 0.27x to 0.285x the unfiltered, the gallery's 0.050x to 0.051x, the Cornell
-  box unchanged; the four models' rows within 1.7% of the ratios before, none above the
-  unfiltered).
+  (`src/filter/cross.rs`). Kept; it costs a little error (`filter --denoise` on this table's
+  renders, the mean of both seeds: paper-sky relMSE 6.16e-5 to 6.53e-5, the gallery's 9.79e-4
+  to 9.97e-4, the Cornell box's 2.59e-4 to 2.60e-4; RMSE within 1.2%; the four models' ratios
+  within 1.7% of before, every row still holding).
 - The check's window sums in parallel, plane by plane, without image-sized buffers (one column
   sum and one row sum a thread), and the halves made in parallel: 51.5 to 44 ms (45.4 and
   43.8 in two runs). Kept; the same bits (the sums add in the same order).
@@ -107,7 +107,7 @@ A profile now (`perf record`, 256x256): the passes 44% (the tap loop, then the c
 rest demodulation, the halves and scheduling. The next steps: the tap loop with a block of
 centres in registers, the luminance plane dropped from the working buffers (computed from r, g,
 b), and the direct light's halves, a single pass, filtered in the same run as the indirect's
-first. OIDN's times are 5 to 8 times ours with the check (10 to 15 times without)."""
+first."""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 
