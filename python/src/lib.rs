@@ -12,6 +12,7 @@ use std::time::Duration;
 use glam::Vec3;
 use lightsplit::accel::Backend;
 use lightsplit::error::Classify;
+use lightsplit::film::layers::LAYERS;
 use lightsplit::film::{self, Film, Image, Metadata};
 use lightsplit::filter::{composite, Overrides, Setting};
 use lightsplit::job::{Job, Request};
@@ -448,6 +449,20 @@ impl Render {
         }
         for (layer, values) in self.film.layers() {
             let width = layer.width();
+            let prefix = |full: &'static str| full.split_once('.').map_or(full, |(name, _)| name);
+            let name = prefix(layer.channels[0]);
+            // A layer alone under its name (all but objectid's two): its interleaved values
+            // are the array's, copied once.
+            if LAYERS.iter().filter(|l| prefix(l.channels[0]) == name).count() == 1 {
+                let channels: Vec<&str> = layer
+                    .channels
+                    .iter()
+                    .map(|full| full.split_once('.').map_or(*full, |(_, c)| c))
+                    .collect();
+                arrays.set_item(name, array(py, values.to_vec(), h, w, width)?)?;
+                names.set_item(name, PyList::new(py, channels)?)?;
+                continue;
+            }
             for (c, full) in layer.channels.iter().enumerate() {
                 let (name, channel) = full.split_once('.').unwrap_or((full, full));
                 add(name, channel, values.iter().skip(c).step_by(width).copied().collect());
