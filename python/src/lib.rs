@@ -34,6 +34,15 @@ fn py_error(e: impl Classify) -> PyErr {
     }
 }
 
+/// A filter target by its command-line name (`--filter-target`).
+fn target_of(name: Option<&str>) -> PyResult<Option<lightsplit::filter::Target>> {
+    name.map(|n| {
+        lightsplit::filter::Target::from_name(n)
+            .ok_or_else(|| PyValueError::new_err(format!("filter target `{n}` is not a target")))
+    })
+    .transpose()
+}
+
 /// A loaded scene and the settings a render takes from it, which Python may change first.
 #[pyclass(module = "lightsplit._native")]
 struct Scene {
@@ -260,13 +269,7 @@ impl Scene {
         if threads == Some(0) {
             return Err(PyValueError::new_err("threads must be at least 1"));
         }
-        let target =
-            match filter_target.as_deref() {
-                None => None,
-                Some(name) => Some(lightsplit::filter::Target::from_name(name).ok_or_else(|| {
-                    PyValueError::new_err(format!("filter_target `{name}` is not a target"))
-                })?),
-            };
+        let target = target_of(filter_target.as_deref())?;
         let request = Request {
             // An EXR: every layer is computed, as the command line's EXR has them.
             output: PathBuf::from("render.exr"),
@@ -352,7 +355,7 @@ impl Scene {
             .options
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-        let render = py.detach(|| Render::new(out.film, job.setting.clone(), meta, out.stats, threads))?;
+        let render = py.detach(|| Render::new(out.film, job.setting.clone(), meta, out.stats, threads));
         Ok((render, interrupted))
     }
 }
@@ -374,19 +377,13 @@ struct Render {
 impl Render {
     /// The render of `film` under `setting`: filtered as `lightsplit render` filters before
     /// writing.
-    fn new(
-        film: Film,
-        setting: Setting,
-        meta: Metadata,
-        stats: RenderStats,
-        threads: usize,
-    ) -> PyResult<Render> {
+    fn new(film: Film, setting: Setting, meta: Metadata, stats: RenderStats, threads: usize) -> Render {
         let start = std::time::Instant::now();
         let (final_image, filtered) =
             composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
         let final_image = final_image.into_owned();
         let filter_seconds = if setting.method.is_some() { start.elapsed().as_secs_f64() } else { 0.0 };
-        Ok(Render { film, final_image, filtered, setting, meta, stats, filter_seconds, threads })
+        Render { film, final_image, filtered, setting, meta, stats, filter_seconds, threads }
     }
 }
 
@@ -541,13 +538,7 @@ impl Render {
         target: Option<String>,
         denoise: bool,
     ) -> PyResult<Render> {
-        let target =
-            match target.as_deref() {
-                None => None,
-                Some(name) => Some(lightsplit::filter::Target::from_name(name).ok_or_else(|| {
-                    PyValueError::new_err(format!("target `{name}` is not a filter target"))
-                })?),
-            };
+        let target = target_of(target.as_deref())?;
         let overrides = Overrides { method: filter, denoise, target, ..Overrides::default() };
         let setting = overrides.over(&Setting::default()).map_err(PyValueError::new_err)?;
         output::check_aov_target(
@@ -564,7 +555,7 @@ impl Render {
             ));
         }
         let meta = Metadata { filter: lightsplit::job::filter_label(&setting), ..self.meta.clone() };
-        py.detach(|| Render::new(self.film.clone(), setting, meta, self.stats, self.threads))
+        Ok(py.detach(|| Render::new(self.film.clone(), setting, meta, self.stats, self.threads)))
     }
 }
 
@@ -575,7 +566,7 @@ fn read(py: Python<'_>, path: PathBuf) -> PyResult<Render> {
     py.detach(|| {
         let film = film::read_film(&path).map_err(|e| PyValueError::new_err(e.to_string()))?;
         let meta = Metadata::of_exr(&path).unwrap_or_default();
-        let mut render = Render::new(film, Setting::default(), meta, RenderStats::default(), 0)?;
+        let mut render = Render::new(film, Setting::default(), meta, RenderStats::default(), 0);
         // The file's own final image, which a filter may have made.
         if let Ok(final_image) = film::read_image(&path) {
             render.final_image = final_image;
@@ -638,7 +629,7 @@ fn merge(py: Python<'_>, parts: Vec<PathBuf>, allow_missing: bool) -> PyResult<R
             extra: film::aov_attributes(&first.meta).collect(),
             ..first.meta.clone()
         };
-        Render::new(sums.into_means(), Setting::default(), meta, RenderStats::default(), 0)
+        Ok(Render::new(sums.into_means(), Setting::default(), meta, RenderStats::default(), 0))
     })
 }
 
