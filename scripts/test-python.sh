@@ -11,6 +11,8 @@
 #   LIGHTSPLIT_PY_VENV=DIR     the virtual environment (default target/python-venv, made when
 #                              missing; pip installs maturin, numpy, pytest and openexr there)
 #   PYTHON=BIN                 the Python that makes it (default python3)
+# The module builds without build isolation: maturin is already in the venv, and an isolated
+# build would install it a second time.
 # Exit status: pytest's (0 when every test passed), 1 when the build fails.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -23,9 +25,10 @@ if [ ! -x "$venv/bin/python" ]; then
     echo "test-python: making $venv"
     "$python" -m venv "$venv"
 fi
+venv_bin=$(cd "$venv/bin" && pwd)
 "$venv/bin/python" -m pip install -q --disable-pip-version-check "maturin>=1.9.4,<2" numpy pytest "openexr>=3.2"
 cargo build -q --profile "$profile" --bin lightsplit
 echo "test-python: building the module (profile $profile)"
-MATURIN_PEP517_ARGS="--profile $profile" "$venv/bin/python" -m pip install -q --disable-pip-version-check \
-    --force-reinstall --no-deps ./python
+PATH="$venv_bin:$PATH" MATURIN_PEP517_ARGS="--profile $profile" "$venv/bin/python" -m pip install -q --disable-pip-version-check \
+    --force-reinstall --no-deps --no-build-isolation ./python
 LIGHTSPLIT="$root/target/$profile/lightsplit" "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests "$@"
