@@ -4,6 +4,7 @@ on the same scene, rounds alternated, and the cost of making the layers arrays.
 
     python scripts/bench-python.py                       # scenes/cornell.toml, 256x256, 64 spp
     python scripts/bench-python.py --rounds 7 --spp 16
+    python scripts/bench-python.py --write               # and writes docs/RESULTS.md's `python`
 
 Run it with the Python that has the module (`pip install ./python`); LIGHTSPLIT names the
 command line's binary (default target/release/lightsplit), which should be the module's profile.
@@ -33,6 +34,8 @@ def main() -> int:
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--rounds", type=int, default=5)
+    p.add_argument("--write", action="store_true",
+                   help="write the figures as docs/RESULTS.md's section `python` (scripts/results-section.py)")
     args = p.parse_args()
     binary = os.environ.get("LIGHTSPLIT", str(ROOT / "target" / "release" / "lightsplit"))
     if not Path(binary).exists():
@@ -76,7 +79,60 @@ def main() -> int:
     print(f"medians: render {py_r:.3f} s against {cli_r:.3f} s ({py_r / cli_r:.3f}x); with the build "
           f"{py_b:.3f} against {cli_b:.3f} ({py_b / cli_b:.3f}x); the module's whole call {call:.3f} s; "
           f"arrays {arrays * 1000:.2f} ms")
+    if args.write:
+        write_section(args, rows, (py_r, cli_r), (py_b, cli_b), call, arrays)
     return 0
+
+
+def machine() -> str:
+    """The CPU's name and its widest vector extension, from /proc/cpuinfo (Linux)."""
+    name, flags = "unknown CPU", set()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and name == "unknown CPU":
+                    name = value.strip()
+                elif key.strip() == "flags" and not flags:
+                    flags = set(value.split())
+    except OSError:
+        pass
+    vector = "AVX-512" if "avx512f" in flags else "AVX2, no AVX-512" if "avx2" in flags else "no AVX2"
+    return f"{name}, {os.cpu_count()} cores, {vector}"
+
+
+def write_section(args, rows, render, whole, call, arrays) -> None:
+    scene = os.path.relpath(args.scene, ROOT) if os.path.isabs(args.scene) else args.scene
+    lines = [
+        "## The Python module against the command line (issue 42)",
+        "",
+        f"Machine: {machine()}; the module and the binary of the release profile. "
+        f"`python scripts/bench-python.py --rounds {args.rounds} --write`: `{scene}` at "
+        f"{args.size}x{args.size} and {args.spp} spp, `scene.render()` against `lightsplit render --json`, "
+        "rounds alternated (the first of each pair swaps). The render's seconds are the tracing's "
+        "(`stats[\"seconds\"]`, the command line's `seconds`); \"with the build\" adds the "
+        "accelerator's build; the module's whole call is `render()` timed from Python; the arrays are "
+        "`render.image` and every array of `render.layers`, made from a fresh render.",
+        "",
+        "| round | first | command line (s) | module (s) | ratio | with the build: command line | module | module's whole call (s) | arrays (ms) |",
+        "| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r, x in enumerate(rows):
+        c, m = x["cli"], x["py"]
+        first = "command line" if r % 2 == 0 else "module"
+        lines.append(f"| {r + 1} | {first} | {c[0]:.3f} | {m[0]:.3f} | {m[0] / c[0]:.3f}x | {c[1]:.3f} | {m[1]:.3f} | {m[2]:.3f} | {m[3] * 1000:.2f} |")
+    lines += [
+        "",
+        f"**Medians:** the render {render[0]:.3f} s against {render[1]:.3f} s, **{render[0] / render[1]:.3f}x** "
+        f"(goal: within 3%); with the build {whole[0]:.3f} against {whole[1]:.3f} s ({whole[0] / whole[1]:.3f}x); "
+        f"the module's whole call {call:.3f} s; the arrays **{arrays * 1000:.2f} ms** (goal: at most 5 ms).",
+    ]
+    body = "\n".join(lines) + "\n"
+    subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "results-section.py"), "write", str(ROOT / "docs" / "RESULTS.md"),
+         "python", "scripts/bench-python.py", "-"],
+        input=body, text=True, check=True,
+    )
 
 
 if __name__ == "__main__":

@@ -601,10 +601,7 @@ fn named_target(text: &str) -> Result<Target, String> {
 
 /// An AOV: NAME=EXPR, or the name of a built-in expression.
 fn aov(text: &str) -> Result<Aov, String> {
-    match text.split_once('=') {
-        Some((name, expr)) => Aov::new(name.trim(), Some(expr)),
-        None => Aov::new(text.trim(), None),
-    }
+    Aov::parse(text)
 }
 
 /// Scattering events per path: 1 to [`limits::MAX_DEPTH`], as in a scene file.

@@ -352,6 +352,16 @@ impl<'s> Job<'s> {
         }
     }
 
+    /// The part file's header of `stats`' render, for a caller that keeps the part in memory
+    /// instead of writing it ([`Job::write`] writes the same).
+    pub fn part_header(&self, stats: &RenderStats) -> Result<part::Header, JobError> {
+        let key = match &self.key {
+            Some(k) => k.clone(),
+            None => part::run_key(self.scene, &self.options).map_err(JobError::Failed)?,
+        };
+        Ok(self.header(key, stats.seconds, !stats.interrupted))
+    }
+
     /// Renders, calling `progress` with the samples done; `stop`, once set, ends the render
     /// after its pass (a checkpoint is written as the render goes). Nothing is written of the
     /// result until [`Job::write`]: a caller that stops gracefully while rendering and at once

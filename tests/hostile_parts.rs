@@ -787,7 +787,7 @@ fn fuzz_mutated_part_files_never_panic() {
             std::fs::write(&path, &bytes).expect("write");
             let _ = lightsplit::film::read_exr_channels(&path);
             if let Ok(header) = lightsplit::part::read_header(&path) {
-                let named = [lightsplit::part::Named { path: path.clone(), header }];
+                let named = [lightsplit::part::Named { path: path.clone(), header, held: None }];
                 if lightsplit::part::check(&named, true).is_ok() {
                     let (r, m) = counts.get();
                     let merges = lightsplit::part::merge(&named, &|| {}).is_ok();

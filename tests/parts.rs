@@ -126,7 +126,7 @@ fn merged_parts_equal_the_whole_render() {
                 let (back_header, back) = lightsplit::part::read(&path).expect("reads");
                 assert_eq!(back_header.part, part);
                 assert_eq!(back, s, "a part file holds its sums bit for bit");
-                named.push(lightsplit::part::Named { path, header: back_header });
+                named.push(lightsplit::part::Named { path, header: back_header, held: None });
                 match &mut merged {
                     None => merged = Some(s),
                     Some(m) => m.add(&s).expect("adds"),

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from typing import Callable, Optional, Union
+from typing import Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -68,8 +68,8 @@ class Render:
     def layers(self) -> dict:
         """Every other layer of the render's EXR, by name (`raw`, `emitted`, `direct`,
         `caustic`, `indirect`, `albedo`, `normal`, `depth`, `objectid`, `A`, the
-        `*_variance` and `*_half` layers, `indirect_filtered`, the AOVs): height x width x
-        channels, float32."""
+        `*_variance` and `*_half` layers, `indirect_filtered`, the AOVs and light groups, the
+        Cryptomatte ranks `CryptoObject00`...): height x width x channels, float32."""
         self._load_layers()
         return self._layers
 
@@ -91,9 +91,20 @@ class Render:
         """The filter of the final image (`atrous:... on components`), or None."""
         return self._native.filter
 
+    @property
+    def cryptomatte(self) -> dict:
+        """The Cryptomatte header attributes (`cryptomatte/<key>/name`, `.../manifest`, ...) of
+        a render with `cryptomatte=True`, as its EXR holds them; empty otherwise."""
+        return self._native.cryptomatte
+
+    @property
+    def part(self) -> Optional[str]:
+        """The part of a render this is (`"i/n"`, rendered with `part=`), or None."""
+        return self._native.part
+
     def save(self, path: Union[str, os.PathLike], exposure: float = 0.0) -> None:
         """Writes the render as `lightsplit render` does: .exr (every layer), .png (the final
-        image, `exposure` stops) or .hdr."""
+        image, `exposure` stops) or .hdr; a part (`part=`) as its part file, an .exr."""
         self._native.save(os.fspath(path), exposure)
 
     def _repr_png_(self) -> bytes:
@@ -108,6 +119,7 @@ class Render:
         return (
             f"Render({self.width}x{self.height}, {s['samples']} samples in {s['seconds']:.3f} s"
             + (f", {self.filter}" if self.filter else "")
+            + (f", part {self.part}" if self.part else "")
             + (", interrupted" if s["interrupted"] else "")
             + ")"
         )
@@ -156,19 +168,33 @@ class Scene:
         denoise: bool = False,
         filter: Optional[str] = None,
         filter_target: Optional[str] = None,
+        part: Union[None, str, Tuple[int, int]] = None,
+        aovs: Optional[Sequence[str]] = None,
+        light_groups: bool = False,
+        cryptomatte: bool = False,
         progress: Optional[Callable[[int, int], None]] = None,
     ) -> Render:
         """Renders the scene and returns the render, as `lightsplit render` would write it.
 
         spp, seed: over the scene's. threads: worker threads (default one per core). accel:
         "embree" or "bvh". sampler: "sobol" or "independent". denoise: `--denoise`. filter,
-        filter_target: `--filter` and `--filter-target`. progress: called with (samples done,
-        samples in all) about ten times a second, from this thread.
+        filter_target: `--filter` and `--filter-target`. part: `(i, n)` or `"i/n"`, part i of n
+        of each pixel's samples (`--part`): the render keeps its sums, `merge` adds parts up
+        exactly and `save` writes its part file. aovs: light path expressions' layers,
+        each `"NAME=EXPR"` or a built-in's name (`--aov`), over the scene file's. light_groups:
+        a layer per light group (`--light-groups`). cryptomatte: the object and material
+        mattes (`--cryptomatte`), their manifests in `Render.cryptomatte`. progress: called with (samples done, samples
+        in all) about ten times a second, from this thread.
 
         Runs without the GIL. Ctrl-C stops it at the end of a pass and raises `Interrupted`,
         whose `render` keeps the samples taken."""
+        if isinstance(part, tuple):
+            if len(part) != 2:
+                raise ValueError(f"part is (i, n) or \"i/n\"; this one is {part!r}")
+            part = f"{part[0]}/{part[1]}"
         native, interrupted = self._native.render(
-            spp, seed, threads, accel, sampler, denoise, filter, filter_target, progress
+            spp, seed, threads, accel, sampler, denoise, filter, filter_target, part,
+            None if aovs is None else list(aovs), light_groups, cryptomatte, progress,
         )
         render = Render(native)
         if interrupted:
@@ -206,9 +232,11 @@ def read(path: Union[str, os.PathLike]) -> Render:
 
 
 def merge(parts, allow_missing: bool = False) -> Render:
-    """Merges part files (`lightsplit render --part I/N`) into one render, as `lightsplit
-    merge` does; `allow_missing` merges whichever parts there are (`--allow-missing`)."""
-    return Render(_native.merge([os.fspath(p) for p in parts], allow_missing))
+    """Adds parts up into one render, as `lightsplit merge` does: renders of parts
+    (`Scene.render(part=...)`) and part files (`lightsplit render --part I/N`), in any mix;
+    `allow_missing` merges whichever parts there are (`--allow-missing`)."""
+    native = [p._native if isinstance(p, Render) else os.fspath(p) for p in parts]
+    return Render(_native.merge(native, allow_missing))
 
 
 def filter(render: Render, setting: Optional[str] = None, target: Optional[str] = None, denoise: bool = False) -> Render:

@@ -13,12 +13,13 @@ use glam::Vec3;
 use lightsplit::accel::Backend;
 use lightsplit::error::Classify;
 use lightsplit::film::layers::LAYERS;
-use lightsplit::film::{self, Film, Image, Metadata};
+use lightsplit::film::{self, Film, Format, Image, Metadata, Sums};
 use lightsplit::filter::{composite, Overrides, Setting};
 use lightsplit::job::{Job, Request};
 use lightsplit::output::{self, Layer};
+use lightsplit::part;
 use lightsplit::render::RenderStats;
-use lightsplit::scene::{self, LoadOptions, SamplerKind, Scene as SceneData};
+use lightsplit::scene::{self, Aov, LoadOptions, SamplerKind, Scene as SceneData};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -238,7 +239,7 @@ impl Scene {
 
     /// Renders; see the Python wrapper's `Scene.render` for the arguments. Returns the render
     /// and whether a KeyboardInterrupt stopped it (its samples kept).
-    #[pyo3(signature = (spp=None, seed=None, threads=None, accel="embree", sampler=None, denoise=false, filter=None, filter_target=None, progress=None))]
+    #[pyo3(signature = (spp=None, seed=None, threads=None, accel="embree", sampler=None, denoise=false, filter=None, filter_target=None, part=None, aovs=None, light_groups=false, cryptomatte=false, progress=None))]
     #[allow(clippy::too_many_arguments)]
     fn render(
         &self,
@@ -251,6 +252,10 @@ impl Scene {
         denoise: bool,
         filter: Option<String>,
         filter_target: Option<String>,
+        part: Option<String>,
+        aovs: Option<Vec<String>>,
+        light_groups: bool,
+        cryptomatte: bool,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<(Render, bool)> {
         let accel = match accel {
@@ -270,6 +275,11 @@ impl Scene {
             return Err(PyValueError::new_err("threads must be at least 1"));
         }
         let target = target_of(filter_target.as_deref())?;
+        let aovs = aovs
+            .unwrap_or_default()
+            .iter()
+            .map(|a| Aov::parse(a).map_err(PyValueError::new_err))
+            .collect::<PyResult<Vec<_>>>()?;
         let request = Request {
             // An EXR: every layer is computed, as the command line's EXR has them.
             output: PathBuf::from("render.exr"),
@@ -282,6 +292,10 @@ impl Scene {
             accel,
             threads,
             filter: Overrides { method: filter, denoise, target, ..Overrides::default() },
+            part,
+            aovs,
+            light_groups,
+            cryptomatte,
             ..Request::default()
         };
         let scene = &*self.scene;
@@ -346,7 +360,12 @@ impl Scene {
         if let Some(e) = callback_error {
             return Err(e);
         }
-        let out = rendered.into_output();
+        let mut out = rendered.into_output();
+        // A part keeps its sums and its file's header, for a merge or a part file.
+        let part = match (job.is_part(), out.sums.take()) {
+            (true, Some(sums)) => Some(Box::new((job.part_header(&out.stats).map_err(py_error)?, sums))),
+            _ => None,
+        };
         let meta = Metadata {
             filter: job.filter_label(),
             ..lightsplit::render::metadata(scene, &job.options, out.stats.seconds)
@@ -355,7 +374,8 @@ impl Scene {
             .options
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-        let render = py.detach(|| Render::new(out.film, job.setting.clone(), meta, out.stats, threads));
+        let mut render = py.detach(|| Render::new(out.film, job.setting.clone(), meta, out.stats, threads));
+        render.part = part;
         Ok((render, interrupted))
     }
 }
@@ -372,6 +392,8 @@ struct Render {
     stats: RenderStats,
     filter_seconds: f64,
     threads: usize,
+    /// A part of a render (`part=`): its part file's header and its sums.
+    part: Option<Box<(part::Header, Sums)>>,
 }
 
 impl Render {
@@ -383,7 +405,7 @@ impl Render {
             composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
         let final_image = final_image.into_owned();
         let filter_seconds = if setting.method.is_some() { start.elapsed().as_secs_f64() } else { 0.0 };
-        Render { film, final_image, filtered, setting, meta, stats, filter_seconds, threads }
+        Render { film, final_image, filtered, setting, meta, stats, filter_seconds, threads, part: None }
     }
 }
 
@@ -470,6 +492,13 @@ impl Render {
                 add(&aov.name, channel, aov.image.pixels.iter().map(|p| p[c]).collect());
             }
         }
+        // Cryptomatte's rank layers (CryptoObject00: R, G, B, A, ...), as the EXR has them.
+        for matte in &self.film.mattes {
+            for (full, values) in matte.rank_channels() {
+                let (name, channel) = full.split_once('.').unwrap_or((&full, &full));
+                add(name, channel, values);
+            }
+        }
         for (name, channels, planes) in grouped {
             let n = w as usize * h as usize;
             let k = planes.len();
@@ -507,19 +536,45 @@ impl Render {
         Ok(d)
     }
 
+    /// The header attributes of the render's Cryptomatte types (`cryptomatte/<key>/name`,
+    /// `.../manifest`, ...), as the EXR holds them.
+    #[getter]
+    fn cryptomatte<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (key, value) in self.film.matte_attributes() {
+            d.set_item(key, value)?;
+        }
+        Ok(d)
+    }
+
     /// The filter the final image had: `atrous:... on components`, or None.
     #[getter]
     fn filter(&self) -> Option<String> {
         lightsplit::job::filter_label(&self.setting)
     }
 
+    /// The part this render is (`I/N`), or None.
+    #[getter]
+    fn part(&self) -> Option<String> {
+        self.part.as_ref().map(|p| p.0.part.to_string())
+    }
+
     /// Writes the render as `lightsplit render` would: an EXR with every layer, or the final
-    /// image as PNG (with `exposure` stops) or HDR.
+    /// image as PNG (with `exposure` stops) or HDR; a part as its part file (an EXR).
     #[pyo3(signature = (path, exposure=0.0))]
     fn save(&self, py: Python<'_>, path: PathBuf, exposure: f32) -> PyResult<()> {
         let format = film::check_output(&path).map_err(py_error)?;
         if let Some(warning) = output::exposure_warning(exposure, format) {
             return Err(PyValueError::new_err(warning));
+        }
+        if let Some(held) = &self.part {
+            if format != Format::Exr {
+                return Err(PyValueError::new_err(format!(
+                    "{}: a part is saved as its part file, an .exr, for a merge",
+                    path.display()
+                )));
+            }
+            return py.detach(|| part::write(&path, &held.1, &held.0).map_err(py_error));
         }
         py.detach(|| {
             output::write(self.film.clone(), &self.setting, &path, Layer::Final, exposure, &self.meta)
@@ -611,16 +666,28 @@ fn compare(
     ])
 }
 
-/// Merges part files (`render --part I/N`) into one render, as `lightsplit merge` does; with
-/// `allow_missing`, whichever parts there are.
+/// Merges parts into one render, as `lightsplit merge` does: part files (`render --part I/N`)
+/// and renders of parts (`part=`), in any mix; with `allow_missing`, whichever parts there are.
 #[pyfunction]
 #[pyo3(signature = (parts, allow_missing=false))]
-fn merge(py: Python<'_>, parts: Vec<PathBuf>, allow_missing: bool) -> PyResult<Render> {
-    use lightsplit::part;
+fn merge(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>, allow_missing: bool) -> PyResult<Render> {
     let error = |e: part::MergeError| PyValueError::new_err(e.to_string());
+    let mut named = Vec::with_capacity(parts.len());
+    for p in &parts {
+        if let Ok(render) = p.cast::<Render>() {
+            let render = render.get();
+            let Some(held) = &render.part else {
+                return Err(PyValueError::new_err(
+                    "a render merged must be a part (rendered with part=), or a part file",
+                ));
+            };
+            let name = format!("the render of part {}", held.0.part);
+            named.push(part::Named::held(&name, held.0.clone(), held.1.clone()));
+        } else {
+            named.push(part::Named::read(&p.extract::<PathBuf>()?).map_err(error)?);
+        }
+    }
     py.detach(|| {
-        let named =
-            parts.iter().map(|p| part::Named::read(p)).collect::<Result<Vec<_>, _>>().map_err(error)?;
         part::check(&named, allow_missing).map_err(error)?;
         let sums = part::merge(&named, &|| ()).map_err(error)?;
         let first = &named[0].header;

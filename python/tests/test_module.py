@@ -76,6 +76,29 @@ def test_every_layer_equals_the_command_lines_exr_bit_for_bit(tmp_path, flags):
     assert all(np.array_equal(again[n].view(np.uint32), v.view(np.uint32)) for n, v in want.items())
 
 
+def test_aovs_light_groups_and_cryptomatte_equal_the_command_lines_bit_for_bit(tmp_path):
+    gallery = ROOT / "scenes" / "paper-gallery.toml"
+    out = tmp_path / "cli.exr"
+    cli("render", gallery, "--width", 32, "--height", 24, "--spp", 4, "--seed", 2, "-o", out,
+        "--aov", "diffuse_indirect", "--aov", "all=C.*L", "--light-groups", "--cryptomatte")
+    render = lightsplit.load(gallery, width=32, height=24).render(
+        spp=4, seed=2, aovs=["diffuse_indirect", "all=C.*L"], light_groups=True, cryptomatte=True
+    )
+    want = exr_channels(out)
+    got = module_channels(render)
+    assert sorted(got) == sorted(want), "the same layers"
+    for name in ("diffuse_indirect", "all", "CryptoObject00", "CryptoMaterial02"):
+        assert name in render.layers, name
+    assert any(n.startswith("group_") for n in render.layers), "a light group's layer"
+    for name, values in want.items():
+        assert np.array_equal(got[name].view(np.uint32), values.view(np.uint32)), name
+    with OpenEXR.File(str(out)) as f:
+        header = {k: v for k, v in f.header().items() if k.startswith("cryptomatte/")}
+    assert header and render.cryptomatte == header
+    with pytest.raises(ValueError, match="AOV name `1x`"):
+        lightsplit.load(gallery).render(spp=1, aovs=["1x=C.*L"])
+
+
 def test_the_named_layers_are_there_with_their_shapes():
     render = lightsplit.load(CORNELL, width=16, height=16).render(spp=2)
     layers = render.layers
@@ -217,6 +240,53 @@ def test_filter_compare_and_merge_equal_the_command_line(tmp_path):
     half = lightsplit.merge(parts[:1], allow_missing=True)
     assert np.array_equal(half.image.view(np.uint32), np.dstack([exr_channels(tmp_path / "half.exr")[c] for c in "RGB"]).view(np.uint32))
     assert not np.array_equal(half.image, merged.image)
+
+
+def test_parts_rendered_in_memory_merge_as_the_command_lines_part_files(tmp_path):
+    files = [tmp_path / f"p{i}.exr" for i in range(3)]
+    for i, path in enumerate(files):
+        cli("render", CORNELL, "--width", 24, "--height", 16, "--spp", 9, "--seed", 4,
+            "--part", f"{i}/3", "-o", path)
+    cli("merge", *files, "-o", tmp_path / "merged.exr")
+    want = exr_channels(tmp_path / "merged.exr")
+    scene = lightsplit.load(CORNELL, width=24, height=16)
+    parts = [scene.render(spp=9, seed=4, part=(i, 3)) for i in range(3)]
+    assert [p.part for p in parts] == ["0/3", "1/3", "2/3"]
+    assert "part 1/3" in repr(parts[1])
+
+    def same(render):
+        got = module_channels(render)
+        return sorted(got) == sorted(want) and all(
+            np.array_equal(got[n].view(np.uint32), v.view(np.uint32)) for n, v in want.items()
+        )
+
+    # In memory, in any order, and mixed with the command line's files: the same bits.
+    assert same(lightsplit.merge(parts[::-1]))
+    assert same(lightsplit.merge([parts[0], files[1], parts[2]]))
+    # A part saved is a part file the command line merges.
+    parts[1].save(tmp_path / "m1.exr")
+    cli("merge", files[0], tmp_path / "m1.exr", files[2], "-o", tmp_path / "again.exr")
+    assert all(
+        np.array_equal(v.view(np.uint32), want[n].view(np.uint32))
+        for n, v in exr_channels(tmp_path / "again.exr").items()
+    )
+    # The merge's checks, naming the parts.
+    with pytest.raises(ValueError, match="missing part 2/3"):
+        lightsplit.merge(parts[:2])
+    with pytest.raises(ValueError, match="both part 1/3"):
+        lightsplit.merge([parts[0], parts[1], files[1], parts[2]])
+    other = scene.render(spp=9, seed=5, part="1/3")
+    with pytest.raises(ValueError, match="different renders"):
+        lightsplit.merge([parts[0], other, parts[2]])
+    with pytest.raises(ValueError, match="must be a part"):
+        lightsplit.merge([scene.render(spp=1)])
+    # A part is never filtered, and is saved as its part file only.
+    with pytest.raises(ValueError, match="never filtered"):
+        scene.render(spp=9, part=(0, 3), denoise=True)
+    with pytest.raises(ValueError, match="part file"):
+        parts[0].save(tmp_path / "p.png")
+    with pytest.raises(ValueError, match="--part"):
+        scene.render(spp=9, part=(3, 3))
 
 
 def test_save_and_show(tmp_path):

@@ -10,17 +10,24 @@ use crate::film::Sums;
 /// How many missing parts a merge names; the rest it counts.
 pub const MISSING_NAMED: usize = 8;
 
-/// A part to merge: its file and its header.
+/// A part to merge: its file (or, for a part held in memory, the name errors give it), its
+/// header, and the sums of a part held in memory (a file's are read as the merge reaches it).
 pub struct Named {
     pub path: PathBuf,
     pub header: Header,
+    pub held: Option<Sums>,
 }
 
 impl Named {
     /// The part file at `path`, by its header ([`read_header`]); an error names the file.
     pub fn read(path: &Path) -> Result<Named, MergeError> {
         let header = read_header(path).map_err(|e| MergeError(format!("{}: {e}", path.display())))?;
-        Ok(Named { path: path.to_path_buf(), header })
+        Ok(Named { path: path.to_path_buf(), header, held: None })
+    }
+
+    /// A part held in memory (the Python module's), called `name` in errors.
+    pub fn held(name: &str, header: Header, sums: Sums) -> Named {
+        Named { path: PathBuf::from(name), header, held: Some(sums) }
     }
 }
 
@@ -122,13 +129,21 @@ pub fn merge(parts: &[Named], each: &dyn Fn()) -> Result<Sums, MergeError> {
     let mut total: Option<Sums> = None;
     for p in order {
         let at = |e: String| MergeError(format!("{}: {e}", p.path.display()));
-        let (header, sums) = read(&p.path).map_err(at)?;
-        if header != p.header {
-            return Err(at("the file changed while it was merged".into()));
-        }
+        let read_sums;
+        let sums = match &p.held {
+            Some(sums) => sums,
+            None => {
+                let (header, sums) = read(&p.path).map_err(at)?;
+                if header != p.header {
+                    return Err(at("the file changed while it was merged".into()));
+                }
+                read_sums = sums;
+                &read_sums
+            }
+        };
         match &mut total {
-            None => total = Some(sums),
-            Some(t) => t.add(&sums).map_err(at)?,
+            None => total = Some(sums.clone()),
+            Some(t) => t.add(sums).map_err(at)?,
         }
         each();
     }

@@ -405,6 +405,15 @@ pub struct Aov {
 }
 
 impl Aov {
+    /// An AOV as the command line's `--aov` takes it: `NAME=EXPR`, or the name of a built-in
+    /// expression ([`Aov::new`]).
+    pub fn parse(text: &str) -> Result<Aov, String> {
+        match text.split_once('=') {
+            Some((name, expr)) => Aov::new(name.trim(), Some(expr)),
+            None => Aov::new(text.trim(), None),
+        }
+    }
+
     /// An AOV `name` of expression `lpe` (or of the built-in expression `lpe` names; `lpe`
     /// `None`: the built-in called `name`), checked: a name of letters, digits and `_` that
     /// does not start with a digit, and an expression that parses.
