@@ -61,7 +61,7 @@ nearly clean, indirect noise everywhere, no caustics) on this 2-core machine:
 
 | | 256x256 | 3840x2160 | budget |
 |---|---|---|---|
-| `--denoise` (3x3, 4 passes, components), checked against the halves (`cross=1`, issue 41) | 43.7 ms (72.9 before the steps below) | 5.20 s (9.23 before) | 10 ms, 1.5 s: **missed**, 4.4x and 3.5x |
+| `--denoise` (3x3, 4 passes, components), checked against the halves (`cross=1`, issue 41) | 31.3 ms (72.9 before the steps below) | 4.09 s (9.23 before) | 10 ms, 1.5 s: **missed**, 3.1x and 2.7x |
 | the same unchecked (`cross=0`; before issue 41, `--denoise`) | 13.5 ms (15.6 before issue 41) | 2.53 s (1.93 before) | **missed**, 1.35x and 1.7x |
 | the same on indirect alone | 9.4 ms | 1.28 s | met |
 | `atrous` defaults (5x5, 5 passes), indirect | 23.4 ms | 2.84 s | |
@@ -102,12 +102,33 @@ samples first filtered each layer three times (whole and each half) and cost 4.9
   (medians of three rounds alternated, the portable build first), 5.40 against 5.20 s at 4K:
   3.7% at both sizes. Kept, at the edge of the run-to-run spread.
 
-A profile now (`perf record`, 256x256): the passes 44% (the tap loop, then the colour stops'
-3x3 blur), page faults of the fresh buffers about 10%, the check's window sums 7%, and the
-rest demodulation, the halves and scheduling. The next steps: the tap loop with a block of
-centres in registers, the luminance plane dropped from the working buffers (computed from r, g,
-b), and the direct light's halves, a single pass, filtered in the same run as the indirect's
-first."""
+The next session (the same machine type, a Firecracker VM; criterion medians, rounds alternated):
+- A layer past its passes (the direct light's halves after their one pass) skips its colour
+  stops and is copied, not divided by its weight sum of 1: 58.8 to 60.5 ms against 52.8 to
+  56.7 ms (three rounds, one binary switching between the two; a noisy hour). Kept; the same
+  output (the colour is `c + 0 / h0`, exactly `c`).
+- The passes' closures `inline(always)` into the AVX2 runner (without it, the rows' closure is
+  called from `run_avx2`, compiled for the portable target): AVX2 against portable in one
+  binary, 54.6 / 49.9 / 45.9 ms against 51.1 / 51.1 / 45.8 ms. No gain; not kept.
+- A block of 8 centres with its five sums in registers across all taps of a pass, every tap's
+  geometry made once per block for all layers (the step the last profile pointed to): the same
+  bits (tested), but 48.6 and 51.7 ms against 46.9 and 45.1 ms for the row loops (two rounds,
+  one binary). Not kept. The profile had misled: the passes' share was not the tap loop's.
+- A layer that is zero everywhere (the caustics of a scene without them: the bench film, the
+  Cornell box) is no longer halved, filtered as two halves and checked: 40.7 / 40.7 / 41.0 ms
+  to 31.3 / 30.9 / 31.3 ms (three rounds), 4.61 to 4.09 s at 4K. Kept; the same output (a zero
+  layer came back zero).
+
+Where the time goes now (the filter's phases timed inside one warm call, 256x256): the guides
+1.7 ms; demodulation 3.4 ms; the first pass 11 ms and each later one 4.6 to 5 ms (the colour
+stops 0.6 ms of it); the multiply-back 1.3 ms; freeing the working buffers 4.4 ms; the check's
+blend 7.7 ms. `perf stat` over the benchmark: 31% of the CPU time in the kernel, page faults
+of fresh buffers and their freeing (3.1 million faults in 190 calls, about 60 MB a call). The
+next step is memory: the working buffers (5 planes of each live layer, twice) reused across
+passes and calls, the halves and their variances not copied, the blend's four planes made in
+one buffer; then the first pass, which pays the faults of the second working buffer.
+
+"""
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
 

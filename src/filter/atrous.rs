@@ -572,6 +572,10 @@ impl Pass<'_> {
         let kc = &key[y * w..(y + 1) * w];
         const K: [f32; 3] = [0.25, 0.5, 0.25];
         for c in 0..self.k {
+            if self.pass >= self.strengths[c].1 {
+                // Past its passes: the layer is carried over ([`Pass::row`] reads no stop).
+                continue;
+            }
             sum.clear();
             sum.resize(w, 0.0);
             weight.clear();
@@ -620,9 +624,10 @@ impl Pass<'_> {
         // Each layer's runs of pixels that have noise to remove; elsewhere, and in a layer past
         // its passes, nothing changes.
         for c in 0..k {
-            active_spans(&self.inv_sigma[(y * k + c) * w..(y * k + c + 1) * w], &mut s.spans[c]);
             if self.pass >= self.strengths[c].1 {
                 s.spans[c].clear();
+            } else {
+                active_spans(&self.inv_sigma[(y * k + c) * w..(y * k + c + 1) * w], &mut s.spans[c]);
             }
         }
         let hull = (
@@ -705,8 +710,14 @@ impl Pass<'_> {
                 }
             }
         }
-        // The weighted means, as changes to the centre.
+        // The weighted means, as changes to the centre; a layer past its passes as it was
+        // (its colour, the one plane read after its passes, is the same either way).
         for c in 0..k {
+            if self.pass >= self.strengths[c].1 {
+                let base = (y * k + c) * PLANES * w;
+                out[c * PLANES * w..(c + 1) * PLANES * w].copy_from_slice(&self.cur[base..base + PLANES * w]);
+                continue;
+            }
             let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at(w);
             let (ag, rest) = rest.split_at(w);
             let (ab, rest) = rest.split_at(w);
