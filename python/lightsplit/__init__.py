@@ -234,7 +234,8 @@ def read(path: Union[str, os.PathLike]) -> Render:
 def merge(parts, allow_missing: bool = False) -> Render:
     """Adds parts up into one render, as `lightsplit merge` does: renders of parts
     (`Scene.render(part=...)`) and part files (`lightsplit render --part I/N`), in any mix;
-    `allow_missing` merges whichever parts there are (`--allow-missing`)."""
+    `allow_missing` merges whichever parts there are (`--allow-missing`). Its `stats` count
+    the samples merged (`samples`, `min_spp`, `max_spp`); the rest are the parts' own."""
     native = [p._native if isinstance(p, Render) else os.fspath(p) for p in parts]
     return Render(_native.merge(native, allow_missing))
 

@@ -696,7 +696,14 @@ fn merge(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>, allow_missing: bool) -> P
             extra: film::aov_attributes(&first.meta).collect(),
             ..first.meta.clone()
         };
-        Ok(Render::new(sums.into_means(), Setting::default(), meta, RenderStats::default(), 0))
+        // The samples the parts hold; the seconds and rays stay each part's own.
+        let stats = RenderStats {
+            samples: sums.samples.iter().map(|&n| n as u64).sum(),
+            min_spp: sums.samples.iter().copied().min().unwrap_or(0),
+            max_spp: sums.samples.iter().copied().max().unwrap_or(0),
+            ..RenderStats::default()
+        };
+        Ok(Render::new(sums.into_means(), Setting::default(), meta, stats, 0))
     })
 }
 

@@ -261,7 +261,10 @@ def test_parts_rendered_in_memory_merge_as_the_command_lines_part_files(tmp_path
         )
 
     # In memory, in any order, and mixed with the command line's files: the same bits.
-    assert same(lightsplit.merge(parts[::-1]))
+    merged = lightsplit.merge(parts[::-1])
+    assert same(merged)
+    stats = merged.stats
+    assert (stats["samples"], stats["min_spp"], stats["max_spp"]) == (24 * 16 * 9, 9, 9)
     assert same(lightsplit.merge([parts[0], files[1], parts[2]]))
     # A part saved is a part file the command line merges.
     parts[1].save(tmp_path / "m1.exr")
