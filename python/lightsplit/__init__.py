@@ -240,9 +240,14 @@ def merge(parts, allow_missing: bool = False) -> Render:
     return Render(_native.merge(native, allow_missing))
 
 
-def filter(render: Render, setting: Optional[str] = None, target: Optional[str] = None, denoise: bool = False) -> Render:
+def filter(render, setting: Optional[str] = None, target: Optional[str] = None, denoise: bool = False) -> Render:
     """`render` filtered again, as `lightsplit filter` does: `setting` a method as `--filter`
-    takes it (`box3`, `atrous:passes=4`, ...), `target` as `--filter-target`, or `denoise`."""
+    takes it (`box3`, `atrous:passes=4`, ...), `target` as `--filter-target`, or `denoise`.
+    `render` is a Render, or its layers as a dict of arrays by `Render.layers`' names (`raw`
+    and the components, the guides, the variances, the halves; changed or made by the caller),
+    which the film reads as it reads an EXR's layers."""
+    if isinstance(render, dict):
+        render = Render(_native.from_layers({str(k): np.ascontiguousarray(v, dtype=np.float32) for k, v in render.items()}))
     return Render(render._native.refilter(setting, target, denoise))
 
 

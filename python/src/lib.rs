@@ -614,6 +614,54 @@ impl Render {
     }
 }
 
+/// A render of layers given as arrays (`Render.layers`' names and shapes: `raw`, the
+/// components, the guides, the variances, the halves), read as the EXR reader reads a file's
+/// channels; layers the film does not know are refused, and a film without `raw` is an error.
+#[pyfunction]
+fn from_layers(
+    py: Python<'_>,
+    layers: std::collections::HashMap<String, PyReadonlyArray3<'_, f32>>,
+) -> PyResult<Render> {
+    let mut size = None;
+    let mut channels: film::Channels = Vec::new();
+    let mut names: Vec<&String> = layers.keys().collect();
+    names.sort();
+    for name in names {
+        let a = layers[name].as_array();
+        let (h, w, c) = a.dim();
+        if *size.get_or_insert((w, h)) != (w, h) {
+            return Err(PyValueError::new_err(format!("layer `{name}` is {w}x{h}, unlike the others")));
+        }
+        let prefix = |full: &str| full.split_once('.').map_or(full.to_string(), |(p, _)| p.to_string());
+        let defs: Vec<&str> = LAYERS
+            .iter()
+            .flat_map(|l| l.channels.iter().copied())
+            .filter(|full| prefix(full) == *name)
+            .collect();
+        if defs.is_empty() {
+            return Err(PyValueError::new_err(format!("`{name}` is not a layer of the film")));
+        }
+        if defs.len() != c {
+            return Err(PyValueError::new_err(format!(
+                "layer `{name}` has {c} channels; the film's has {}",
+                defs.len()
+            )));
+        }
+        for (i, full) in defs.into_iter().enumerate() {
+            channels
+                .push((full.to_string(), a.index_axis(numpy::ndarray::Axis(2), i).iter().copied().collect()));
+        }
+    }
+    let Some((w, h)) = size else { return Err(PyValueError::new_err("no layers")) };
+    let (Ok(width), Ok(height)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(PyValueError::new_err("the layers are too large"));
+    };
+    py.detach(|| {
+        let film = Film::from_channels(width, height, &channels).map_err(PyValueError::new_err)?;
+        Ok(Render::new(film, Setting::default(), Metadata::default(), RenderStats::default(), 0))
+    })
+}
+
 /// Reads an EXR `lightsplit render` wrote (or a part file's merge) as a render: its layers, and
 /// the final image it holds.
 #[pyfunction]
@@ -713,6 +761,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(from_layers, m)?)?;
     m.add_class::<Scene>()?;
     m.add_class::<Render>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

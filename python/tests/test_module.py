@@ -292,6 +292,28 @@ def test_parts_rendered_in_memory_merge_as_the_command_lines_part_files(tmp_path
         scene.render(spp=9, part=(3, 3))
 
 
+def test_filter_takes_the_layers_as_arrays():
+    render = lightsplit.load(CORNELL, width=32, height=24).render(spp=8, seed=5)
+    layers = {k: v for k, v in render.layers.items() if k != "indirect_filtered"}
+    # The layers as they are: the same filter, the same bits, as filtering the render.
+    want = lightsplit.filter(render, denoise=True).image
+    got = lightsplit.filter(layers, denoise=True).image
+    assert np.array_equal(got.view(np.uint32), want.view(np.uint32))
+    # Changed layers are what is filtered: the indirect light doubled (in the beauty too), box3
+    # (linear) on it gives twice the filtered indirect light, and the final image is the other
+    # components plus it.
+    changed = dict(layers, indirect=layers["indirect"] * 2, raw=layers["raw"] + layers["indirect"])
+    plain = lightsplit.filter(layers, "box3", "indirect")
+    boxed = lightsplit.filter(changed, "box3", "indirect")
+    assert np.allclose(boxed.layers["indirect_filtered"], 2 * plain.layers["indirect_filtered"], rtol=1e-5, atol=1e-7)
+    others = changed["emitted"] + changed["direct"] + changed["caustic"]
+    assert np.allclose(boxed.image, others + boxed.layers["indirect_filtered"], rtol=1e-5, atol=1e-6)
+    with pytest.raises(ValueError, match="not a layer"):
+        lightsplit.filter(dict(layers, shadow=layers["raw"]), denoise=True)
+    with pytest.raises(ValueError, match="channels"):
+        lightsplit.filter(dict(layers, depth=layers["raw"]), denoise=True)
+
+
 def test_save_and_show(tmp_path):
     render = lightsplit.load(CORNELL, width=16, height=16).render(spp=2)
     png = render._repr_png_()
