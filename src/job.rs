@@ -401,11 +401,7 @@ impl<'s> Job<'s> {
             film::write_text(path, guide.to_bytes()).map_err(|e| JobError::Failed(e.to_string()))?;
         }
         if let Some(sums) = &out.sums {
-            let key = match self.key.take() {
-                Some(k) => k,
-                None => part::run_key(self.scene, &self.options).map_err(JobError::Failed)?,
-            };
-            let header = self.header(key, out.stats.seconds, !interrupted);
+            let header = self.part_header(&out.stats)?;
             part::write(&self.part_path, sums, &header).map_err(|e| JobError::Failed(e.to_string()))?;
         }
         let meta = film::Metadata {

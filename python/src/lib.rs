@@ -363,7 +363,9 @@ impl Scene {
         let mut out = rendered.into_output();
         // A part keeps its sums and its file's header, for a merge or a part file.
         let part = match (job.is_part(), out.sums.take()) {
-            (true, Some(sums)) => Some(Box::new((job.part_header(&out.stats).map_err(py_error)?, sums))),
+            (true, Some(sums)) => {
+                Some(Box::new((job.part_header(&out.stats).map_err(py_error)?, Arc::new(sums))))
+            }
             _ => None,
         };
         let meta = Metadata {
@@ -393,7 +395,7 @@ struct Render {
     filter_seconds: f64,
     threads: usize,
     /// A part of a render (`part=`): its part file's header and its sums.
-    part: Option<Box<(part::Header, Sums)>>,
+    part: Option<Box<(part::Header, Arc<Sums>)>>,
 }
 
 impl Render {
@@ -420,6 +422,12 @@ fn array<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let flat = PyArray1::from_vec(py, values);
     Ok(flat.reshape([height as usize, width as usize, channels])?.into_any())
+}
+
+/// An EXR channel's layer and channel names: `objectid.ID` is (`objectid`, `ID`); a channel
+/// without a layer (`A`) is both.
+fn split_channel(full: &str) -> (&str, &str) {
+    full.split_once('.').unwrap_or((full, full))
 }
 
 fn image_values(image: &Image) -> Vec<f32> {
@@ -468,22 +476,17 @@ impl Render {
         }
         for (layer, values) in self.film.layers() {
             let width = layer.width();
-            let prefix = |full: &'static str| full.split_once('.').map_or(full, |(name, _)| name);
-            let name = prefix(layer.channels[0]);
+            let name = split_channel(layer.channels[0]).0;
             // A layer alone under its name (all but objectid's two): its interleaved values
             // are the array's, copied once.
-            if LAYERS.iter().filter(|l| prefix(l.channels[0]) == name).count() == 1 {
-                let channels: Vec<&str> = layer
-                    .channels
-                    .iter()
-                    .map(|full| full.split_once('.').map_or(*full, |(_, c)| c))
-                    .collect();
+            if LAYERS.iter().filter(|l| split_channel(l.channels[0]).0 == name).count() == 1 {
+                let channels: Vec<&str> = layer.channels.iter().map(|full| split_channel(full).1).collect();
                 arrays.set_item(name, array(py, values.to_vec(), h, w, width)?)?;
                 names.set_item(name, PyList::new(py, channels)?)?;
                 continue;
             }
             for (c, full) in layer.channels.iter().enumerate() {
-                let (name, channel) = full.split_once('.').unwrap_or((full, full));
+                let (name, channel) = split_channel(full);
                 add(name, channel, values.iter().skip(c).step_by(width).copied().collect());
             }
         }
@@ -495,7 +498,7 @@ impl Render {
         // Cryptomatte's rank layers (CryptoObject00: R, G, B, A, ...), as the EXR has them.
         for matte in &self.film.mattes {
             for (full, values) in matte.rank_channels() {
-                let (name, channel) = full.split_once('.').unwrap_or((&full, &full));
+                let (name, channel) = split_channel(&full);
                 add(name, channel, values);
             }
         }
@@ -632,11 +635,10 @@ fn from_layers(
         if *size.get_or_insert((w, h)) != (w, h) {
             return Err(PyValueError::new_err(format!("layer `{name}` is {w}x{h}, unlike the others")));
         }
-        let prefix = |full: &str| full.split_once('.').map_or(full.to_string(), |(p, _)| p.to_string());
         let defs: Vec<&str> = LAYERS
             .iter()
             .flat_map(|l| l.channels.iter().copied())
-            .filter(|full| prefix(full) == *name)
+            .filter(|full| split_channel(full).0 == name)
             .collect();
         if defs.is_empty() {
             return Err(PyValueError::new_err(format!("`{name}` is not a layer of the film")));
@@ -730,7 +732,7 @@ fn merge(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>, allow_missing: bool) -> P
                 ));
             };
             let name = format!("the render of part {}", held.0.part);
-            named.push(part::Named::held(&name, held.0.clone(), held.1.clone()));
+            named.push(part::Named::held(&name, held.0.clone(), Arc::clone(&held.1)));
         } else {
             named.push(part::Named::read(&p.extract::<PathBuf>()?).map_err(error)?);
         }
@@ -745,10 +747,11 @@ fn merge(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>, allow_missing: bool) -> P
             ..first.meta.clone()
         };
         // The samples the parts hold; the seconds and rays stay each part's own.
+        let (min_spp, max_spp) = sums.spp_range();
         let stats = RenderStats {
             samples: sums.samples.iter().map(|&n| n as u64).sum(),
-            min_spp: sums.samples.iter().copied().min().unwrap_or(0),
-            max_spp: sums.samples.iter().copied().max().unwrap_or(0),
+            min_spp,
+            max_spp,
             ..RenderStats::default()
         };
         Ok(Render::new(sums.into_means(), Setting::default(), meta, stats, 0))

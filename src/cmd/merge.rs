@@ -20,8 +20,7 @@ pub fn merge_command(args: MergeArgs) -> Result<(), Failure> {
     let bar = progress_bar(named.len() as u64, args.json);
     let sums = part::merge(&named, &|| bar.inc(1))?;
     bar.finish_and_clear();
-    let (lo, hi) =
-        (sums.samples.iter().copied().min().unwrap_or(0), sums.samples.iter().copied().max().unwrap_or(0));
+    let (lo, hi) = sums.spp_range();
     let merge_seconds = start.elapsed().as_secs_f64();
     let first = &named[0].header;
     let meta = film::Metadata {

@@ -68,6 +68,12 @@ impl Squares {
 }
 
 impl Sums {
+    /// The fewest and the most samples a pixel took ((0, 0) for no pixels).
+    pub fn spp_range(&self) -> (u32, u32) {
+        let (lo, hi) = (self.samples.iter().copied().min(), self.samples.iter().copied().max());
+        (lo.unwrap_or(0), hi.unwrap_or(0))
+    }
+
     /// Nothing yet: `film`'s buffers zeroed (the object unknown); with weights when `splat`.
     pub fn empty(width: u32, height: u32, split: bool, guides: bool, splat: bool) -> Sums {
         let mut film = Film::with_buffers(width, height, split, guides);

@@ -294,9 +294,7 @@ fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, 
     let (w, h) = (film.width as usize, film.height as usize);
     // Layers that are zero everywhere, or have no passes, stay as they are.
     let live: Vec<usize> = (0..layers.len())
-        .filter(|&i| {
-            a.strength(layers[i].component).1 > 0 && layers[i].image.pixels.iter().any(|p| *p != Vec3::ZERO)
-        })
+        .filter(|&i| a.strength(layers[i].component).1 > 0 && !layers[i].image.is_black())
         .collect();
     let mut out: Vec<Image> = layers.iter().map(|l| l.image.clone()).collect();
     if live.is_empty() || w == 0 || h == 0 {

@@ -326,7 +326,7 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
             // Without a pixel of two sampled halves (1 spp) there is nothing to check; a layer
             // that is zero everywhere (no caustics in the scene) is left as it is, unhalved.
             let (half, share) = l.halves.filter(|(_, share)| share.iter().any(|&s| s > 0.0 && s < 1.0))?;
-            if l.image.pixels.par_iter().all(|p| *p == Vec3::ZERO) {
+            if l.image.is_black() {
                 return None;
             }
             Some(Halved {

@@ -3,6 +3,7 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::{read, read_header, Header};
 use crate::film::Sums;
@@ -15,7 +16,7 @@ pub const MISSING_NAMED: usize = 8;
 pub struct Named {
     pub path: PathBuf,
     pub header: Header,
-    pub held: Option<Sums>,
+    pub held: Option<Arc<Sums>>,
 }
 
 impl Named {
@@ -26,7 +27,7 @@ impl Named {
     }
 
     /// A part held in memory (the Python module's), called `name` in errors.
-    pub fn held(name: &str, header: Header, sums: Sums) -> Named {
+    pub fn held(name: &str, header: Header, sums: Arc<Sums>) -> Named {
         Named { path: PathBuf::from(name), header, held: Some(sums) }
     }
 }
@@ -131,7 +132,7 @@ pub fn merge(parts: &[Named], each: &dyn Fn()) -> Result<Sums, MergeError> {
         let at = |e: String| MergeError(format!("{}: {e}", p.path.display()));
         let read_sums;
         let sums = match &p.held {
-            Some(sums) => sums,
+            Some(sums) => &**sums,
             None => {
                 let (header, sums) = read(&p.path).map_err(at)?;
                 if header != p.header {

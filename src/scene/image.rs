@@ -44,6 +44,11 @@ impl Image {
         self.pixels[y as usize * self.width as usize + x as usize] = c;
     }
 
+    /// Whether every pixel is exactly zero (a layer with no light: a filter leaves it as it is).
+    pub fn is_black(&self) -> bool {
+        self.pixels.iter().all(|p| *p == Vec3::ZERO)
+    }
+
     /// The mean over all pixels, per channel (accumulated in f64).
     pub fn mean(&self) -> Vec3 {
         let mut sum = [0.0f64; 3];
