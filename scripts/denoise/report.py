@@ -128,6 +128,26 @@ next step is memory: the working buffers (5 planes of each live layer, twice) re
 passes and calls, the halves and their variances not copied, the blend's four planes made in
 one buffer; then the first pass, which pays the faults of the second working buffer.
 
+This session (the same machine type: AMD EPYC, family 23 model 1, AVX2 only, a Firecracker VM;
+the phases timed inside warm calls by a temporary patch, medians of about 140 calls):
+- The check's window sums by van Herk's split (each 15-pixel window the suffix of one block of
+  15 plus the prefix of the next, so three additions a pixel and a direction instead of 15,
+  still only the window's own pixels, in f64): the blend 4.49 and 4.42 ms against 3.81 and 3.73
+  ms (two rounds alternated in one binary). Kept. The sums add in another order; a test
+  compares every pixel of seven sizes with a direct sum.
+- The working buffers in huge-page mappings of their own (the BVH's `Pages`): criterion 36.1,
+  41.7 and 42.3 ms against 31.1, 32.3 and 36.3 ms on the heap (three rounds alternated, one
+  binary). Slower; not kept.
+- The phases now: the halves 1.6 ms, the guides 1.0, demodulation 3.3, the first pass 7.5, each
+  later pass 3.7, the multiply-back 1.4, freeing 0.9, the blend 3.8.
+- **The passes are 18.6 ms of the call:** 1.8 ms for each live layer in each pass (65,536
+  centres, 8 taps each: about 3.5 ns of CPU a tap on two cores). `--denoise` runs ten of them:
+  the four halves in the first pass, then the indirect light's two halves in three more.
+- **What 10 ms takes:** at this rate the passes alone exceed the budget, so memory is not the
+  lever. It takes fewer layer-passes (for example the direct light's check from one pass of
+  each half, or the indirect light's later passes on the whole instead of the halves) or a tap
+  twice as cheap. Each of those changes the error tables and must be measured against them.
+
 """
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
