@@ -199,9 +199,7 @@ impl<'a> Shading<'a> {
         self.material_bsdf(&self.scene.materials[self.shape.material as usize], n, bent, wo, entering, u)
     }
 
-    /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps). The
-    /// wrappers (a front face's, a blend's) are resolved first, in a loop, so that this
-    /// function does not call itself and inlines into the path loop.
+    /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps).
     #[inline(always)]
     fn material_bsdf<U: UseBsdf>(
         &self,
@@ -214,31 +212,20 @@ impl<'a> Shading<'a> {
     ) -> U::Output {
         // (Made only for the materials with a diffuse base under glossy lobes.)
         let base_frame = || (bent != n).then(|| Frame::new(bent));
-        let mut material = material;
-        loop {
-            material = match material {
-                Material::Front(inner) => match entering {
-                    true => inner,
-                    false => return u.with(&Black),
-                },
-                Material::Blend(blend) => {
-                    // Of the hit point's bits (a sphere's hits have no barycentrics), keyed by
-                    // the material with its top bit set, as no cut-out is keyed.
-                    let p = self.s.p;
-                    let key = self.shape.material | 0x8000_0000;
-                    let pick = crate::scene::cutout::hit_hash(key, self.s.prim ^ p.x.to_bits(), p.y, p.z);
-                    if pick < blend.weight {
-                        &blend.b
-                    } else {
-                        &blend.a
-                    }
-                }
-                _ => break,
-            };
-        }
         match material {
-            // Resolved above.
-            Material::Front(_) | Material::Blend(_) => u.with(&Black),
+            Material::Front(inner) => match entering {
+                true => self.material_bsdf(inner, n, bent, wo, entering, u),
+                false => u.with(&Black),
+            },
+            Material::Blend(blend) => {
+                // Of the hit point's bits (a sphere's hits have no barycentrics), keyed by the
+                // material with its top bit set, as no cut-out is keyed.
+                let p = self.s.p;
+                let key = self.shape.material | 0x8000_0000;
+                let pick = crate::scene::cutout::hit_hash(key, self.s.prim ^ p.x.to_bits(), p.y, p.z);
+                let chosen = if pick < blend.weight { &blend.b } else { &blend.a };
+                self.material_bsdf(chosen, n, bent, wo, entering, u)
+            }
             Material::Conductor(c) => u.with(&c.bsdf(
                 self.frame(n, c.facets.is_some_and(|f| !f.is_isotropic())),
                 c.facets.is_some_and(|f| self.counts_diffuse(f)),
