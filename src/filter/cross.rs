@@ -90,36 +90,23 @@ fn window_sums<const N: usize>(
     let plane_row =
         |k: usize, p: usize| (p >= RADIUS && p - RADIUS < h).then(|| &v[k][(p - RADIUS) * w..][..w]);
     out.par_chunks_mut(L * w).enumerate().for_each_init(
-        || (vec![0.0f64; (L + 1) * N * w], vec![0.0f64; L * N * w], Line::new(N, w)),
+        || (vec![0.0f64; L * N * w], vec![0.0f64; L * N * w], Line::new(N, w)),
         |(suffix, prefix, line), (band, rows)| {
             let (first, n) = (band * L, rows.len() / w);
             let at = |i: usize, k: usize| (i * N + k) * w;
-            // Suffixes of block `band` (row L is the empty suffix), prefixes of the next.
-            suffix[at(L, 0)..at(L + 1, 0)].fill(0.0);
+            // Suffixes of block `band`, from its last row up; prefixes of the next block.
             for i in (0..L).rev() {
                 let (this, next) = suffix.split_at_mut(at(i + 1, 0));
                 for k in 0..N {
-                    let (s, s1) = (&mut this[at(i, k)..at(i, k) + w], &next[k * w..(k + 1) * w]);
-                    match plane_row(k, first + i) {
-                        Some(p) => s.iter_mut().zip(s1).zip(p).for_each(|((s, &s1), &p)| *s = s1 + p as f64),
-                        None => s.copy_from_slice(s1),
-                    }
+                    let before = (i + 1 < L).then(|| &next[k * w..(k + 1) * w]);
+                    add_row(&mut this[at(i, k)..at(i, k) + w], before, plane_row(k, first + i));
                 }
             }
             for i in 0..n.saturating_sub(1) {
                 let (before, this) = prefix.split_at_mut(at(i, 0));
                 for k in 0..N {
-                    let s = &mut this[k * w..(k + 1) * w];
-                    let p = plane_row(k, first + L + i);
-                    match (i, p) {
-                        (0, Some(p)) => s.iter_mut().zip(p).for_each(|(s, &p)| *s = p as f64),
-                        (0, None) => s.fill(0.0),
-                        (_, Some(p)) => {
-                            let s0 = &before[at(i - 1, k)..at(i - 1, k) + w];
-                            s.iter_mut().zip(s0).zip(p).for_each(|((s, &s0), &p)| *s = s0 + p as f64)
-                        }
-                        (_, None) => s.copy_from_slice(&before[at(i - 1, k)..at(i - 1, k) + w]),
-                    }
+                    let before = i.checked_sub(1).map(|j| &before[at(j, k)..at(j, k) + w]);
+                    add_row(&mut this[k * w..(k + 1) * w], before, plane_row(k, first + L + i));
                 }
             }
             for (t, o) in rows.chunks_mut(w).enumerate() {
@@ -135,6 +122,16 @@ fn window_sums<const N: usize>(
             }
         },
     );
+}
+
+/// `out = before + row`, either absent counting as zeros.
+fn add_row(out: &mut [f64], before: Option<&[f64]>, row: Option<&[f32]>) {
+    match (before, row) {
+        (Some(b), Some(r)) => out.iter_mut().zip(b).zip(r).for_each(|((o, &b), &r)| *o = b + r as f64),
+        (Some(b), None) => out.copy_from_slice(b),
+        (None, Some(r)) => out.iter_mut().zip(r).for_each(|(o, &r)| *o = r as f64),
+        (None, None) => out.fill(0.0),
+    }
 }
 
 /// One output row's scratch in [`window_sums`]: the window's columns summed down (each plane
