@@ -367,6 +367,7 @@ struct PathState {
 impl PathState {
     /// Follows a sampled direction: false when it cannot carry light (no density, or a zero
     /// throughput: nothing more can reach the eye along it).
+    #[inline(always)]
     fn scatter(&mut self, bs: &BsdfSample, p: Vec3, n: Vec3) -> bool {
         if bs.pdf <= 0.0 {
             return false;
@@ -380,6 +381,7 @@ impl PathState {
     }
 
     /// Russian roulette: false when the path ends here, else the survivor's weight goes up.
+    #[inline(always)]
     fn survives(&mut self, sampler: &mut Sampler) -> bool {
         let survive = self.beta.max_element();
         if survive < 1.0 {

@@ -2,7 +2,7 @@
 //! bent by its bump, height and normal maps, and the BSDF of its kind built from them. The
 //! integrator asks for the shading normal and says what to do with the BSDF ([`UseBsdf`]); it
 //! never names a material. Adding a material is its BSDF in `bsdf/` and one arm of
-//! [`Shading::with_bsdf`].
+//! `Shading::material_bsdf` (and, for a plain kind, of [`Shading::with_bsdf`]).
 
 use glam::{DVec3, Vec2, Vec3};
 
@@ -196,11 +196,26 @@ impl<'a> Shading<'a> {
     /// the geometric normal points to).
     #[inline(always)]
     pub fn with_bsdf<U: UseBsdf>(&self, n: Vec3, bent: Vec3, wo: Vec3, entering: bool, u: U) -> U::Output {
-        self.material_bsdf(&self.scene.materials[self.shape.material as usize], n, bent, wo, entering, u)
+        let material = &self.scene.materials[self.shape.material as usize];
+        // The four plain kinds are scattered inline in the caller's path loop; the others and
+        // the wrappers in one outlined function (recursive, for the wrappers), whose every
+        // arm would otherwise be copied into each loop. Measured on Embree's Cornell box:
+        // docs/RESULTS.md, `render-regression`.
+        match *material {
+            Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
+            Material::Mirror { color } => u.with(&Mirror { color, n }),
+            Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
+            Material::Glossy { specular, roughness, base } => {
+                let lobes = GlossyLobes { specular, alpha: alpha(roughness), base: self.color(base) };
+                u.with(&Glossy { lobes, frame: Frame::new(n) })
+            }
+            _ => self.material_bsdf(material, n, bent, wo, entering, u),
+        }
     }
 
-    /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps).
-    #[inline(always)]
+    /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps): every
+    /// kind, the plain ones again for the wrappers.
+    #[inline(never)]
     fn material_bsdf<U: UseBsdf>(
         &self,
         material: &Material,

@@ -156,7 +156,7 @@ fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> Option<Vec3> {
 
 /// The surface at `hit`, its triangle's normal computed from its corners.
 pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
-    surface_from(scene, ray, hit, true, |a, b, c, _| (face_normal(a, b, c), triangle_magnitude(a, b, c)))
+    surface_from(scene, ray, hit, true, None)
 }
 
 /// The surface at `hit`, its triangle's normal read from `faces` where it has a table (the same
@@ -165,25 +165,11 @@ pub fn surface(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
 /// the normal-map frame zero: none of them is computed.
 #[inline(always)]
 pub fn surface_with(scene: &Scene, faces: &FaceNormals, ray: &Ray, hit: &Hit, textured: bool) -> Surface {
-    surface_from(scene, ray, hit, textured, |a, b, c, prim| {
-        match faces.shapes[hit.shape as usize].get(prim as usize) {
-            Some(f) => {
-                let n = f.truncate();
-                ((n != Vec3::ZERO).then_some(n), f.w)
-            }
-            None => (face_normal(a, b, c), triangle_magnitude(a, b, c)),
-        }
-    })
+    surface_from(scene, ray, hit, textured, Some(faces))
 }
 
 #[inline(always)]
-fn surface_from(
-    scene: &Scene,
-    ray: &Ray,
-    hit: &Hit,
-    textured: bool,
-    face: impl Fn(Vec3, Vec3, Vec3, u32) -> (Option<Vec3>, f32),
-) -> Surface {
+fn surface_from(scene: &Scene, ray: &Ray, hit: &Hit, textured: bool, faces: Option<&FaceNormals>) -> Surface {
     // Only for a degenerate primitive, so computed only then.
     let fallback = || -ray.dir.normalize_or_zero();
     match &scene.shapes[hit.shape as usize].geometry {
@@ -216,7 +202,15 @@ fn surface_from(
             // Barycentric interpolation keeps the point's error small relative to its magnitude,
             // which the ray-origin offset relies on.
             let p = a * (1.0 - u - v) + b * u + c * v;
-            let (ng, magnitude) = face(a, b, c, hit.prim);
+            // The triangle's normal and magnitude from the table, where it has one.
+            let (ng, magnitude) =
+                match faces.and_then(|f| f.shapes[hit.shape as usize].get(hit.prim as usize)) {
+                    Some(f) => {
+                        let n = f.truncate();
+                        ((n != Vec3::ZERO).then_some(n), f.w)
+                    }
+                    None => (face_normal(a, b, c), triangle_magnitude(a, b, c)),
+                };
             let magnitude = match &mesh.instance {
                 None => magnitude,
                 Some(i) => magnitude.max(i.magnitude(mesh.local_triangle(hit.prim))),

@@ -25,6 +25,7 @@ impl Bsdf for Diffuse {
         self.albedo
     }
 
+    #[inline(always)]
     fn sample(&self, _wo: Vec3, u: &mut Sampler) -> Option<BsdfSample> {
         let local = cosine_hemisphere(u.get_2d(Dim::Direction));
         let wi = Frame::new(self.n).to_world(local);
@@ -32,6 +33,7 @@ impl Bsdf for Diffuse {
         Some(BsdfSample { wi, weight: self.albedo, pdf: local.z * FRAC_1_PI, lobe: Lobe::Diffuse })
     }
 
+    #[inline(always)]
     fn eval_lobes(&self, _wo: Vec3, wi: Vec3, mut each: impl FnMut(Lobe, Vec3, f32)) {
         let cos = self.n.dot(wi);
         if cos > 0.0 {
