@@ -96,16 +96,16 @@ impl Avx2 {
     }
 
     /// The closest hit, by a traversal compiled for AVX2.
-    pub fn intersect(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    pub fn intersect<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
         // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that
         // `intersect_avx2` is compiled for.
-        unsafe { intersect_avx2(self, bvh, ray, filter) }
+        unsafe { intersect_avx2::<N>(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX2.
-    pub fn occluded(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    pub fn occluded<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
         // SAFETY: as in `intersect`: AVX and AVX2 were detected.
-        unsafe { occluded_avx2(self, bvh, ray, filter) }
+        unsafe { occluded_avx2::<N>(self, bvh, ray, filter) }
     }
 }
 
@@ -131,14 +131,14 @@ fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn intersect_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
-    bvh.intersect_with(ray, filter, k)
+fn intersect_avx2<const N: usize>(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    bvh.intersect_with::<Avx2, N>(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn occluded_avx2(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
-    bvh.occluded_with(ray, filter, k)
+fn occluded_avx2<const N: usize>(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    bvh.occluded_with::<Avx2, N>(ray, filter, k)
 }
 
 /// The slab arithmetic of both x86 kernels: each child's entry distance and its exit distance
@@ -218,29 +218,29 @@ impl Avx512 {
 
     /// The closest hit, by a traversal compiled for AVX-512 (32 vector registers, so the
     /// ray's values stay in registers beside the triangle test's).
-    pub fn intersect(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    pub fn intersect<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
         // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all
         // that `intersect_avx512` is compiled for.
-        unsafe { intersect_avx512(self, bvh, ray, filter) }
+        unsafe { intersect_avx512::<N>(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX-512.
-    pub fn occluded(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    pub fn occluded<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
         // SAFETY: as in `intersect`: AVX, AVX2, AVX-512 F and VL were detected.
-        unsafe { occluded_avx512(self, bvh, ray, filter) }
+        unsafe { occluded_avx512::<N>(self, bvh, ray, filter) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
-fn intersect_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
-    bvh.intersect_with(ray, filter, k)
+fn intersect_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
+    bvh.intersect_with::<Avx512, N>(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
-fn occluded_avx512(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
-    bvh.occluded_with(ray, filter, k)
+fn occluded_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
+    bvh.occluded_with::<Avx512, N>(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]

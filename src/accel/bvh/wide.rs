@@ -255,7 +255,8 @@ pub struct Bvh8 {
 /// never deepens the binary tree, whose depth the build bounds.
 const STACK: usize = (WIDTH - 1) * super::STACK + 1;
 /// The stack of trees shallow enough for it (every tree of a real scene): a smaller frame. (The
-/// stacks are not initialised, so their length costs no time.)
+/// stacks are not initialised, so their length costs no time; each size has its own traversal
+/// function, so no frame holds both.)
 const SHORT_STACK: usize = 128;
 
 /// Ize's factor: the far slab distance grows by 2 gamma(3) to cover rounding (see `RayBox`).
@@ -475,15 +476,26 @@ impl Bvh8 {
     /// Inner node `child`.
     #[inline(always)]
     fn node(&self, child: Child) -> &Node8 {
-        let at = child.0 as usize;
-        &bytemuck::cast_slice::<Line, Node8>(&self.lines[at..at + NODE_LINES])[0]
+        // Cast from lines of a size known when compiling: no run-time check of the length's
+        // multiple and the alignment, which `cast_slice` makes (a division at every leaf).
+        let Some(lines) = self.lines[child.0 as usize..].first_chunk::<NODE_LINES>() else {
+            unreachable!("a child names a node inside the tree")
+        };
+        bytemuck::cast_ref::<[Line; NODE_LINES], Node8>(lines)
     }
 
     /// Leaf `child`'s blocks.
     #[inline(always)]
     fn blocks(&self, child: Child) -> &[Leaf4] {
-        let at = child.index();
-        bytemuck::cast_slice(&self.lines[at..at + LEAF_LINES * child.blocks()])
+        let lines = &self.lines[child.index()..];
+        let blocks = match child.blocks() {
+            1 => lines.first_chunk::<LEAF_LINES>().map(|l| std::slice::from_ref(bytemuck::cast_ref(l))),
+            _ => lines
+                .first_chunk::<{ 2 * LEAF_LINES }>()
+                .map(|l| bytemuck::cast_ref::<[Line; 2 * LEAF_LINES], [Leaf4; 2]>(l).as_slice()),
+        };
+        let Some(blocks) = blocks else { unreachable!("a child names blocks inside the tree") };
+        blocks
     }
 
     fn blocks_mut(&mut self, child: Child) -> &mut [Leaf4] {
@@ -771,40 +783,62 @@ impl RayTri4 {
 impl Bvh8 {
     /// Closest hit along `ray`, with the slab test this CPU runs best.
     pub fn intersect(&self, ray: &Ray, filter: Filter) -> Option<Hit> {
-        match self.isa {
-            Isa::Portable => self.intersect_with(ray, filter, Portable),
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.intersect(self, ray, filter),
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(k) => k.intersect(self, ray, filter),
+        // Each stack size its own function: one frame holding both stacks (4.6 KB) took a
+        // stack probe at every ray.
+        if self.shallow() {
+            self.intersect_on::<SHORT_STACK>(ray, filter)
+        } else {
+            self.intersect_on::<STACK>(ray, filter)
         }
+    }
+
+    /// [`Self::intersect`] on a stack of `N` entries.
+    fn intersect_on<const N: usize>(&self, ray: &Ray, filter: Filter) -> Option<Hit> {
+        match self.isa {
+            Isa::Portable => self.intersect_with::<Portable, N>(ray, filter, Portable),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.intersect::<N>(self, ray, filter),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(k) => k.intersect::<N>(self, ray, filter),
+        }
+    }
+
+    /// Whether [`SHORT_STACK`] holds every entry a traversal of this tree can push.
+    #[inline(always)]
+    fn shallow(&self) -> bool {
+        (WIDTH - 1) * self.depth < SHORT_STACK
     }
 
     /// Whether anything lies along `ray` within [0, t_max]; stops at the first hit.
     pub fn occluded(&self, ray: &Ray, filter: Filter) -> bool {
+        if self.shallow() {
+            self.occluded_on::<SHORT_STACK>(ray, filter)
+        } else {
+            self.occluded_on::<STACK>(ray, filter)
+        }
+    }
+
+    /// [`Self::occluded`] on a stack of `N` entries.
+    fn occluded_on<const N: usize>(&self, ray: &Ray, filter: Filter) -> bool {
         match self.isa {
-            Isa::Portable => self.occluded_with(ray, filter, Portable),
+            Isa::Portable => self.occluded_with::<Portable, N>(ray, filter, Portable),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.occluded(self, ray, filter),
+            Isa::Avx2(k) => k.occluded::<N>(self, ray, filter),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(k) => k.occluded(self, ray, filter),
+            Isa::Avx512(k) => k.occluded::<N>(self, ray, filter),
         }
     }
 
     /// Closest hit along `ray`, ordered: the children a node's box test passes are visited
     /// nearest first, and entries the closest hit so far has passed are skipped when popped.
+    /// On a stack of `N` entries, which the caller has checked is enough ([`Self::shallow`]).
     #[inline(always)]
-    pub(super) fn intersect_with<K: BoxTest>(&self, ray: &Ray, filter: Filter, k: K) -> Option<Hit> {
-        if (WIDTH - 1) * self.depth < SHORT_STACK {
-            self.intersect_stack::<K, SHORT_STACK>(ray, filter, k)
-        } else {
-            self.intersect_stack::<K, STACK>(ray, filter, k)
-        }
-    }
-
-    /// [`Self::intersect_with`] on a stack of `N` entries.
-    #[inline(always)]
-    fn intersect_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> Option<Hit> {
+    pub(super) fn intersect_with<K: BoxTest, const N: usize>(
+        &self,
+        ray: &Ray,
+        filter: Filter,
+        k: K,
+    ) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
@@ -896,18 +930,9 @@ impl Bvh8 {
     }
 
     /// Whether anything lies along `ray` within [0, t_max], in any order.
+    /// On a stack of `N` entries, which the caller has checked is enough ([`Self::shallow`]).
     #[inline(always)]
-    pub(super) fn occluded_with<K: BoxTest>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
-        if (WIDTH - 1) * self.depth < SHORT_STACK {
-            self.occluded_stack::<K, SHORT_STACK>(ray, filter, k)
-        } else {
-            self.occluded_stack::<K, STACK>(ray, filter, k)
-        }
-    }
-
-    /// [`Self::occluded_with`] on a stack of `N` entries.
-    #[inline(always)]
-    fn occluded_stack<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
+    pub(super) fn occluded_with<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
