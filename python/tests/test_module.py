@@ -5,6 +5,7 @@ names the command line's binary in LIGHTSPLIT."""
 import _thread
 import json
 import os
+import signal
 import subprocess
 import threading
 import time
@@ -166,8 +167,14 @@ def test_ctrl_c_stops_after_a_pass_and_keeps_the_samples():
         if done > 0:
             _thread.interrupt_main()  # as Ctrl-C: the signal reaches the main thread
 
-    with pytest.raises(KeyboardInterrupt) as caught:
-        scene.render(spp=1024, progress=interrupt)
+    # Python's own Ctrl-C handler, whatever this process inherited: a shell starts a background
+    # job with SIGINT ignored, and then Python installs none and interrupt_main does nothing.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt) as caught:
+            scene.render(spp=1024, progress=interrupt)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert isinstance(caught.value, lightsplit.Interrupted)
     render = caught.value.render
     assert render.stats["interrupted"]
