@@ -2,7 +2,8 @@
 # Compares lightsplit's speed with two peers on the same scene, scenes/embree-cornell.toml (the
 # Cornell box as Embree's pathtracer tutorial renders cornell_box.ecs): Mitsuba 3 (scalar_rgb,
 # `path` integrator) and Embree's `pathtracer` tutorial itself. Checks first that the three images
-# agree in mean, then times whole processes in alternating order, and prints a Markdown table;
+# agree in mean, then times whole processes in alternating order, and prints a Markdown table
+# and the render time alone that lightsplit and Mitsuba each report (the tutorial reports none);
 # writes it, with the machine and the exact commands, into its section of docs/RESULTS.md,
 # `bench-peers` (through scripts/results-section.py: replaced where it is, appended when missing,
 # the rest of the file left as it was).
@@ -262,6 +263,27 @@ run() {
     fi
     read -r wall user sys < <(tail -n 1 "$tmp/time")
     cpu=$(awk -v u="$user" -v s="$sys" 'BEGIN { printf "%.3f", u + s }')
+    render_s=$(render_seconds "$peer" "$tmp/$peer.log")
+}
+
+# The render time a program reports itself, loading the scene, building the acceleration
+# structure and writing the image left out: lightsplit's "in X s" (to 0.01 s), Mitsuba's
+# "Rendering finished. (took X)" (to the millisecond, as "6.344s" or "402ms"); "-" for the
+# tutorial, which reports none, or for a line not found.
+render_seconds() {
+    case $1 in
+        lightsplit) sed -n 's/.* in \([0-9.]*\) s (.*/\1/p' "$2" | tail -n 1 | grep . || echo - ;;
+        mitsuba)
+            sed -n 's/.*Rendering finished\. (took \([^)]*\)).*/\1/p' "$2" | tail -n 1 | awk '
+                match($0, /^[0-9.]+/) {
+                    v = substr($0, 1, RLENGTH); u = substr($0, RLENGTH + 1)
+                    f = u == "ms" ? 0.001 : u == "s" ? 1 : u == "m" ? 60 : u == "h" ? 3600 : -1
+                    if (f > 0) { printf "%.3f\n", v * f; found = 1 }
+                }
+                END { if (!found) print "-" }'
+            ;;
+        *) echo - ;;
+    esac
 }
 
 mean() { "$venv/bin/python" "$helpers/images.py" mean "$@"; }
@@ -321,6 +343,7 @@ fi
 busy() { awk '/^cpu / { print $2 + $3 + $4 + $7 + $8 + $9 }' /proc/stat; }
 busy_before=$(busy)
 : >"$tmp/runs.tsv"
+: >"$tmp/render.tsv"
 ours=0
 for ((r = 0; r < rounds; r++)); do
     order=()
@@ -331,6 +354,7 @@ for ((r = 0; r < rounds; r++)); do
     for peer in "${order[@]}"; do
         run "$peer"
         printf '%s\t%s\t%s\t%s\n' "$r" "$peer" "$wall" "$cpu" >>"$tmp/runs.tsv"
+        printf '%s\t%s\t%s\n' "$r" "$peer" "$render_s" >>"$tmp/render.tsv"
         ours=$(awk -v a="$ours" -v b="$cpu" 'BEGIN { print a + b }')
         line="$line $peer ${wall} s (CPU ${cpu} s),"
     done
@@ -348,8 +372,32 @@ table=$("$venv/bin/python" "$helpers/report.py" table "$tmp/runs.tsv" "$samples"
     "$(printf 'mitsuba\tMitsuba %s\t%s\t%s linear\t%s%% (limit ±1%%)' "$mitsuba_version" "$(command_of mitsuba)" "$m_mitsuba" "$d_mitsuba")" \
     "$(printf 'tutorial\tEmbree tutorial %s\t%s\t%s (8-bit)\t%s%% against lightsplit as 8-bit (limit ±%s%%)' "$embree_version" \
         "$(command_of tutorial)" "$m_tutorial" "$d_tutorial" "$limit_tutorial")")
+# Render time alone, lightsplit against Mitsuba: the medians, and the median of the rounds'
+# ratios (lightsplit's speed over Mitsuba's); "-" when either reported none.
+read -r render_ls render_mi render_ratio < <("$venv/bin/python" - "$tmp/render.tsv" <<'PY'
+import statistics, sys
+seconds = {}
+for line in open(sys.argv[1]):
+    r, peer, s = line.rstrip("\n").split("\t")
+    if s != "-" and float(s) > 0:
+        seconds.setdefault(peer, {})[r] = float(s)
+ls, mi = seconds.get("lightsplit", {}), seconds.get("mitsuba", {})
+rounds = [r for r in ls if r in mi]
+if not rounds:
+    print("- - -")
+else:
+    ratio = statistics.median(mi[r] / ls[r] for r in rounds)
+    print(f"{statistics.median(ls.values()):.3f} {statistics.median(mi.values()):.3f} {ratio:.2f}x")
+PY
+)
+render_text="Render time alone, as each program reports it (loading the scene, building the acceleration
+structure and writing the image left out): lightsplit $render_ls s (its \"in X s\"), Mitsuba
+$render_mi s (its \"Rendering finished (took X)\"): lightsplit's speed is
+$render_ratio Mitsuba's (the median of the rounds' ratios). The tutorial reports no render time."
 echo
 echo "$table"
+echo
+echo "$render_text"
 echo
 
 [ "$write" = 1 ] || exit 0
@@ -399,6 +447,10 @@ before timing was $load; other processes used $others CPU s during the $ours CPU
 TEXT
     echo
     echo "$table"
+    echo
+    paragraph <<TEXT
+$render_text
+TEXT
     echo
     paragraph <<TEXT
 The commands, run in a scratch directory; \`mitsuba/scene.xml\` and one OBJ file a part come
