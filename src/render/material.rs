@@ -2,7 +2,8 @@
 //! bent by its bump, height and normal maps, and the BSDF of its kind built from them. The
 //! integrator asks for the shading normal and says what to do with the BSDF ([`UseBsdf`]); it
 //! never names a material. Adding a material is its BSDF in `bsdf/` and one arm of
-//! `Shading::material_bsdf` (and, for a plain kind, of [`Shading::with_bsdf`]).
+//! `Shading::material_bsdf` (for a plain kind, which the path loop scatters inline, of
+//! `Shading::plain_bsdf` instead).
 
 use glam::{DVec3, Vec2, Vec3};
 
@@ -201,7 +202,23 @@ impl<'a> Shading<'a> {
         // the wrappers in one outlined function (recursive, for the wrappers), whose every
         // arm would otherwise be copied into each loop. Measured on Embree's Cornell box:
         // docs/RESULTS.md, `render-regression`.
-        match *material {
+        match self.plain_bsdf(material, n, entering, u) {
+            Ok(out) => out,
+            Err(u) => self.material_bsdf(material, n, bent, wo, entering, u),
+        }
+    }
+
+    /// The BSDF of a plain kind (diffuse, mirror, glass, glossy) handed to `u`; `u` back for
+    /// any other kind.
+    #[inline(always)]
+    fn plain_bsdf<U: UseBsdf>(
+        &self,
+        material: &Material,
+        n: Vec3,
+        entering: bool,
+        u: U,
+    ) -> Result<U::Output, U> {
+        Ok(match *material {
             Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
             Material::Mirror { color } => u.with(&Mirror { color, n }),
             Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
@@ -209,12 +226,12 @@ impl<'a> Shading<'a> {
                 let lobes = GlossyLobes { specular, alpha: alpha(roughness), base: self.color(base) };
                 u.with(&Glossy { lobes, frame: Frame::new(n) })
             }
-            _ => self.material_bsdf(material, n, bent, wo, entering, u),
-        }
+            _ => return Err(u),
+        })
     }
 
     /// [`Shading::with_bsdf`] of material `material` (the shape's, or one it wraps): every
-    /// kind, the plain ones again for the wrappers.
+    /// kind, the plain ones through [`Shading::plain_bsdf`] for the wrappers.
     #[inline(never)]
     fn material_bsdf<U: UseBsdf>(
         &self,
@@ -225,9 +242,19 @@ impl<'a> Shading<'a> {
         entering: bool,
         u: U,
     ) -> U::Output {
+        let u = match self.plain_bsdf(material, n, entering, u) {
+            Ok(out) => return out,
+            Err(u) => u,
+        };
         // (Made only for the materials with a diffuse base under glossy lobes.)
         let base_frame = || (bent != n).then(|| Frame::new(bent));
         match material {
+            Material::Diffuse { .. }
+            | Material::Mirror { .. }
+            | Material::Glass { .. }
+            | Material::Glossy { .. } => {
+                unreachable!("the plain kinds are scattered by plain_bsdf above")
+            }
             Material::Front(inner) => match entering {
                 true => self.material_bsdf(inner, n, bent, wo, entering, u),
                 false => u.with(&Black),
@@ -269,13 +296,6 @@ impl<'a> Shading<'a> {
                 Frame::new(n),
                 p.facets.as_ref().is_some_and(|(f, _)| self.counts_diffuse(*f)),
             )),
-            &Material::Diffuse { albedo } => u.with(&Diffuse { albedo: self.color(albedo), n }),
-            &Material::Mirror { color } => u.with(&Mirror { color, n }),
-            &Material::Glass { ior, color } => u.with(&Glass { ior, color, n, entering }),
-            &Material::Glossy { specular, roughness, base } => {
-                let lobes = GlossyLobes { specular, alpha: alpha(roughness), base: self.color(base) };
-                u.with(&Glossy { lobes, frame: Frame::new(n) })
-            }
             &Material::Pbr { base_color, metallic, roughness, diffuse_from } => {
                 let (metallic, roughness) = self.metal_rough(metallic, roughness);
                 let color = base_color * self.color(Vec3::ONE);

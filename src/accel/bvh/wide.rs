@@ -476,8 +476,8 @@ impl Bvh8 {
     /// Inner node `child`.
     #[inline(always)]
     fn node(&self, child: Child) -> &Node8 {
-        // Cast from lines of a size known when compiling: no run-time check of the length's
-        // multiple and the alignment, which `cast_slice` makes (a division at every leaf).
+        // Cast from lines of a size known when compiling: no run-time check of the alignment
+        // and of the length's multiple (a division), which `cast_slice` makes at every visit.
         let Some(lines) = self.lines[child.0 as usize..].first_chunk::<NODE_LINES>() else {
             unreachable!("a child names a node inside the tree")
         };
