@@ -25,7 +25,9 @@ out=$(mktemp)
 trap 'rm -f "$out"' EXIT
 for ((i = 1; i <= runs; i++)); do
   for b in "$@"; do
-    "$b" bench-accel "$scene" --threads 1 --rounds 3 --rays "${RAYS:-300000}" --seconds 0.2 --json |
+    # Read once the run is over: Python starting inside a pipe would share the cores with it.
+    json=$("$b" bench-accel "$scene" --threads 1 --rounds 3 --rays "${RAYS:-300000}" --seconds 0.2 --json)
+    printf '%s\n' "$json" |
       python3 -c '
 import json, sys
 r = json.loads(sys.stdin.readline())

@@ -30,6 +30,8 @@ use crate::component::Component;
 use crate::film::{Film, Image};
 use crate::math::luminance;
 
+use super::pool::Plane;
+
 /// The à-trous filter's settings; [`Atrous::default`] holds the measured defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Atrous {
@@ -304,7 +306,7 @@ fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, 
     let k = live.len();
     let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
     // Demodulated illumination, its luminance and its variance, row by row.
-    let mut cur = vec![0.0f32; h * k * PLANES * w];
+    let mut cur = Plane::zeroed(h * k * PLANES * w);
     cur.par_chunks_mut(k * PLANES * w).enumerate().for_each(|(y, row)| {
         for (c, &li) in live.iter().enumerate() {
             let layer = layers[li];
@@ -324,8 +326,8 @@ fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, 
             }
         }
     });
-    let mut next = vec![0.0f32; cur.len()];
-    let mut inv_sigma = vec![0.0f32; h * k * w];
+    let mut next = Plane::zeroed(cur.len());
+    let mut inv_sigma = Plane::zeroed(h * k * w);
     // Each layer's colour stop and passes; a layer past its passes is carried over.
     let strengths: Vec<(f32, u32)> = live.iter().map(|&li| a.strength(layers[li].component)).collect();
     let passes = strengths.iter().map(|s| s.1).max().unwrap_or(0);
@@ -413,58 +415,53 @@ const MIXED: f32 = -2.0;
 /// The guide planes, made once: normal, depth, the object key (NaN where the pixel may not
 /// mix: no object; [`MIXED`] with `pure` for a mixed pixel) and the inverse depth gradient.
 struct Guides {
-    nx: Vec<f32>,
-    ny: Vec<f32>,
-    nz: Vec<f32>,
-    z: Vec<f32>,
-    key: Vec<f32>,
+    nx: Plane,
+    ny: Plane,
+    nz: Plane,
+    z: Plane,
+    key: Plane,
     /// `log2 e / (σ_z |∇z|)` per pixel.
-    inv_dz: Vec<f32>,
+    inv_dz: Plane,
 }
 
 impl Guides {
     fn new(film: &Film, a: &Atrous, pure: bool) -> Guides {
         let (w, h) = (film.width as usize, film.height as usize);
         let n = w * h;
-        let key: Vec<f32> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let o = film.object[i];
-                if o < 0.0 {
-                    f32::NAN
-                } else if pure && film.coverage[i] < 1.0 {
-                    MIXED
-                } else {
-                    o
-                }
-            })
-            .collect();
-        let z: Vec<f32> = film.depth.par_iter().map(|&z| if z.is_finite() { z } else { 0.0 }).collect();
-        let normals: Vec<Vec3> =
-            film.normal.pixels.par_iter().map(|&v| if v.is_finite() { v } else { Vec3::ZERO }).collect();
+        let mut key = Plane::zeroed(n);
+        key.par_iter_mut().enumerate().for_each(|(i, k)| {
+            let o = film.object[i];
+            *k = if o < 0.0 {
+                f32::NAN
+            } else if pure && film.coverage[i] < 1.0 {
+                MIXED
+            } else {
+                o
+            };
+        });
+        let mut z = Plane::zeroed(n);
+        z.par_iter_mut().zip(&film.depth).for_each(|(z, &d)| *z = if d.is_finite() { d } else { 0.0 });
+        let (mut nx, mut ny, mut nz) = (Plane::zeroed(n), Plane::zeroed(n), Plane::zeroed(n));
+        nx.par_iter_mut().zip(&mut *ny).zip(&mut *nz).zip(&film.normal.pixels).for_each(
+            |(((x, y), z), &v)| {
+                let v = if v.is_finite() { v } else { Vec3::ZERO };
+                (*x, *y, *z) = (v.x, v.y, v.z);
+            },
+        );
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
-        let inv_dz = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = (i % w, i / w);
-                let side = |j: Option<usize>| {
-                    j.filter(|&j| key[j] == key[i]).map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY)
-                };
-                let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
-                let gx = axis(side(x.checked_sub(1).map(|x| y * w + x)), side((x + 1 < w).then(|| i + 1)));
-                let gy = axis(side(y.checked_sub(1).map(|y| y * w + x)), side((y + 1 < h).then(|| i + w)));
-                LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12)
-            })
-            .collect();
-        Guides {
-            nx: normals.par_iter().map(|v| v.x).collect(),
-            ny: normals.par_iter().map(|v| v.y).collect(),
-            nz: normals.par_iter().map(|v| v.z).collect(),
-            z,
-            key,
-            inv_dz,
-        }
+        let mut inv_dz = Plane::zeroed(n);
+        inv_dz.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let (x, y) = (i % w, i / w);
+            let side = |j: Option<usize>| {
+                j.filter(|&j| key[j] == key[i]).map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY)
+            };
+            let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
+            let gx = axis(side(x.checked_sub(1).map(|x| y * w + x)), side((x + 1 < w).then(|| i + 1)));
+            let gy = axis(side(y.checked_sub(1).map(|y| y * w + x)), side((y + 1 < h).then(|| i + w)));
+            *out = LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12);
+        });
+        Guides { nx, ny, nz, z, key, inv_dz }
     }
 }
 

@@ -29,6 +29,8 @@ use rayon::prelude::*;
 
 use crate::film::Image;
 
+use super::pool::Plane;
+
 /// The window's half-width: 15x15 pixels (of 9 and 15, and of four weightings, the one never
 /// above the unfiltered error on the four models; docs/RESULTS.md).
 pub const RADIUS: usize = 7;
@@ -207,16 +209,10 @@ pub fn blend(u: &Image, (a, b): (&Image, &Image), (fa, fb): (&Image, &Image), sh
 /// Each pixel's weight of the filtered image ([`blend`]): 0 in a window without a pixel of two
 /// sampled halves (adaptive sampling stopped them early: the check cannot speak there, and the
 /// pixels it stopped were the clean ones).
-fn weights(
-    w: usize,
-    h: usize,
-    (a, b): (&Image, &Image),
-    (fa, fb): (&Image, &Image),
-    share: &[f32],
-) -> Vec<f32> {
+fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Image), share: &[f32]) -> Plane {
     // Per pixel e_U, e_F and whether it counts (module docs), plane by plane.
-    let (mut e_u, mut e_f, mut checked) = (vec![0.0f32; w * h], vec![0.0f32; w * h], vec![0.0f32; w * h]);
-    e_u.par_iter_mut().zip(&mut e_f).zip(&mut checked).enumerate().for_each(|(i, ((u, f), c))| {
+    let (mut e_u, mut e_f, mut checked) = (Plane::zeroed(w * h), Plane::zeroed(w * h), Plane::zeroed(w * h));
+    e_u.par_iter_mut().zip(&mut *e_f).zip(&mut *checked).enumerate().for_each(|(i, ((u, f), c))| {
         // Stored as f32, summed as f64; a pixel whose errors f32 cannot hold counts in no
         // sum, as one whose halves are not both sampled.
         if let Some((eu, ef)) = errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i]) {
@@ -225,7 +221,7 @@ fn weights(
             }
         }
     });
-    let mut weights = vec![0.0; w * h];
+    let mut weights = Plane::zeroed(w * h);
     window_sums([&e_u, &e_f, &checked], w, h, &mut weights, |[u, f, checked], out| {
         for (((o, &u), &f), &checked) in out.iter_mut().zip(u).zip(f).zip(checked) {
             *o = match (checked > 0.0, u > 0.0) {

@@ -9,6 +9,7 @@
 
 pub mod atrous;
 pub mod cross;
+mod pool;
 mod section;
 
 use std::borrow::Cow;
@@ -297,26 +298,19 @@ pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops
 /// says it lowers the error ([`cross`]). All the images are filtered in one call.
 fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -> Vec<Image> {
     // Each half's variance: the whole's over the half's share of the samples.
-    let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<Vec<f32>> {
+    let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<pool::Plane> {
         let v = variance?;
-        Some(
-            v.par_iter()
-                .zip(share)
-                .map(|(&v, &s)| {
-                    let part = if second { s } else { 1.0 - s };
-                    if part > 0.0 && part < 1.0 {
-                        v / part
-                    } else {
-                        v
-                    }
-                })
-                .collect(),
-        )
+        let mut out = pool::Plane::zeroed(v.len());
+        out.par_iter_mut().zip(v).zip(share).for_each(|((o, &v), &s)| {
+            let part = if second { s } else { 1.0 - s };
+            *o = if part > 0.0 && part < 1.0 { v / part } else { v };
+        });
+        Some(out)
     };
     struct Halved<'a> {
         layer: usize,
         halves: (Image, Image),
-        variances: (Option<Vec<f32>>, Option<Vec<f32>>),
+        variances: (Option<pool::Plane>, Option<pool::Plane>),
         share: &'a [f32],
     }
     let halved: Vec<Halved> = layers
