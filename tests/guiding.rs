@@ -30,8 +30,13 @@ fn a_guided_furnace_keeps_its_mean() {
         let out = render(&scene, &options, &|_| {}).expect("renders");
         let (mean, se) = mean_and_standard_error(&out.film.raw);
         assert!(out.guide.is_some(), "{guiding:?}: trained");
-        // Noisier than unguided (0.1): the mixture's weights vary where the BSDF's alone are the albedo.
-        assert!(se > 0.0 && se < 0.5, "{guiding:?}: standard error {se}");
+        // Noisier than unguided (0.03): the mixture's weights vary where the BSDF's alone are
+        // the albedo, and over up to 256 bounces their product has a heavy tail. Over seeds 0
+        // to 11 (an AVX-512 machine, 2026-12-06; this seed gave 0.58 there and under 0.5 on an
+        // AVX2 machine) the standard error ranged 0.14 to 0.79 with `Indirect`, and 0.16 to
+        // 0.48 with `All` but for two seeds, 2.3 and 30 (a mean of 40): a defect, left open in
+        // issue 41's note. The bound is the spread measured without those two.
+        assert!(se > 0.0 && se < 1.0, "{guiding:?}: standard error {se}");
         assert!((mean - 10.0).abs() < 4.0 * se, "{guiding:?}: mean {mean}, expected 10 within 4 x {se}");
     }
 }

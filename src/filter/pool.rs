@@ -1,4 +1,4 @@
-//! The filter's working planes, kept between calls. A 256x256 `--denoise` works in about 20 MB of
+//! The filter's working planes, kept between calls. A 256x256 `--denoise` works in about 16 MB of
 //! planes; freshly allocated, every 4 KB page of them is a page fault when first written and
 //! an unmapping when freed, which took about a third of a warm call (docs/RESULTS.md, the
 //! denoising section). A plane taken here reuses one that an earlier call, or an earlier step
