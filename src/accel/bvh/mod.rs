@@ -11,7 +11,7 @@
 mod build;
 mod instances;
 mod intersect;
-mod pages;
+pub(crate) mod pages;
 pub mod simd;
 pub mod wide;
 
