@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 
 use arrayvec::ArrayVec;
 
-use super::bsdf::{Bsdf, BsdfSample, Lobe};
+use super::bsdf::{reflect, Bsdf, BsdfSample, Lobe};
 use super::features::{GUIDES, MIS, SPLIT, TEXTURES};
 use super::guide::{Directions, Guide, RadianceRecord};
 use super::lights::{LightSample, Lights, ShadowEnd, Strategy};
@@ -139,9 +139,8 @@ impl Guided<'_> {
     /// folded), so that in a furnace of albedo 0.9 it grew along the path.
     fn sample(&self, u: Vec2) -> Vec3 {
         let d = self.dirs.sample(u).0;
-        let c = self.n.dot(d);
-        if c < 0.0 {
-            d - 2.0 * c * self.n
+        if self.n.dot(d) < 0.0 {
+            -reflect(d, self.n)
         } else {
             d
         }
@@ -150,11 +149,10 @@ impl Guided<'_> {
     /// The density of [`Guided::sample`]'s directions: the guide's at `wi` and at its mirror
     /// image below the surface; none below it.
     fn pdf(&self, wi: Vec3) -> f32 {
-        let c = self.n.dot(wi);
-        if c <= 0.0 {
+        if self.n.dot(wi) <= 0.0 {
             return 0.0;
         }
-        self.dirs.pdf(wi) + self.dirs.pdf(wi - 2.0 * c * self.n)
+        self.dirs.pdf(wi) + self.dirs.pdf(-reflect(wi, self.n))
     }
 
     /// The density with which the mixture picks direction `wi` (where the guide's density is
