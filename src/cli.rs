@@ -403,6 +403,11 @@ pub struct BenchAccelArgs {
     /// not, build quality low, medium, high (build time, rays per second, answers changed).
     #[arg(long)]
     pub embree_settings: bool,
+    /// The BVH's kernels: avx512, avx2 or portable (default: the best this CPU runs). With
+    /// `LIGHTSPLIT_EMBREE_CONFIG=isa=avx2` for Embree, both measure AVX2 alone on a CPU that
+    /// also has AVX-512.
+    #[arg(long, value_name = "KERNELS")]
+    pub isa: Option<String>,
     /// Print one JSON object on stdout instead of the table.
     #[arg(long)]
     pub json: bool,

@@ -523,9 +523,18 @@ fn bench_accel_measures_several_scenes_and_plots_them() {
     let png = image::open(&plot).expect("the plot is a PNG");
     assert!(png.width() > 100 && png.height() > 100);
 
+    // `--isa` picks the BVH's kernels; the portable ones run on every CPU.
+    let mut args = vec!["bench-accel", scenes[0].as_str(), "--isa", "portable"];
+    args.extend(&tail[..tail.len() - 1]);
+    let out = lightsplit(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(report["bvh_isa"], "portable", "{report}");
+
     for bad in [
         vec!["bench-accel", scenes[0].as_str(), "--plot", "out.jpg"],
         vec!["bench-accel", scenes[0].as_str(), scenes[1].as_str(), "--embree-settings"],
+        vec!["bench-accel", scenes[0].as_str(), "--isa", "sse9"],
     ] {
         let out = lightsplit(&bad);
         assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", String::from_utf8_lossy(&out.stderr));

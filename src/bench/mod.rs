@@ -26,6 +26,8 @@ pub struct BenchAccelOptions {
     /// rounds are reported, so one slow moment of a noisy machine does not decide a row.
     pub rounds: usize,
     pub seed: u64,
+    /// The BVH's kernels (`None`: the best this CPU runs).
+    pub bvh_isa: Option<crate::accel::bvh::simd::Isa>,
 }
 
 /// One measured row.
@@ -141,7 +143,10 @@ pub fn bench_accel(
         let b = Bvh::new(scene);
         (b, start.elapsed().as_secs_f64())
     });
-    let bvh = bvh?;
+    let bvh = match options.bvh_isa {
+        Some(isa) => bvh?.with_isa(isa),
+        None => bvh?,
+    };
 
     let sets = RaySets::generate(scene, &embree, options.rays, options.seed);
     let mut thread_counts = vec![1];

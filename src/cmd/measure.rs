@@ -16,6 +16,14 @@ pub fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
     if args.embree_settings && (args.scenes.len() > 1 || args.plot.is_some()) {
         return Err(Failure::input("--embree-settings measures one scene and draws no plot"));
     }
+    let bvh_isa = match args.isa.as_deref() {
+        None => None,
+        Some(name) => Some(lightsplit::accel::bvh::simd::Isa::named(name).ok_or_else(|| {
+            Failure::input(format!(
+                "--isa {name}: this CPU does not run it (the BVH's kernels are avx512, avx2 and portable)"
+            ))
+        })?),
+    };
     // Every scene loads before anything is measured, so a bad file costs no waiting.
     let mut scenes = Vec::new();
     for path in &args.scenes {
@@ -27,6 +35,7 @@ pub fn bench_accel_command(args: BenchAccelArgs) -> Result<(), Failure> {
         min_seconds: args.seconds,
         rounds: args.rounds,
         seed: 1,
+        bvh_isa,
     };
     let bar = progress_bar(0, args.json);
     if args.embree_settings {

@@ -296,6 +296,17 @@ impl Isa {
         None
     }
 
+    /// The kernels called `name` ("portable", "avx2" or "avx512"), where this CPU runs them.
+    pub fn named(name: &str) -> Option<Isa> {
+        match name {
+            "portable" => Some(Isa::Portable),
+            "avx2" => Isa::avx2(),
+            #[cfg(target_arch = "x86_64")]
+            "avx512" => Avx512::detect().map(Isa::Avx512),
+            _ => None,
+        }
+    }
+
     /// The kernels' name, as reports print it.
     pub fn name(self) -> &'static str {
         match self {
@@ -325,6 +336,16 @@ impl BoxTest for Isa {
 mod tests {
     use super::*;
     use crate::render::sampler::Sampler;
+
+    /// Kernels named are those of that name where this CPU runs them, and none otherwise.
+    #[test]
+    fn kernels_named_are_the_ones_this_cpu_runs() {
+        assert_eq!(Isa::named("portable").map(Isa::name), Some("portable"));
+        assert_eq!(Isa::named("avx2").map(Isa::name), Isa::avx2().map(Isa::name));
+        let best = Isa::best().name();
+        assert_eq!(Isa::named(best).map(Isa::name), Some(best));
+        assert!(Isa::named("sse9").is_none() && Isa::named("AVX2").is_none());
+    }
 
     /// The AVX2 slab test gives the portable test's distances and masks bit for bit.
     #[test]
