@@ -763,7 +763,7 @@ fn density(energy: f32, total: f32, depth: u32) -> f32 {
 fn from_square(s: Vec2) -> Vec3 {
     let z = 2.0 * s.x - 1.0;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let (sin, cos) = (TAU * s.y).sin_cos();
+    let (sin, cos) = crate::math::sin_cos_turn(s.y);
     Vec3::new(r * cos, r * sin, z)
 }
 

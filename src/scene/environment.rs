@@ -89,10 +89,10 @@ impl EnvironmentMap {
     /// The direction (unit, in the scene) that point `uv` of the map's square looks at, and the
     /// sine of its angle from the up axis.
     pub fn direction(&self, uv: Vec2) -> (Vec3, f32) {
-        let phi = 2.0 * PI * (uv.x - 0.5);
-        let theta = PI * uv.y;
-        let (sin_t, cos_t) = theta.sin_cos();
-        let (x, z) = (sin_t * phi.cos(), sin_t * phi.sin());
+        // phi = 2 pi (u - 1/2), theta = pi v: half a turn.
+        let (sin_p, cos_p) = crate::math::sin_cos_turn(uv.x - 0.5);
+        let (sin_t, cos_t) = crate::math::sin_cos_turn(0.5 * uv.y);
+        let (x, z) = (sin_t * cos_p, sin_t * sin_p);
         let (s, c) = self.turn;
         (Vec3::new(c * x + s * z, cos_t, -s * x + c * z), sin_t)
     }

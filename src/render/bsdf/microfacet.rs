@@ -122,8 +122,8 @@ impl Microfacet {
         let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
-        let phi = TAU * u.y;
-        let (p1, mut p2) = (r * phi.cos(), r * phi.sin());
+        let (sin, cos) = crate::math::sin_cos_turn(u.y);
+        let (p1, mut p2) = (r * cos, r * sin);
         let s = 0.5 * (1.0 + vh.z);
         p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
@@ -134,7 +134,7 @@ impl Microfacet {
     fn sample_beckmann(&self, u: Vec2) -> Vec3 {
         let (au, av) = (self.alpha_u, self.alpha_v);
         let (sin_phi, cos_phi, alpha2) = if self.is_isotropic() {
-            let (s, c) = (TAU * u.y).sin_cos();
+            let (s, c) = crate::math::sin_cos_turn(u.y);
             (s, c, au * au)
         } else {
             let tmp = av / au * (TAU * u.y).tan();

@@ -2,8 +2,6 @@
 //! the upper hemisphere, and a distribution over those cells for importance sampling (the
 //! procedural clouds cost too much to evaluate at every vertex).
 
-use std::f32::consts::PI;
-
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -16,10 +14,10 @@ const SKY_COLUMNS: usize = 1024;
 
 /// The direction of a point of the sky table's square: u = phi / 2 pi, v = cos theta.
 pub fn sky_direction(uv: Vec2) -> Vec3 {
-    let phi = 2.0 * PI * uv.x;
+    let (sin_phi, cos_phi) = crate::math::sin_cos_turn(uv.x);
     let cos = uv.y;
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    Vec3::new(sin * phi.cos(), cos, sin * phi.sin())
+    Vec3::new(sin * cos_phi, cos, sin * sin_phi)
 }
 
 /// The radiance of the sky table at a point of its square: bilinear between cell centres,
