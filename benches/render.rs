@@ -33,6 +33,7 @@ fn bench(c: &mut Criterion) {
             max_depth: scene.render.max_depth,
             cone: lightsplit::render::integrator::Cone::of_camera(&scene.camera, scene.film.height, 1),
             guide: None,
+            isa: lightsplit::accel::bvh::simd::LoopIsa::detect(),
         };
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);

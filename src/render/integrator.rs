@@ -20,6 +20,7 @@ use super::material::{Shading, UseBsdf};
 use super::paths::PathExprs;
 use super::sampler::{Dim, Sampler};
 use super::surface::{surface_with, valid_reflection, FaceNormals, Surface};
+use crate::accel::bvh::simd::{Inlined, LoopIsa};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::lpe::State;
@@ -42,6 +43,8 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     /// The learned incident light that guides directions at diffuse-like vertices, when the
     /// render is guided ([`super::guide`]).
     pub guide: Option<&'a Guide>,
+    /// The instructions the path loop runs in ([`LoopIsa::detect`]; the same results in any).
+    pub isa: LoopIsa,
 }
 
 /// The guide's share of the directions at a vertex whose lobes are all diffuse-like (Müller et
@@ -491,7 +494,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
         aovs: &mut [Vec3],
     ) -> PathSample {
-        self.trace(ray, Some(hit), sampler, rays, &mut (), aovs)
+        self.isa.run(PathJob { integrator: self, ray, hit, sampler, rays, aovs })
     }
 
     /// [`Integrator::sample`] of a training path: its guided bounces become the guide's
@@ -883,6 +886,27 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     }
 }
 
+/// [`Integrator::sample_from_into`]'s path, as a job [`LoopIsa::run`] compiles for the
+/// instructions it chose (the whole path loop inlines into it).
+struct PathJob<'s, 'i, A: Accel, const F: u8> {
+    integrator: &'s Integrator<'i, A, F>,
+    ray: Ray,
+    hit: Option<Hit>,
+    sampler: &'s mut Sampler,
+    rays: &'s mut u64,
+    aovs: &'s mut [Vec3],
+}
+
+impl<A: Accel, const F: u8> Inlined for PathJob<'_, '_, A, F> {
+    type Output = PathSample;
+
+    #[inline(always)]
+    fn run(self) -> PathSample {
+        let PathJob { integrator, ray, hit, sampler, rays, aovs } = self;
+        integrator.trace(ray, Some(hit), sampler, rays, &mut (), aovs)
+    }
+}
+
 /// One path being traced: what it has gathered, where it is, the numbers it draws and the count
 /// of rays it traced.
 struct Walk<'s> {
@@ -931,6 +955,57 @@ mod tests {
     use crate::math::chi_square::z_score;
     use crate::math::{uniform_sphere, Frame};
     use crate::render::bsdf::{Diffuse, Glossy, GlossyLobes};
+
+    /// The path loop compiled for AVX-512 ([`LoopIsa::detect`], where this CPU has it) gives
+    /// the portable build's path samples bit for bit: every component and guide value, over
+    /// scenes of every material kind and area, sky and sun lights. (On a CPU without AVX-512
+    /// both are the portable build.)
+    #[test]
+    fn the_path_loop_in_any_build_gives_the_same_bits() {
+        for name in ["materials", "cornell", "sky-sphere"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"));
+            let scene = crate::scene::load(&path).expect("scene loads");
+            let accel = crate::accel::build_embree(&scene, None).expect("embree builds");
+            let lights = Lights::new(&scene, scene.render.light_sampler);
+            let faces = FaceNormals::new(&scene);
+            let paths = PathExprs::new(&lights);
+            let (w, h) = (24, 24);
+            let camera = crate::render::camera::PinholeCamera::new(&scene.camera, w, h);
+            let integrator: Integrator<'_, _> = Integrator {
+                scene: &scene,
+                accel: &accel,
+                lights: &lights,
+                paths: &paths,
+                faces: &faces,
+                max_depth: scene.render.max_depth,
+                cone: Cone::of_camera(&scene.camera, h, 4),
+                guide: None,
+                isa: LoopIsa::detect(),
+            };
+            let portable = Integrator { isa: LoopIsa::portable(), ..integrator };
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            for (x, y, k) in (0..w * h).flat_map(|i| (0..4).map(move |k| (i % w, i / w, k))) {
+                let run = |it: &Integrator<'_, _>| {
+                    let mut sampler = Sampler::new(5, (y * w + x) as u64, k);
+                    let ray = camera.generate(x, y, &mut sampler);
+                    let hit = accel.intersect(&ray);
+                    it.sample_from_into(ray, hit, &mut sampler, &mut 0, &mut [])
+                };
+                let (a, b) = (run(&integrator), run(&portable));
+                let all = |s: &PathSample| {
+                    let mut v: Vec<[u32; 3]> = s.components.iter().map(|&c| bits(c)).collect();
+                    v.extend([bits(s.beauty), bits(s.normal), bits(s.albedo)]);
+                    (v, s.object, s.depth.to_bits())
+                };
+                assert_eq!(
+                    all(&a),
+                    all(&b),
+                    "{name}: pixel ({x}, {y}), sample {k}, {}",
+                    integrator.isa.name()
+                );
+            }
+        }
+    }
 
     /// A guide of the unit box trained, four iterations, on light 50 times brighter within a
     /// small cone around `toward` than elsewhere.

@@ -237,6 +237,79 @@ fn intersect_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Fi
     bvh.intersect_with::<Avx512, N>(ray, filter, k)
 }
 
+/// Work that [`LoopIsa::run`] compiles for the instructions it chose. `run` must be
+/// `#[inline(always)]`: its body is then compiled inside the dispatching function, with that
+/// function's instructions (a closure in its place was compiled apart, for the portable build,
+/// once it grew as large as the path loop).
+pub trait Inlined {
+    type Output;
+    fn run(self) -> Self::Output;
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Avx512 {
+    /// `job`, compiled for AVX-512 F and VL as far as it inlines: the path loop runs through
+    /// it ([`LoopIsa`]), where 32 vector registers hold what 16 spill to the stack. The
+    /// arithmetic is the same (no fused multiply-add), so the results equal the portable
+    /// build's bit for bit.
+    #[inline(always)]
+    pub fn run<J: Inlined>(self, job: J) -> J::Output {
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all that
+        // `run_avx512` is compiled for.
+        unsafe { run_avx512(job) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+fn run_avx512<J: Inlined>(job: J) -> J::Output {
+    job.run()
+}
+
+/// The instructions the renderer's path loop is compiled for, chosen at run time: AVX-512
+/// where this CPU has it, else the portable build (what the whole program is compiled for).
+/// Measured against a whole build for x86-64-v4 in docs/RESULTS.md (`render-regression`);
+/// AVX2 alone was slower on a Zen 1 machine there, so it is not a choice.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoopIsa {
+    #[cfg(target_arch = "x86_64")]
+    avx512: Option<Avx512>,
+}
+
+impl LoopIsa {
+    /// AVX-512 where this CPU has it.
+    pub fn detect() -> LoopIsa {
+        LoopIsa {
+            #[cfg(target_arch = "x86_64")]
+            avx512: Avx512::detect(),
+        }
+    }
+
+    /// The portable build (for tests: the same results, bit for bit).
+    pub fn portable() -> LoopIsa {
+        LoopIsa::default()
+    }
+
+    /// The build's name, as reports print it.
+    pub fn name(self) -> &'static str {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512.is_some() {
+            return "avx512";
+        }
+        "portable"
+    }
+
+    /// `job`, in this build.
+    #[inline(always)]
+    pub fn run<J: Inlined>(self, job: J) -> J::Output {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = self.avx512 {
+            return k.run(job);
+        }
+        job.run()
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
 fn occluded_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
