@@ -24,17 +24,7 @@ fn bench(c: &mut Criterion) {
         let faces = FaceNormals::new(&scene);
         let paths = lightsplit::render::paths::PathExprs::new(&lights);
         // The general integrator (every feature); `bench-features` measures the specialised ones.
-        let integrator: Integrator<'_, _> = Integrator {
-            scene: &scene,
-            accel: &accel,
-            lights: &lights,
-            paths: &paths,
-            faces: &faces,
-            max_depth: scene.render.max_depth,
-            cone: lightsplit::render::integrator::Cone::of_camera(&scene.camera, scene.film.height, 1),
-            guide: None,
-            isa: lightsplit::accel::bvh::simd::LoopIsa::detect(),
-        };
+        let integrator: Integrator<'_, _> = Integrator::of_scene(&scene, &accel, &lights, &paths, &faces, 1);
         let (w, h) = (scene.film.width, scene.film.height);
         let camera = PinholeCamera::new(&scene.camera, w, h);
         group.bench_function(BenchmarkId::new(name, SAMPLES), |b| {

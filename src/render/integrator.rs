@@ -465,6 +465,32 @@ impl PathSample {
     }
 }
 
+impl<'a, A: Accel, const F: u8> Integrator<'a, A, F> {
+    /// The integrator of `scene` as its file sets it up (its depth, the camera's cone for the
+    /// film's height at `spp`, no guide), the path loop in the best build this CPU runs: for
+    /// benchmarks and tests that trace paths without a render's options.
+    pub fn of_scene(
+        scene: &'a Scene,
+        accel: &'a A,
+        lights: &'a Lights,
+        paths: &'a PathExprs,
+        faces: &'a FaceNormals,
+        spp: u32,
+    ) -> Self {
+        Integrator {
+            scene,
+            accel,
+            lights,
+            paths,
+            faces,
+            max_depth: scene.render.max_depth,
+            cone: Cone::of_camera(&scene.camera, scene.film.height, spp),
+            guide: None,
+            isa: LoopIsa::detect(),
+        }
+    }
+}
+
 impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     /// One path sample of the radiance arriving along `ray`, split by light path. `rays` counts
     /// traced rays.
@@ -971,17 +997,8 @@ mod tests {
             let paths = PathExprs::new(&lights);
             let (w, h) = (24, 24);
             let camera = crate::render::camera::PinholeCamera::new(&scene.camera, w, h);
-            let integrator: Integrator<'_, _> = Integrator {
-                scene: &scene,
-                accel: &accel,
-                lights: &lights,
-                paths: &paths,
-                faces: &faces,
-                max_depth: scene.render.max_depth,
-                cone: Cone::of_camera(&scene.camera, h, 4),
-                guide: None,
-                isa: LoopIsa::detect(),
-            };
+            let integrator: Integrator<'_, _> =
+                Integrator::of_scene(&scene, &accel, &lights, &paths, &faces, 4);
             let portable = Integrator { isa: LoopIsa::portable(), ..integrator };
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
             for (x, y, k) in (0..w * h).flat_map(|i| (0..4).map(move |k| (i % w, i / w, k))) {
