@@ -266,8 +266,9 @@ fn run_avx512<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
-/// The instructions the renderer's path loop is compiled for, chosen at run time: AVX-512
-/// where this CPU has it, else the portable build (what the whole program is compiled for).
+/// The instructions the renderer's hottest code (the path loop, the light tree's walks) runs
+/// in, chosen at run time: AVX-512 where this CPU has it, else the portable build (what the
+/// whole program is compiled for).
 /// Measured against a whole build for x86-64-v4 in docs/RESULTS.md (`render-regression`);
 /// AVX2 alone was slower on a Zen 1 machine there, so it is not a choice.
 #[derive(Clone, Copy, Debug, Default)]
