@@ -17,37 +17,38 @@ use glam::{Quat, Vec3};
 
 use crate::accel::bvh::simd::{Inlined, LoopIsa};
 
-/// A walk of the tree from `p` (normal `n`), as a job the tree's [`LoopIsa`] compiles: a
-/// sample down it, or an item's probability up it.
-struct Walk<'t> {
+/// A sample down the tree from `p` (normal `n`) with the uniform number `u`, as a job the
+/// tree's [`LoopIsa`] compiles.
+struct SampleWalk<'t> {
     tree: &'t LightTree,
     p: Vec3,
     n: Vec3,
-    to: Goal,
+    u: f32,
 }
 
-#[derive(Clone, Copy)]
-enum Goal {
-    Sample(f32),
-    Pmf(u32),
-}
-
-/// What a [`Walk`] found: the sample, or the probability.
-struct Walked {
-    sampled: Option<(u32, f32, f32)>,
-    pmf: f32,
-}
-
-impl Inlined for Walk<'_> {
-    type Output = Walked;
+impl Inlined for SampleWalk<'_> {
+    type Output = Option<(u32, f32, f32)>;
 
     #[inline(always)]
-    fn run(self) -> Walked {
-        let Walk { tree, p, n, to } = self;
-        match to {
-            Goal::Sample(u) => Walked { sampled: tree.sample_in(p, n, u), pmf: 0.0 },
-            Goal::Pmf(item) => Walked { sampled: None, pmf: tree.pmf_in(item, p, n) },
-        }
+    fn run(self) -> Self::Output {
+        self.tree.sample_in(self.p, self.n, self.u)
+    }
+}
+
+/// Item `item`'s probability, up the tree from `p` (normal `n`), as a job likewise.
+struct PmfWalk<'t> {
+    tree: &'t LightTree,
+    item: u32,
+    p: Vec3,
+    n: Vec3,
+}
+
+impl Inlined for PmfWalk<'_> {
+    type Output = f32;
+
+    #[inline(always)]
+    fn run(self) -> f32 {
+        self.tree.pmf_in(self.item, self.p, self.n)
     }
 }
 
@@ -302,7 +303,7 @@ impl LightTree {
     /// Picks an item as seen from `p` (surface normal `n`) with the uniform number `u`: the
     /// item, its probability and `u` rescaled for reuse. `None` when no light can reach `p`.
     pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
-        self.isa.run(Walk { tree: self, p, n, to: Goal::Sample(u) }).sampled
+        self.isa.run(SampleWalk { tree: self, p, n, u })
     }
 
     /// [`LightTree::sample`] in the build it runs in.
@@ -333,7 +334,7 @@ impl LightTree {
 
     /// The probability that [`LightTree::sample`] picks `item` from `p` (normal `n`).
     pub fn pmf(&self, item: u32, p: Vec3, n: Vec3) -> f32 {
-        self.isa.run(Walk { tree: self, p, n, to: Goal::Pmf(item) }).pmf
+        self.isa.run(PmfWalk { tree: self, item, p, n })
     }
 
     /// [`LightTree::pmf`] in the build it runs in.
