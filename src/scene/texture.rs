@@ -9,7 +9,7 @@ use std::sync::Arc;
 use glam::{DVec3, Vec2, Vec3};
 
 use super::image::Image;
-use super::noise::{fbm, perlin};
+use super::noise::{fbm, perlin, turbulence};
 use crate::math::Frame;
 
 /// The pattern of a solid noise texture.
@@ -139,18 +139,6 @@ impl Mips {
     pub fn level(&self, k: usize) -> Option<&Image> {
         self.0.get(k.checked_sub(1)?)
     }
-}
-
-/// Octaves of |noise|, normalised to [0, 1].
-fn turbulence(seed: u32, p: Vec3, octaves: u32) -> f32 {
-    let (mut sum, mut amp, mut norm, mut q) = (0.0, 1.0, 0.0, p);
-    for o in 0..octaves.max(1) {
-        sum += amp * perlin(seed.wrapping_add(o), q).abs();
-        norm += amp;
-        amp *= 0.5;
-        q *= 2.0;
-    }
-    sum / norm
 }
 
 impl Texture {

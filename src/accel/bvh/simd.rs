@@ -247,6 +247,41 @@ pub trait Inlined {
 }
 
 #[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// `job`, compiled for AVX and AVX2 as far as it inlines (see [`Inlined`]).
+    #[inline(always)]
+    pub fn run_job<J: Inlined>(self, job: J) -> J::Output {
+        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that `run_job_avx2`
+        // is compiled for.
+        unsafe { run_job_avx2(job) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn run_job_avx2<J: Inlined>(job: J) -> J::Output {
+    job.run()
+}
+
+/// `job` in the widest build this CPU has: AVX-512 F and VL, else AVX2, else the portable one,
+/// detected at each call (a load of the cached answer). For small kernels over lanes of 32-bit
+/// integers, the noise's hashes: the portable build (SSE2) has neither a multiply nor a
+/// variable shift of such lanes. The same bits in any build (no fused multiply-add).
+#[inline(always)]
+pub fn run_widest<J: Inlined>(job: J) -> J::Output {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if let Some(k) = Avx512::detect() {
+            return k.run(job);
+        }
+        if let Some(k) = Avx2::detect() {
+            return k.run_job(job);
+        }
+    }
+    job.run()
+}
+
+#[cfg(target_arch = "x86_64")]
 impl Avx512 {
     /// `job`, compiled for AVX-512 F and VL as far as it inlines: the path loop runs through
     /// it ([`LoopIsa`]), where 32 vector registers hold what 16 spill to the stack. The
