@@ -26,6 +26,7 @@
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
+use crate::accel::bvh::simd::Isa;
 use crate::component::Component;
 use crate::film::{Film, Image};
 use crate::math::luminance;
@@ -246,53 +247,17 @@ const LOG2_E: f32 = std::f32::consts::LOG2_E;
 /// Planes per layer in the working buffers: r, g, b (illumination), l (its luminance), v.
 const PLANES: usize = 5;
 
-/// The vector extension the passes are compiled for: AVX2 where the CPU has it (eight floats a
-/// vector instead of four), else the portable build. Both give the same bits (no fused
-/// multiply-add; tested).
-#[derive(Clone, Copy)]
-struct Vector {
-    #[cfg(target_arch = "x86_64")]
-    avx2: Option<crate::accel::bvh::simd::Avx2>,
-}
-
-impl Vector {
-    fn detect() -> Vector {
-        Vector {
-            #[cfg(target_arch = "x86_64")]
-            avx2: crate::accel::bvh::simd::Avx2::detect(),
-        }
-    }
-
-    #[cfg(test)]
-    fn portable() -> Vector {
-        Vector {
-            #[cfg(target_arch = "x86_64")]
-            avx2: None,
-        }
-    }
-
-    /// `f()`, in the AVX2 build where the CPU has it.
-    #[inline(always)]
-    fn run<R>(self, f: impl FnOnce() -> R) -> R {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = self.avx2 {
-            return avx2.run(f);
-        }
-        f()
-    }
-}
-
 /// Filters each layer with `a`, its colour stop scaled by its own variance, all sharing the
 /// guides of `film` (albedo, normal, depth, object; with `pure`, pixels whose samples saw more
 /// than one object stay out of their neighbours' windows and are filtered only among
 /// themselves). The film's guides and
 /// the layers must have the film's size.
 pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
-    filter_with(Vector::detect(), layers, film, a, pure)
+    filter_with(Isa::avx2_or_portable(), layers, film, a, pure)
 }
 
-/// [`filter`] with the passes in the build `vector`.
-fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+/// [`filter`] with the passes in the build `isa`.
+fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
     let (w, h) = (film.width as usize, film.height as usize);
     // Layers that are zero everywhere, or have no passes, stay as they are.
     let live: Vec<usize> = (0..layers.len())
@@ -335,7 +300,7 @@ fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, 
         if (1usize << pass) >= w.max(h) {
             break; // every tap would fall outside the image
         }
-        run_pass(vector, (a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
+        run_pass(isa, (a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
         std::mem::swap(&mut cur, &mut next);
     }
     // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
@@ -372,7 +337,7 @@ fn filter_with(vector: Vector, layers: &[FilterInput], film: &Film, a: &Atrous, 
 /// of width `w`, into `next`; `inv_sigma` (`h k w` floats) is scratch for the colour stops.
 #[allow(clippy::too_many_arguments)]
 fn run_pass(
-    vector: Vector,
+    isa: Isa,
     (a, strengths): (&Atrous, &[(f32, u32)]),
     guides: &Guides,
     (w, h, k): (usize, usize, usize),
@@ -385,12 +350,12 @@ fn run_pass(
     let pass = Pass { a, strengths, pass, w, h, k, step, guides, cur, inv_sigma: &[] };
     inv_sigma.par_chunks_mut(k * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new()),
-        |scratch, (y, row)| vector.run(|| pass.colour_stops(y, row, scratch)),
+        |scratch, (y, row)| isa.run_fn(|| pass.colour_stops(y, row, scratch)),
     );
     let pass = Pass { inv_sigma, ..pass };
     next.par_chunks_mut(k * PLANES * w)
         .enumerate()
-        .for_each_init(|| Scratch::new(w, k), |scratch, (y, row)| vector.run(|| pass.row(y, row, scratch)));
+        .for_each_init(|| Scratch::new(w, k), |scratch, (y, row)| isa.run_fn(|| pass.row(y, row, scratch)));
 }
 
 /// The illumination that albedo `a` turned into `v`: `v / a` per channel, and where a channel
@@ -827,6 +792,12 @@ fn exp2_neg(t: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// Every build of the passes this CPU runs (the portable one, AVX2, AVX-512): each must
+    /// give the portable build's bits.
+    fn builds() -> Vec<Isa> {
+        [Some(Isa::Portable), Isa::avx2(), Some(Isa::best())].into_iter().flatten().collect()
+    }
+
     /// A xorshift stream in [0, 1).
     fn stream(seed: u32) -> impl FnMut() -> f32 {
         let mut state = seed.max(1);
@@ -955,14 +926,12 @@ mod tests {
                     let film = random_film(w as u32, h as u32, (w * 31 + h * 7 + k) as u32);
                     let g = Guides::new(&film, &a, pure);
                     let cur = random_planes(w, h, k, (w + h + k) as u32);
-                    for (pass, vector) in
-                        (0..3).flat_map(|p| [(p, Vector::portable()), (p, Vector::detect())])
-                    {
+                    for (pass, isa) in (0..3).flat_map(|p| builds().into_iter().map(move |b| (p, b))) {
                         let want = pass_by_definition(&a, &g, (w, h, k), pass, &cur);
                         let mut got = vec![0.0; cur.len()];
                         let mut scratch = vec![0.0; h * k * w];
                         let strengths = vec![(a.sigma_l, a.passes); k];
-                        run_pass(vector, (&a, &strengths), &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
+                        run_pass(isa, (&a, &strengths), &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
                         for (i, (x, y)) in got.iter().zip(&want).enumerate() {
                             assert!(
                                 (x - y).abs() <= 1e-5 * y.abs().max(1e-3),
@@ -1121,7 +1090,7 @@ mod tests {
         }
         let mut next = vec![0.0; cur.len()];
         run_pass(
-            Vector::portable(),
+            Isa::Portable,
             (&a, &[(a.sigma_l, a.passes)]),
             &g,
             (w, h, 1),
@@ -1219,9 +1188,11 @@ mod tests {
         for (layers, a, pure) in
             [(&two[..], &Atrous::default(), false), (&two[..], &strong, true), (&two[..1], &strong, false)]
         {
-            let portable = filter_with(Vector::portable(), layers, &film, a, pure);
+            let portable = filter_with(Isa::Portable, layers, &film, a, pure);
             assert_ne!(portable[0], *layers[0].image, "the filter changed the layer");
-            assert_eq!(portable, filter_with(Vector::detect(), layers, &film, a, pure));
+            for isa in builds() {
+                assert_eq!(portable, filter_with(isa, layers, &film, a, pure), "{}", isa.name());
+            }
         }
     }
 

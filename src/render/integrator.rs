@@ -20,7 +20,7 @@ use super::material::{Shading, UseBsdf};
 use super::paths::PathExprs;
 use super::sampler::{Dim, Sampler};
 use super::surface::{surface_with, valid_reflection, FaceNormals, Surface};
-use crate::accel::bvh::simd::{Inlined, LoopIsa};
+use crate::accel::bvh::simd::{Inlined, Isa};
 use crate::accel::{Accel, Hit, Ray};
 use crate::component::{Component, Split};
 use crate::lpe::State;
@@ -43,8 +43,8 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     /// The learned incident light that guides directions at diffuse-like vertices, when the
     /// render is guided ([`super::guide`]).
     pub guide: Option<&'a Guide>,
-    /// The instructions the path loop runs in ([`LoopIsa::detect`]; the same results in any).
-    pub isa: LoopIsa,
+    /// The build the path loop runs in ([`Isa::avx512_or_portable`]; the same results in any).
+    pub isa: Isa,
 }
 
 /// The guide's share of the directions at a vertex whose lobes are all diffuse-like (Müller et
@@ -486,7 +486,7 @@ impl<'a, A: Accel, const F: u8> Integrator<'a, A, F> {
             max_depth: scene.render.max_depth,
             cone: Cone::of_camera(&scene.camera, scene.film.height, spp),
             guide: None,
-            isa: LoopIsa::detect(),
+            isa: Isa::avx512_or_portable(),
         }
     }
 }
@@ -520,7 +520,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
         aovs: &mut [Vec3],
     ) -> PathSample {
-        self.isa.run(PathJob { integrator: self, ray, hit, sampler, rays, aovs })
+        self.isa.run_avx512_or_portable(PathJob { integrator: self, ray, hit, sampler, rays, aovs })
     }
 
     /// [`Integrator::sample`] of a training path: its guided bounces become the guide's
@@ -912,7 +912,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     }
 }
 
-/// [`Integrator::sample_from_into`]'s path, as a job [`LoopIsa::run`] compiles for the
+/// [`Integrator::sample_from_into`]'s path, as a job [`Isa::run`] compiles for the
 /// instructions it chose (the whole path loop inlines into it).
 struct PathJob<'s, 'i, A: Accel, const F: u8> {
     integrator: &'s Integrator<'i, A, F>,
@@ -982,7 +982,7 @@ mod tests {
     use crate::math::{uniform_sphere, Frame};
     use crate::render::bsdf::{Diffuse, Glossy, GlossyLobes};
 
-    /// The path loop compiled for AVX-512 ([`LoopIsa::detect`], where this CPU has it) gives
+    /// The path loop compiled for AVX-512 ([`Isa::avx512_or_portable`], where this CPU has it) gives
     /// the portable build's path samples bit for bit: every component and guide value, over
     /// scenes of every material kind and area, sky and sun lights. (On a CPU without AVX-512
     /// both are the portable build.)
@@ -999,7 +999,7 @@ mod tests {
             let camera = crate::render::camera::PinholeCamera::new(&scene.camera, w, h);
             let integrator: Integrator<'_, _> =
                 Integrator::of_scene(&scene, &accel, &lights, &paths, &faces, 4);
-            let portable = Integrator { isa: LoopIsa::portable(), ..integrator };
+            let portable = Integrator { isa: Isa::Portable, ..integrator };
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
             for (x, y, k) in (0..w * h).flat_map(|i| (0..4).map(move |k| (i % w, i / w, k))) {
                 let run = |it: &Integrator<'_, _>| {

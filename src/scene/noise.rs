@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::accel::bvh::simd::{self, Inlined};
+use crate::accel::bvh::simd::{Inlined, Isa};
 
 /// A 32-bit integer hash (lowbias32, Wellons 2018).
 fn hash(mut x: u32) -> u32 {
@@ -69,19 +69,19 @@ fn lerp(t: f32, a: f32, b: f32) -> f32 {
 
 /// Perlin noise at `p`, in [-1, 1], zero at every lattice point.
 pub fn perlin(seed: u32, p: Vec3) -> f32 {
-    simd::run_widest(Octaves { seed, p, octaves: 1, gain: 1.0, sum: Sum::One })
+    Isa::best().run(Octaves { seed, p, octaves: 1, gain: 1.0, sum: Sum::One })
 }
 
 /// Fractional Brownian motion: `octaves` octaves of Perlin noise, each at twice the frequency and
 /// `gain` times the amplitude of the last, normalised back to [-1, 1].
 pub fn fbm(seed: u32, p: Vec3, octaves: u32, gain: f32) -> f32 {
-    simd::run_widest(Octaves { seed, p, octaves, gain, sum: Sum::Noise })
+    Isa::best().run(Octaves { seed, p, octaves, gain, sum: Sum::Noise })
 }
 
 /// Turbulence: `octaves` octaves of |Perlin noise|, each at twice the frequency and half the
 /// amplitude of the last, normalised to [0, 1].
 pub fn turbulence(seed: u32, p: Vec3, octaves: u32) -> f32 {
-    simd::run_widest(Octaves { seed, p, octaves, gain: 0.5, sum: Sum::Magnitude })
+    Isa::best().run(Octaves { seed, p, octaves, gain: 0.5, sum: Sum::Magnitude })
 }
 
 /// What [`Octaves`] adds up.
@@ -96,7 +96,7 @@ enum Sum {
 }
 
 /// A sum of octaves of noise, as a job: compiled in the widest build the CPU has
-/// ([`simd::run_widest`]), where the eight corners' hashes are a few vector multiplies; the same
+/// ([`Isa::best`]), where the eight corners' hashes are a few vector multiplies; the same
 /// bits in any. The noise is latency-bound (four hashes in a chain), so independent octaves are
 /// evaluated together, four at a time, then two, then one: their chains interleave.
 struct Octaves {
@@ -259,12 +259,8 @@ mod tests {
                     Sum::One => perlin_reference(i, p),
                     _ => octaves_reference(i, p, octaves, gain, sum == Sum::Magnitude),
                 };
-                let mut builds = vec![("portable", job().run()), ("widest", simd::run_widest(job()))];
-                #[cfg(target_arch = "x86_64")]
-                if let Some(k) = simd::Avx2::detect() {
-                    builds.push(("avx2", k.run_job(job())));
-                }
-                for (name, got) in builds {
+                let builds = [Some(Isa::Portable), Isa::avx2(), Some(Isa::best())];
+                for (name, got) in builds.into_iter().flatten().map(|k| (k.name(), k.run(job()))) {
                     assert_eq!(
                         got.to_bits(),
                         want.to_bits(),

@@ -6,8 +6,8 @@
 //! features on this CPU, so every `unsafe` block here relies on that one check; [`Isa::best`]
 //! picks AVX-512, else AVX2, else [`Portable`], once per tree. [`Portable`] is the same test
 //! through the `wide` crate (SSE2 on x86-64, NEON on ARM); the tests check each kernel against
-//! it bit for bit. [`Avx2::run`] lends the AVX2 build to other code (the à-trous filter's
-//! passes), so that its one `unsafe` call stays here.
+//! it bit for bit. [`Isa::run`] lends each build to other code (the path loop, the light
+//! tree's walks, the à-trous filter's passes, the noise), so that its `unsafe` calls stay here.
 #![allow(unsafe_code)]
 
 use wide::f32x8;
@@ -107,26 +107,6 @@ impl Avx2 {
         // SAFETY: as in `intersect`: AVX and AVX2 were detected.
         unsafe { occluded_avx2::<N>(self, bvh, ray, filter) }
     }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Avx2 {
-    /// `f()`, compiled for AVX and AVX2 as far as it inlines: loops over slices in the inlined
-    /// code vectorise eight floats wide instead of SSE2's four. The arithmetic is the same
-    /// (no fused multiply-add), so the results equal the portable build's bit for bit. The
-    /// à-trous filter's passes run through it (`filter::atrous`).
-    #[inline(always)]
-    pub fn run<R>(self, f: impl FnOnce() -> R) -> R {
-        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that `run_avx2` is
-        // compiled for.
-        unsafe { run_avx2(f) }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
-fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
-    f()
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -237,7 +217,7 @@ fn intersect_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Fi
     bvh.intersect_with::<Avx512, N>(ray, filter, k)
 }
 
-/// Work that [`LoopIsa::run`] compiles for the instructions it chose. `run` must be
+/// Work that [`Isa::run`] compiles for the instructions it chose. `run` must be
 /// `#[inline(always)]`: its body is then compiled inside the dispatching function, with that
 /// function's instructions (a closure in its place was compiled apart, for the portable build,
 /// once it grew as large as the path loop).
@@ -263,28 +243,10 @@ fn run_job_avx2<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
-/// `job` in the widest build this CPU has: AVX-512 F and VL, else AVX2, else the portable one,
-/// detected at each call (a load of the cached answer). For small kernels over lanes of 32-bit
-/// integers, the noise's hashes: the portable build (SSE2) has neither a multiply nor a
-/// variable shift of such lanes. The same bits in any build (no fused multiply-add).
-#[inline(always)]
-pub fn run_widest<J: Inlined>(job: J) -> J::Output {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if let Some(k) = Avx512::detect() {
-            return k.run(job);
-        }
-        if let Some(k) = Avx2::detect() {
-            return k.run_job(job);
-        }
-    }
-    job.run()
-}
-
 #[cfg(target_arch = "x86_64")]
 impl Avx512 {
     /// `job`, compiled for AVX-512 F and VL as far as it inlines: the path loop runs through
-    /// it ([`LoopIsa`]), where 32 vector registers hold what 16 spill to the stack. The
+    /// it ([`Isa`]), where 32 vector registers hold what 16 spill to the stack. The
     /// arithmetic is the same (no fused multiply-add), so the results equal the portable
     /// build's bit for bit.
     #[inline(always)]
@@ -301,48 +263,15 @@ fn run_avx512<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
-/// The instructions the renderer's hottest code (the path loop, the light tree's walks) runs
-/// in, chosen at run time: AVX-512 where this CPU has it, else the portable build (what the
-/// whole program is compiled for).
-/// Measured against a whole build for x86-64-v4 in docs/RESULTS.md (`render-regression`);
-/// AVX2 alone was slower on a Zen 1 machine there, so it is not a choice.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct LoopIsa {
-    #[cfg(target_arch = "x86_64")]
-    avx512: Option<Avx512>,
-}
+/// A closure as a job ([`Isa::run_fn`]).
+struct Call<F>(F);
 
-impl LoopIsa {
-    /// AVX-512 where this CPU has it.
-    pub fn detect() -> LoopIsa {
-        LoopIsa {
-            #[cfg(target_arch = "x86_64")]
-            avx512: Avx512::detect(),
-        }
-    }
+impl<R, F: FnOnce() -> R> Inlined for Call<F> {
+    type Output = R;
 
-    /// The portable build (for tests: the same results, bit for bit).
-    pub fn portable() -> LoopIsa {
-        LoopIsa::default()
-    }
-
-    /// The build's name, as reports print it.
-    pub fn name(self) -> &'static str {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512.is_some() {
-            return "avx512";
-        }
-        "portable"
-    }
-
-    /// `job`, in this build.
     #[inline(always)]
-    pub fn run<J: Inlined>(self, job: J) -> J::Output {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(k) = self.avx512 {
-            return k.run(job);
-        }
-        job.run()
+    fn run(self) -> R {
+        (self.0)()
     }
 }
 
@@ -375,9 +304,18 @@ impl BoxTest for Avx512 {
     }
 }
 
-/// The kernels this CPU runs best, chosen once per tree.
-#[derive(Clone, Copy, Debug)]
+/// A build chosen at run time: the BVH's kernels (the tree's, chosen once per tree), and the
+/// build other code runs a job in ([`Isa::run`]: the job inlined into a function compiled for
+/// the build's features). One binary for every x86-64 CPU; every build gives the same bits
+/// (Rust contracts no multiply-add), which the users' tests compare.
+///
+/// Which builds a user offers is its own measured choice (docs/RESULTS.md): the path loop and
+/// the light tree's walks AVX-512 or portable ([`Isa::avx512_or_portable`]: the whole program
+/// for AVX2 alone was slower on a Zen 1 machine, `render-regression`), the à-trous filter's
+/// passes AVX2 or portable ([`Isa::avx2_or_portable`]), the noise and the BVH the best.
+#[derive(Clone, Copy, Debug, Default)]
 pub enum Isa {
+    #[default]
     Portable,
     #[cfg(target_arch = "x86_64")]
     Avx2(Avx2),
@@ -416,6 +354,22 @@ impl Isa {
         }
     }
 
+    /// AVX-512 where this CPU has it, else portable (never AVX2 alone).
+    pub fn avx512_or_portable() -> Isa {
+        match Isa::best() {
+            Isa::Portable => Isa::Portable,
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(_) => Isa::Portable,
+            #[cfg(target_arch = "x86_64")]
+            k @ Isa::Avx512(_) => k,
+        }
+    }
+
+    /// AVX2 where this CPU has it (never AVX-512), else portable.
+    pub fn avx2_or_portable() -> Isa {
+        Isa::avx2().unwrap_or(Isa::Portable)
+    }
+
     /// The kernels' name, as reports print it.
     pub fn name(self) -> &'static str {
         match self {
@@ -425,6 +379,38 @@ impl Isa {
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512(_) => "avx512",
         }
+    }
+
+    /// `job`, in this build.
+    #[inline(always)]
+    pub fn run<J: Inlined>(self, job: J) -> J::Output {
+        match self {
+            Isa::Portable => job.run(),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(k) => k.run_job(job),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(k) => k.run(job),
+        }
+    }
+
+    /// `job` in this build when it is AVX-512's, else in the portable one: the job is compiled
+    /// twice, not three times (the path loop, whose AVX2 build was slower, and whose every
+    /// copy costs build time).
+    #[inline(always)]
+    pub fn run_avx512_or_portable<J: Inlined>(self, job: J) -> J::Output {
+        #[cfg(target_arch = "x86_64")]
+        if let Isa::Avx512(k) = self {
+            return k.run(job);
+        }
+        job.run()
+    }
+
+    /// `f()` in this build, as far as it inlines: a closure's body is a function of its own,
+    /// which the compiler may leave outlined in the portable build once it is large, so large
+    /// work goes through [`Isa::run`] with a job instead.
+    #[inline(always)]
+    pub fn run_fn<R>(self, f: impl FnOnce() -> R) -> R {
+        self.run(Call(f))
     }
 }
 

@@ -15,10 +15,10 @@
 
 use glam::{Quat, Vec3};
 
-use crate::accel::bvh::simd::{Inlined, LoopIsa};
+use crate::accel::bvh::simd::{Inlined, Isa};
 
 /// A sample down the tree from `p` (normal `n`) with the uniform number `u`, as a job the
-/// tree's [`LoopIsa`] compiles.
+/// tree's [`Isa`] compiles.
 struct SampleWalk<'t> {
     tree: &'t LightTree,
     p: Vec3,
@@ -244,7 +244,7 @@ pub struct LightTree {
     leaf_of: Vec<u32>,
     /// The build [`LightTree::sample`] and [`LightTree::pmf`] run in: their walks down and up
     /// the tree took half of a many-light render's time, a third less in AVX-512's build.
-    isa: LoopIsa,
+    isa: Isa,
 }
 
 impl LightTree {
@@ -253,7 +253,7 @@ impl LightTree {
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * items.len()),
             leaf_of: vec![NONE; items.len()],
-            isa: LoopIsa::detect(),
+            isa: Isa::avx512_or_portable(),
         };
         if items.is_empty() {
             return tree;
@@ -303,7 +303,7 @@ impl LightTree {
     /// Picks an item as seen from `p` (surface normal `n`) with the uniform number `u`: the
     /// item, its probability and `u` rescaled for reuse. `None` when no light can reach `p`.
     pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
-        self.isa.run(SampleWalk { tree: self, p, n, u })
+        self.isa.run_avx512_or_portable(SampleWalk { tree: self, p, n, u })
     }
 
     /// [`LightTree::sample`] in the build it runs in.
@@ -334,7 +334,7 @@ impl LightTree {
 
     /// The probability that [`LightTree::sample`] picks `item` from `p` (normal `n`).
     pub fn pmf(&self, item: u32, p: Vec3, n: Vec3) -> f32 {
-        self.isa.run(PmfWalk { tree: self, item, p, n })
+        self.isa.run_avx512_or_portable(PmfWalk { tree: self, item, p, n })
     }
 
     /// [`LightTree::pmf`] in the build it runs in.
@@ -509,13 +509,13 @@ mod tests {
             .collect()
     }
 
-    /// The walks in the build the tree chose ([`LoopIsa::detect`]: AVX-512 where this CPU has
+    /// The walks in the build the tree chose ([`Isa::avx512_or_portable`]: AVX-512 where this CPU has
     /// it) give the portable build's samples and probabilities bit for bit.
     #[test]
     fn the_walks_in_any_build_give_the_same_bits() {
         let items = field(300);
         let tree = LightTree::new(&items);
-        let portable = LightTree { isa: LoopIsa::portable(), ..tree.clone() };
+        let portable = LightTree { isa: Isa::Portable, ..tree.clone() };
         let mut s = Sampler::new(4, 1, 7);
         let bits = |x: Option<(u32, f32, f32)>| x.map(|(i, p, u)| (i, p.to_bits(), u.to_bits()));
         for (p, n) in receivers() {
