@@ -26,7 +26,7 @@
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::accel::bvh::simd::Isa;
+use crate::accel::bvh::simd::{Inlined, Isa};
 use crate::component::Component;
 use crate::film::{Film, Image};
 use crate::math::luminance;
@@ -350,12 +350,50 @@ fn run_pass(
     let pass = Pass { a, strengths, pass, w, h, k, step, guides, cur, inv_sigma: &[] };
     inv_sigma.par_chunks_mut(k * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new()),
-        |scratch, (y, row)| isa.run_fn(|| pass.colour_stops(y, row, scratch)),
+        |scratch, (y, out)| isa.run(ColourStops { pass: &pass, y, out, scratch }),
     );
     let pass = Pass { inv_sigma, ..pass };
-    next.par_chunks_mut(k * PLANES * w)
-        .enumerate()
-        .for_each_init(|| Scratch::new(w, k), |scratch, (y, row)| isa.run_fn(|| pass.row(y, row, scratch)));
+    next.par_chunks_mut(k * PLANES * w).enumerate().for_each_init(
+        || Scratch::new(w, k),
+        |scratch, (y, out)| isa.run(Row { pass: &pass, y, out, scratch }),
+    );
+}
+
+/// One row of a pass's colour stops ([`Pass::colour_stops`]), as a job [`Isa::run`] compiles
+/// for its build. A job, not a closure: a closure run in the AVX2 build was left outlined, in
+/// the portable build, and the passes took 1.3x as long (criterion 11.8 to 13.1 ms against 9.1
+/// to 9.4 ms at 256x256).
+struct ColourStops<'p, 'a> {
+    pass: &'p Pass<'a>,
+    y: usize,
+    out: &'p mut [f32],
+    scratch: &'p mut (Vec<f32>, Vec<f32>),
+}
+
+impl Inlined for ColourStops<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        self.pass.colour_stops(self.y, self.out, self.scratch)
+    }
+}
+
+/// One output row of a pass ([`Pass::row`]), as a job (see [`ColourStops`]).
+struct Row<'p, 'a> {
+    pass: &'p Pass<'a>,
+    y: usize,
+    out: &'p mut [f32],
+    scratch: &'p mut Scratch,
+}
+
+impl Inlined for Row<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        self.pass.row(self.y, self.out, self.scratch)
+    }
 }
 
 /// The illumination that albedo `a` turned into `v`: `v / a` per channel, and where a channel

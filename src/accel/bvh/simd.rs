@@ -263,18 +263,6 @@ fn run_avx512<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
-/// A closure as a job ([`Isa::run_fn`]).
-struct Call<F>(F);
-
-impl<R, F: FnOnce() -> R> Inlined for Call<F> {
-    type Output = R;
-
-    #[inline(always)]
-    fn run(self) -> R {
-        (self.0)()
-    }
-}
-
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
 fn occluded_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
@@ -306,7 +294,8 @@ impl BoxTest for Avx512 {
 
 /// A build chosen at run time: the BVH's kernels (the tree's, chosen once per tree), and the
 /// build other code runs a job in ([`Isa::run`]: the job inlined into a function compiled for
-/// the build's features). One binary for every x86-64 CPU; every build gives the same bits
+/// the build's features; a job, never a closure, whose body the compiler may leave outlined in
+/// the portable build). One binary for every x86-64 CPU; every build gives the same bits
 /// (Rust contracts no multiply-add), which the users' tests compare.
 ///
 /// Which builds a user offers is its own measured choice (docs/RESULTS.md): the path loop and
@@ -403,14 +392,6 @@ impl Isa {
             return k.run(job);
         }
         job.run()
-    }
-
-    /// `f()` in this build, as far as it inlines: a closure's body is a function of its own,
-    /// which the compiler may leave outlined in the portable build once it is large, so large
-    /// work goes through [`Isa::run`] with a job instead.
-    #[inline(always)]
-    pub fn run_fn<R>(self, f: impl FnOnce() -> R) -> R {
-        self.run(Call(f))
     }
 }
 
