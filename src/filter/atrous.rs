@@ -830,12 +830,6 @@ fn exp2_neg(t: f32) -> f32 {
 mod tests {
     use super::*;
 
-    /// Every build of the passes this CPU runs (the portable one, AVX2, AVX-512): each must
-    /// give the portable build's bits.
-    fn builds() -> Vec<Isa> {
-        [Some(Isa::Portable), Isa::avx2(), Some(Isa::best())].into_iter().flatten().collect()
-    }
-
     /// A xorshift stream in [0, 1).
     fn stream(seed: u32) -> impl FnMut() -> f32 {
         let mut state = seed.max(1);
@@ -964,7 +958,7 @@ mod tests {
                     let film = random_film(w as u32, h as u32, (w * 31 + h * 7 + k) as u32);
                     let g = Guides::new(&film, &a, pure);
                     let cur = random_planes(w, h, k, (w + h + k) as u32);
-                    for (pass, isa) in (0..3).flat_map(|p| builds().into_iter().map(move |b| (p, b))) {
+                    for (pass, isa) in (0..3).flat_map(|p| Isa::all().into_iter().map(move |b| (p, b))) {
                         let want = pass_by_definition(&a, &g, (w, h, k), pass, &cur);
                         let mut got = vec![0.0; cur.len()];
                         let mut scratch = vec![0.0; h * k * w];
@@ -1228,7 +1222,7 @@ mod tests {
         {
             let portable = filter_with(Isa::Portable, layers, &film, a, pure);
             assert_ne!(portable[0], *layers[0].image, "the filter changed the layer");
-            for isa in builds() {
+            for isa in Isa::all() {
                 assert_eq!(portable, filter_with(isa, layers, &film, a, pure), "{}", isa.name());
             }
         }

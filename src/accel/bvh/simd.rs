@@ -230,16 +230,16 @@ pub trait Inlined {
 impl Avx2 {
     /// `job`, compiled for AVX and AVX2 as far as it inlines (see [`Inlined`]).
     #[inline(always)]
-    pub fn run_job<J: Inlined>(self, job: J) -> J::Output {
-        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that `run_job_avx2`
-        // is compiled for.
-        unsafe { run_job_avx2(job) }
+    pub fn run<J: Inlined>(self, job: J) -> J::Output {
+        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that `run_avx2` is
+        // compiled for.
+        unsafe { run_avx2(job) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn run_job_avx2<J: Inlined>(job: J) -> J::Output {
+fn run_avx2<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
@@ -332,6 +332,16 @@ impl Isa {
         None
     }
 
+    /// Every build this CPU runs: the portable one, AVX2's, and AVX-512's (for tests that
+    /// compare each with the portable build's bits).
+    pub fn all() -> Vec<Isa> {
+        let mut all = vec![Isa::Portable];
+        all.extend(Isa::avx2());
+        #[cfg(target_arch = "x86_64")]
+        all.extend(Avx512::detect().map(Isa::Avx512));
+        all
+    }
+
     /// The kernels called `name` ("portable", "avx2" or "avx512"), where this CPU runs them.
     pub fn named(name: &str) -> Option<Isa> {
         match name {
@@ -345,13 +355,11 @@ impl Isa {
 
     /// AVX-512 where this CPU has it, else portable (never AVX2 alone).
     pub fn avx512_or_portable() -> Isa {
-        match Isa::best() {
-            Isa::Portable => Isa::Portable,
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(_) => Isa::Portable,
-            #[cfg(target_arch = "x86_64")]
-            k @ Isa::Avx512(_) => k,
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = Avx512::detect() {
+            return Isa::Avx512(k);
         }
+        Isa::Portable
     }
 
     /// AVX2 where this CPU has it (never AVX-512), else portable.
@@ -376,7 +384,7 @@ impl Isa {
         match self {
             Isa::Portable => job.run(),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(k) => k.run_job(job),
+            Isa::Avx2(k) => k.run(job),
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512(k) => k.run(job),
         }
