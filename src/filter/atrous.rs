@@ -271,7 +271,7 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
     let k = live.len();
     let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
     // Demodulated illumination, its luminance and its variance, row by row.
-    let mut cur = Plane::zeroed(h * k * PLANES * w);
+    let mut cur = Plane::overwritten(h * k * PLANES * w);
     cur.par_chunks_mut(k * PLANES * w).enumerate().for_each(|(y, row)| {
         for (c, &li) in live.iter().enumerate() {
             let layer = layers[li];
@@ -291,17 +291,21 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
             }
         }
     });
-    let mut next = Plane::zeroed(cur.len());
-    let mut inv_sigma = Plane::zeroed(h * k * w);
-    // Each layer's colour stop and passes; a layer past its passes is carried over.
+    // Each pass writes the rows of its live layers only; a layer past its passes stays in the
+    // buffer its last pass wrote, and neither buffer's other planes are read.
+    let mut next = Plane::overwritten(cur.len());
+    let mut inv_sigma = Plane::overwritten(h * k * w);
+    // Each layer's colour stop and passes.
     let strengths: Vec<(f32, u32)> = live.iter().map(|&li| a.strength(layers[li].component)).collect();
     let passes = strengths.iter().map(|s| s.1).max().unwrap_or(0);
+    let mut run = 0;
     for pass in 0..passes {
         if (1usize << pass) >= w.max(h) {
             break; // every tap would fall outside the image
         }
         run_pass(isa, (a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
         std::mem::swap(&mut cur, &mut next);
+        run += 1;
     }
     // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
     // first made again as it was.
@@ -311,6 +315,8 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
     for (c, &li) in live.iter().enumerate() {
         let variance = layers[li].variance;
         let image = &mut out[li];
+        // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
+        let cur = if (run - strengths[c].1.min(run)) % 2 == 0 { &cur } else { &next };
         image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let base = (y * k + c) * PLANES * w;
             for (x, px) in row.iter_mut().enumerate() {
@@ -431,7 +437,7 @@ impl Guides {
     fn new(film: &Film, a: &Atrous, pure: bool) -> Guides {
         let (w, h) = (film.width as usize, film.height as usize);
         let n = w * h;
-        let mut key = Plane::zeroed(n);
+        let mut key = Plane::overwritten(n);
         key.par_iter_mut().enumerate().for_each(|(i, k)| {
             let o = film.object[i];
             *k = if o < 0.0 {
@@ -442,9 +448,9 @@ impl Guides {
                 o
             };
         });
-        let mut z = Plane::zeroed(n);
+        let mut z = Plane::overwritten(n);
         z.par_iter_mut().zip(&film.depth).for_each(|(z, &d)| *z = if d.is_finite() { d } else { 0.0 });
-        let (mut nx, mut ny, mut nz) = (Plane::zeroed(n), Plane::zeroed(n), Plane::zeroed(n));
+        let (mut nx, mut ny, mut nz) = (Plane::overwritten(n), Plane::overwritten(n), Plane::overwritten(n));
         nx.par_iter_mut().zip(&mut *ny).zip(&mut *nz).zip(&film.normal.pixels).for_each(
             |(((x, y), z), &v)| {
                 let v = if v.is_finite() { v } else { Vec3::ZERO };
@@ -453,7 +459,7 @@ impl Guides {
         );
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
-        let mut inv_dz = Plane::zeroed(n);
+        let mut inv_dz = Plane::overwritten(n);
         inv_dz.par_iter_mut().enumerate().for_each(|(i, out)| {
             let (x, y) = (i % w, i / w);
             let side = |j: Option<usize>| {
@@ -708,12 +714,10 @@ impl Pass<'_> {
                 }
             }
         }
-        // The weighted means, as changes to the centre; a layer past its passes as it was
-        // (its colour, the one plane read after its passes, is the same either way).
+        // The weighted means, as changes to the centre; a layer past its passes is not written
+        // (its last pass's buffer holds it: [`filter_with`]).
         for c in 0..k {
             if self.pass >= self.strengths[c].1 {
-                let base = (y * k + c) * PLANES * w;
-                out[c * PLANES * w..(c + 1) * PLANES * w].copy_from_slice(&self.cur[base..base + PLANES * w]);
                 continue;
             }
             let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at(w);
@@ -1268,38 +1272,47 @@ mod tests {
         };
         let (direct, caustic, indirect) = (noisy(), noisy(), noisy());
         let variance: Vec<f32> = (0..41 * 29).map(|i| 0.02 + 0.001 * (i % 7) as f32).collect();
-        let a = Atrous {
-            taps: 3,
-            direct: Strength { sigma_l: Some(1.5), passes: Some(1) },
-            caustic: Strength { sigma_l: None, passes: Some(0) },
-            ..Atrous::default()
-        };
-        let layer = |image, component| FilterInput {
-            image,
-            variance: Some(&variance),
-            component: Some(component),
-            halves: None,
-        };
-        let together = filter(
-            &[
-                layer(&direct, Component::Direct),
-                layer(&caustic, Component::Caustic),
-                layer(&indirect, Component::Indirect),
-            ],
-            &film,
-            &a,
-            true,
-        );
-        // Each layer as if filtered alone, with its component's settings as the filter's own.
-        let alone = |image, sigma_l, passes| {
-            filter(&[FilterInput::new(image, Some(&variance))], &film, &Atrous { sigma_l, passes, ..a }, true)
+        // The direct layer ends its passes an even (1 of 5) and an odd (2 of 5) number of
+        // passes before the others: its result is read from either buffer.
+        for direct_passes in [1, 2] {
+            let a = Atrous {
+                taps: 3,
+                direct: Strength { sigma_l: Some(1.5), passes: Some(direct_passes) },
+                caustic: Strength { sigma_l: None, passes: Some(0) },
+                ..Atrous::default()
+            };
+            let layer = |image, component| FilterInput {
+                image,
+                variance: Some(&variance),
+                component: Some(component),
+                halves: None,
+            };
+            let together = filter(
+                &[
+                    layer(&direct, Component::Direct),
+                    layer(&caustic, Component::Caustic),
+                    layer(&indirect, Component::Indirect),
+                ],
+                &film,
+                &a,
+                true,
+            );
+            // Each layer as if filtered alone, with its component's settings as the filter's own.
+            let alone = |image, sigma_l, passes| {
+                filter(
+                    &[FilterInput::new(image, Some(&variance))],
+                    &film,
+                    &Atrous { sigma_l, passes, ..a },
+                    true,
+                )
                 .remove(0)
-        };
-        assert_eq!(together[0], alone(&direct, 1.5, 1));
-        assert_ne!(together[0], alone(&direct, a.sigma_l, a.passes));
-        assert_eq!(together[1], caustic, "no passes: left as it is");
-        assert_eq!(together[2], alone(&indirect, a.sigma_l, a.passes));
-        assert_ne!(together[2], indirect);
+            };
+            assert_eq!(together[0], alone(&direct, 1.5, direct_passes));
+            assert_ne!(together[0], alone(&direct, a.sigma_l, a.passes));
+            assert_eq!(together[1], caustic, "no passes: left as it is");
+            assert_eq!(together[2], alone(&indirect, a.sigma_l, a.passes));
+            assert_ne!(together[2], indirect);
+        }
     }
 
     #[test]

@@ -300,7 +300,7 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
     // Each half's variance: the whole's over the half's share of the samples.
     let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<pool::Plane> {
         let v = variance?;
-        let mut out = pool::Plane::zeroed(v.len());
+        let mut out = pool::Plane::overwritten(v.len());
         out.par_iter_mut().zip(v).zip(share).for_each(|((o, &v), &s)| {
             let part = if second { s } else { 1.0 - s };
             *o = if part > 0.0 && part < 1.0 { v / part } else { v };
@@ -345,16 +345,20 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
     }
     let mut filtered = atrous::filter(&inputs, film, a, stops.pure).into_iter();
     let mut whole = filtered.by_ref().take(whole.len()).collect::<Vec<_>>().into_iter();
-    let halves_filtered: Vec<Image> = filtered.collect();
-    let checked = halved.iter().zip(halves_filtered.chunks_exact(2));
+    // Each halved layer's pair of filtered halves, taken as its layer is blended.
+    let mut pairs: Vec<Option<(Image, Image)>> = Vec::with_capacity(halved.len());
+    while let (Some(fa), Some(fb)) = (filtered.next(), filtered.next()) {
+        pairs.push(Some((fa, fb)));
+    }
     layers
         .iter()
         .enumerate()
-        .map(|(i, l)| match checked.clone().find(|(h, _)| h.layer == i) {
-            Some((h, pair)) => {
-                cross::blend(l.image, (&h.halves.0, &h.halves.1), (&pair[0], &pair[1]), h.share)
+        .map(|(i, l)| {
+            let pair = halved.iter().zip(&mut pairs).find(|(h, _)| h.layer == i);
+            match pair.and_then(|(h, p)| Some((h, p.take()?))) {
+                Some((h, (fa, fb))) => cross::blend(l.image, (&h.halves.0, &h.halves.1), (fa, &fb), h.share),
+                None => whole.next().unwrap_or_else(|| l.image.clone()),
             }
-            None => whole.next().unwrap_or_else(|| l.image.clone()),
         })
         .collect()
 }
