@@ -240,6 +240,10 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   process's page faults 13,804 to 11,299, but `filter_seconds` 17.5 and 19.0 ms against 16.2
   and 15.8 ms (medians of eight, two sets), in two modes from 13.5 to 27 ms: a huge page's
   fault zeroes 2 MB at once, and the kernel may compact memory to find one.
+- Not kept: the check's window sums over two planes instead of three where every pixel has
+  both halves (its count plane then says nothing): the warm-call loop 8.85 against 8.71 ms
+  with two threads, 16.84 against 16.88 ms with one (medians of six, alternated). Within the
+  noise; a test of the weights against windows summed directly came of it.
 - **The goal at fdfe2b1:** 9.4 to 11.0 ms at 256x256 over this session's criterion rounds, so
   at the budget of 10 ms and not inside it in every round; 1.26 s at 4K, within 1.5 s.
 - **Mixed pixels gated by the film's alpha (measured, not kept).** The film keeps the share of

@@ -290,6 +290,47 @@ mod tests {
     }
 
     #[test]
+    fn weights_follow_the_windows_errors_with_and_without_unchecked_pixels() {
+        let (w, h) = (29usize, 23usize);
+        let truth = |i: usize| Vec3::splat(1.0 + (i % 7) as f32 / 7.0);
+        let a = image(w as u32, h as u32, |i| truth(i) + Vec3::splat(noise(i, 5)));
+        let b = image(w as u32, h as u32, |i| truth(i) + Vec3::splat(noise(i, 6)));
+        // A filter that halves the noise, with a little bias.
+        let fa = image(w as u32, h as u32, |i| truth(i) + Vec3::splat(0.5 * noise(i, 5) + 0.02));
+        let fb = image(w as u32, h as u32, |i| truth(i) + Vec3::splat(0.5 * noise(i, 6) + 0.02));
+        // Every pixel checked, then a band of pixels whose second half is empty.
+        for unchecked in [0, 9] {
+            let share: Vec<f32> = (0..w * h).map(|i| if i % w < unchecked { 0.0 } else { 0.5 }).collect();
+            let got = weights(w, h, (&a, &b), (&fa, &fb), &share);
+            for y in 0..h {
+                for x in 0..w {
+                    let (mut u, mut f, mut n) = (0.0f64, 0.0f64, 0);
+                    for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
+                        for xx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
+                            let i = yy * w + xx;
+                            if let Some((eu, ef)) =
+                                errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i])
+                            {
+                                (u, f, n) = (u + eu, f + ef, n + 1);
+                            }
+                        }
+                    }
+                    let want = match (n > 0, u > 0.0) {
+                        (false, _) => 0.0,
+                        (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0),
+                        (true, false) => 1.0,
+                    };
+                    let at = got[y * w + x] as f64;
+                    assert!(
+                        (at - want).abs() < 1e-4,
+                        "({x}, {y}) with {unchecked} columns unchecked: {at} against {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn window_sums_equal_a_direct_sum() {
         // Sizes below, at and across the window's length (and its bands), a single column and a
         // single row; every pixel of both planes.
