@@ -297,15 +297,13 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
     let mut inv_sigma = Plane::overwritten(h * k * w);
     // Each layer's colour stop and passes.
     let strengths: Vec<(f32, u32)> = live.iter().map(|&li| a.strength(layers[li].component)).collect();
-    let passes = strengths.iter().map(|s| s.1).max().unwrap_or(0);
-    let mut run = 0;
-    for pass in 0..passes {
-        if (1usize << pass) >= w.max(h) {
-            break; // every tap would fall outside the image
-        }
+    // The passes run: none once a pass's every tap would fall outside the image.
+    let run = (0..strengths.iter().map(|s| s.1).max().unwrap_or(0))
+        .take_while(|&p| (1usize << p) < w.max(h))
+        .count() as u32;
+    for pass in 0..run {
         run_pass(isa, (a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
         std::mem::swap(&mut cur, &mut next);
-        run += 1;
     }
     // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
     // first made again as it was.
@@ -316,7 +314,7 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
         let variance = layers[li].variance;
         let image = &mut out[li];
         // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
-        let cur = if (run - strengths[c].1.min(run)) % 2 == 0 { &cur } else { &next };
+        let cur = if (run - strengths[c].1.min(run)).is_multiple_of(2) { &cur } else { &next };
         image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let base = (y * k + c) * PLANES * w;
             for (x, px) in row.iter_mut().enumerate() {

@@ -345,20 +345,16 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
     }
     let mut filtered = atrous::filter(&inputs, film, a, stops.pure).into_iter();
     let mut whole = filtered.by_ref().take(whole.len()).collect::<Vec<_>>().into_iter();
-    // Each halved layer's pair of filtered halves, taken as its layer is blended.
-    let mut pairs: Vec<Option<(Image, Image)>> = Vec::with_capacity(halved.len());
-    while let (Some(fa), Some(fb)) = (filtered.next(), filtered.next()) {
-        pairs.push(Some((fa, fb)));
-    }
+    // Each halved layer (in layer order) with its pair of filtered halves, blended when its
+    // layer comes.
+    let pairs = std::iter::from_fn(|| Some((filtered.next()?, filtered.next()?)));
+    let mut checked = halved.iter().zip(pairs).peekable();
     layers
         .iter()
         .enumerate()
-        .map(|(i, l)| {
-            let pair = halved.iter().zip(&mut pairs).find(|(h, _)| h.layer == i);
-            match pair.and_then(|(h, p)| Some((h, p.take()?))) {
-                Some((h, (fa, fb))) => cross::blend(l.image, (&h.halves.0, &h.halves.1), (fa, &fb), h.share),
-                None => whole.next().unwrap_or_else(|| l.image.clone()),
-            }
+        .map(|(i, l)| match checked.next_if(|(h, _)| h.layer == i) {
+            Some((h, (fa, fb))) => cross::blend(l.image, (&h.halves.0, &h.halves.1), (fa, &fb), h.share),
+            None => whole.next().unwrap_or_else(|| l.image.clone()),
         })
         .collect()
 }

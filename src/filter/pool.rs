@@ -55,6 +55,7 @@ impl Plane {
         }
         match take(n) {
             Some(mut v) => {
+                // Zeroed: every value written again; else only those past the old length.
                 v.truncate(if zeroed { 0 } else { n });
                 v.resize(n, 0.0);
                 Plane(Store::Heap(v))

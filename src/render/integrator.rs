@@ -912,8 +912,8 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     }
 }
 
-/// [`Integrator::sample_from_into`]'s path, as a job [`Isa::run`] compiles for the
-/// instructions it chose (the whole path loop inlines into it).
+/// [`Integrator::sample_from_into`]'s path, as a job [`Isa::run_avx512_or_portable`] compiles for
+/// the instructions it chose (the whole path loop inlines into it).
 struct PathJob<'s, 'i, A: Accel, const F: u8> {
     integrator: &'s Integrator<'i, A, F>,
     ray: Ray,
