@@ -224,8 +224,9 @@ pub struct FilterArgs {
     #[arg(long)]
     pub filter: Option<String>,
     /// Denoise with the best setting measured (docs/RESULTS.md, "Denoising"): the à-trous
-    /// filter (atrous:taps=3:passes=4:sigma_l=6, --edge-pure) on each component, emitted light
-    /// left alone, kept only where the halves of the samples say it lowers the error.
+    /// filter (atrous:taps=3:passes=4:sigma_l=6:linear=2, --edge-pure) on each component,
+    /// emitted light left alone, kept only where the halves of the samples say it lowers the
+    /// error.
     #[arg(
         long,
         conflicts_with_all = ["filter", "filter_target", "edge_aware", "edge_normal", "edge_depth", "edge_pure"]

@@ -150,6 +150,8 @@ impl Setting {
                 caustic: Strength { sigma_l: Some(24.0), passes: None },
                 clamp: None,
                 cross: true,
+                // A plane fitted in each pass from the second on.
+                linear: 2,
             })),
             target: Target::Components,
             stops: EdgeStops { pure: true, ..EdgeStops::default() },
