@@ -479,16 +479,19 @@ impl Guides {
         );
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
+        // Row by row (a pixel's coordinates from its index were an integer division each).
         let mut inv_dz = Plane::overwritten(n);
-        inv_dz.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (x, y) = (i % w, i / w);
-            let side = |j: Option<usize>| {
+        inv_dz.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let side = |i: usize, j: Option<usize>| {
                 j.filter(|&j| key[j] == key[i]).map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY)
             };
             let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
-            let gx = axis(side(x.checked_sub(1).map(|x| y * w + x)), side((x + 1 < w).then(|| i + 1)));
-            let gy = axis(side(y.checked_sub(1).map(|y| y * w + x)), side((y + 1 < h).then(|| i + w)));
-            *out = LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12);
+            for (x, out) in row.iter_mut().enumerate() {
+                let i = y * w + x;
+                let gx = axis(side(i, x.checked_sub(1).map(|_| i - 1)), side(i, (x + 1 < w).then(|| i + 1)));
+                let gy = axis(side(i, y.checked_sub(1).map(|_| i - w)), side(i, (y + 1 < h).then(|| i + w)));
+                *out = LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12);
+            }
         });
         Guides { nx, ny, nz, z, key, inv_dz }
     }

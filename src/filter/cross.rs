@@ -172,19 +172,31 @@ impl Line {
         let (w, padded) = (self.w, self.w + 2 * RADIUS);
         for k in 0..self.n {
             let column = &self.columns[k * padded..(k + 1) * padded];
-            // Within each block: suffix[q] sums q to the block's end, prefix[q] its start to q.
+            // Within each block: suffix[q] sums q to the block's end, prefix[q] its start to q
+            // (block by block, not a remainder per pixel: an integer division each).
             self.suffix[padded] = 0.0;
-            for q in (0..padded).rev() {
-                let next = if (q + 1) % L == 0 { 0.0 } else { self.suffix[q + 1] };
-                self.suffix[q] = column[q] + next;
+            for (block, column) in self.suffix[..padded].chunks_mut(L).zip(column.chunks(L)) {
+                let mut sum = 0.0;
+                for (s, &c) in block.iter_mut().zip(column).rev() {
+                    sum += c;
+                    *s = sum;
+                }
             }
-            for (q, &c) in column.iter().enumerate() {
-                let before = if q % L == 0 { 0.0 } else { self.prefix[q - 1] };
-                self.prefix[q] = before + c;
+            for (block, column) in self.prefix.chunks_mut(L).zip(column.chunks(L)) {
+                let mut sum = 0.0;
+                for (p, &c) in block.iter_mut().zip(column) {
+                    sum += c;
+                    *p = sum;
+                }
             }
-            // Centre x's window is padded x..x + L.
-            for (x, s) in self.sums[k * w..(k + 1) * w].iter_mut().enumerate() {
-                *s = if x % L == 0 { self.suffix[x] } else { self.suffix[x] + self.prefix[x + L - 1] };
+            // Centre x's window is padded x..x + L: a block's suffix from x, and unless x starts
+            // a block, the next block's prefix to x + L - 1.
+            let sums = &mut self.sums[k * w..(k + 1) * w];
+            for (start, out) in (0..w).step_by(L).zip(sums.chunks_mut(L)) {
+                out[0] = self.suffix[start];
+                for (i, s) in out.iter_mut().enumerate().skip(1) {
+                    *s = self.suffix[start + i] + self.prefix[start + i + L - 1];
+                }
             }
         }
     }
