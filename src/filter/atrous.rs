@@ -479,20 +479,44 @@ impl Guides {
         );
         // The depth gradient: along each axis the smaller one-sided difference to a neighbour
         // of the same object (so a silhouette does not count), then the larger of the axes.
-        // Row by row (a pixel's coordinates from its index were an integer division each).
+        // Row by row, from the steps between neighbours (INFINITY across objects and past the
+        // image's ends), each step made once for both of its pixels: flat loops.
         let mut inv_dz = Plane::overwritten(n);
-        inv_dz.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let side = |i: usize, j: Option<usize>| {
-                j.filter(|&j| key[j] == key[i]).map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY)
-            };
-            let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
-            for (x, out) in row.iter_mut().enumerate() {
-                let i = y * w + x;
-                let gx = axis(side(i, x.checked_sub(1).map(|_| i - 1)), side(i, (x + 1 < w).then(|| i + 1)));
-                let gy = axis(side(i, y.checked_sub(1).map(|_| i - w)), side(i, (y + 1 < h).then(|| i + w)));
-                *out = LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * z[i].abs() + 1e-12);
-            }
-        });
+        let (keys, depths) = (&*key, &*z);
+        inv_dz.par_chunks_mut(w).enumerate().for_each_init(
+            || (vec![0.0f32; w + 1], vec![0.0f32; w], vec![0.0f32; w]),
+            |(across, up, down), (y, row)| {
+                let (kr, zr) = (&keys[y * w..(y + 1) * w], &depths[y * w..(y + 1) * w]);
+                let step = |ka: f32, kb: f32, za: f32, zb: f32| {
+                    if ka == kb {
+                        (za - zb).abs()
+                    } else {
+                        f32::INFINITY
+                    }
+                };
+                // across[x]: the step from x - 1 to x.
+                (across[0], across[w]) = (f32::INFINITY, f32::INFINITY);
+                for x in 1..w {
+                    across[x] = step(kr[x - 1], kr[x], zr[x - 1], zr[x]);
+                }
+                for (ry, out) in [(y.checked_sub(1), &mut *up), ((y + 1 < h).then_some(y + 1), &mut *down)] {
+                    match ry {
+                        Some(ry) => {
+                            let (ko, zo) = (&keys[ry * w..(ry + 1) * w], &depths[ry * w..(ry + 1) * w]);
+                            for x in 0..w {
+                                out[x] = step(ko[x], kr[x], zo[x], zr[x]);
+                            }
+                        }
+                        None => out.fill(f32::INFINITY),
+                    }
+                }
+                let axis = |a: f32, b: f32| if a.min(b).is_finite() { a.min(b) } else { 0.0 };
+                for x in 0..w {
+                    let (gx, gy) = (axis(across[x], across[x + 1]), axis(up[x], down[x]));
+                    row[x] = LOG2_E / (a.sigma_z * gx.max(gy) + 1e-4 * zr[x].abs() + 1e-12);
+                }
+            },
+        );
         Guides { nx, ny, nz, z, key, inv_dz }
     }
 }
