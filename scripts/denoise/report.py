@@ -310,8 +310,8 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   component's halves and costs the most, for an error within 2% either way. The check costs
   the gallery 4% (`cross=0`), and the filtered halves' mix without the check's weights 1%
   (8.87e-4).
-- **At few samples a fixed ridge let the slopes fit noise.** `converge` (above) showed the
-  Cornell box's relMSE at 4 spp above its earlier figure; renders at 4 and 16 spp (seeds 1 and
+- **At few samples a fixed ridge let the slopes fit noise.** `converge` at b133c2c put the
+  Cornell box's relMSE at 4 spp at 3.54e-3 (the table above, before it: 3.14e-3); renders at 4 and 16 spp (seeds 1 and
   2, the same films filtered each way, mean relMSE, Cornell box / gallery / paper-sky) put no
   fit at 4 spp at 3.31e-3 / 1.11e-2 / 2.26e-3 and the fixed ridge at **3.54e-3** (7% worse) /
   1.12e-2 / 2.20e-3. The ridge now grows with the centre's relative noise, `0.1 W (1 + K V /
