@@ -65,7 +65,8 @@ pub struct Atrous {
     /// ([`super::cross`]); `cross=0` filters without the check.
     pub cross: bool,
     /// `linear=P`: pass P (counted from 1) and the later ones fit a plane to their taps
-    /// (weighted least squares, the slopes held by a small ridge) and keep the plane's value
+    /// (weighted least squares, the slopes held by a ridge that grows with the pixel's noise:
+    /// [`RIDGE`]) and keep the plane's value
     /// at the centre, not the taps' weighted mean: a gradient of the light, and the one-sided
     /// windows beside an object's border, are kept without the mean's pull toward the
     /// window's centroid, so the wider passes smooth noise without flattening the light. 0
