@@ -16,7 +16,7 @@
 //! - `V'_p = (h(0)² V_p + Σ k_q² V_q) / W²`, the variance of that weighted mean;
 //! - with [`Atrous::linear`], from its pass on, `u'_p` is instead the value at `p` of the plane
 //!   fitted to the centre (weight `h(0)`) and its taps (weights `k_q`) by least squares, its
-//!   slopes held by a ridge that grows with the centre's relative noise ([`RIDGE`]).
+//!   slopes held by a ridge that grows with the centre's relative noise (`RIDGE`).
 //!
 //! A pixel whose blurred variance `g3x3(V)_p` is 0 has no noise to remove and keeps its value
 //! (every tap of another luminance would weigh 2^-125 or less anyway); rows are filtered only
@@ -66,7 +66,7 @@ pub struct Atrous {
     pub cross: bool,
     /// `linear=P`: pass P (counted from 1) and the later ones fit a plane to their taps
     /// (weighted least squares, the slopes held by a ridge that grows with the pixel's noise:
-    /// [`RIDGE`]) and keep the plane's value
+    /// `RIDGE`) and keep the plane's value
     /// at the centre, not the taps' weighted mean: a gradient of the light, and the one-sided
     /// windows beside an object's border, are kept without the mean's pull toward the
     /// window's centroid, so the wider passes smooth noise without flattening the light. 0
