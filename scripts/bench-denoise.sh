@@ -130,6 +130,9 @@ DENOISE_KERNEL=$("$BIN" filter "$OUT/$first/film-1.exr" -o "$OUT/$first/denoise-
     "$PY" -c 'import json, sys; print(json.load(sys.stdin)["filter"])')
 for s in $SCENES; do
     echo "bench-denoise: $s: converge at 4 to 256 spp" >&2
+    # converge resumes the rows it finds for the same settings, whatever binary made them; a
+    # change that keeps the filter's name (a constant of the filter) would leave them stale.
+    rm -rf "$OUT/$s/converge"
     "$BIN" converge "scenes/$s.toml" --reference "$OUT/$s/reference-${REFERENCE_SPP}spp.exr" \
         --spp 4,16,64,256 --seeds "$SEEDS" --filters "none,box5,$DENOISE_KERNEL" \
         --targets indirect,components --edge-aware pure --out "$OUT/$s/converge" >/dev/null
