@@ -208,6 +208,11 @@ impl Atrous {
         out
     }
 
+    /// Whether pass `pass` (counted from 0) fits a plane: from pass `linear` on, counted from 1.
+    fn fits_plane(&self, pass: u32) -> bool {
+        self.linear > 0 && pass + 1 >= self.linear
+    }
+
     /// The colour stop and passes of a layer that is `component` (if it is one).
     fn strength(&self, component: Option<Component>) -> (f32, u32) {
         let own = match component {
@@ -731,8 +736,7 @@ impl Pass<'_> {
         let h0 = kernel[r] * kernel[r];
         let g = self.guides;
         let sigma_n = self.a.sigma_n * LOG2_E;
-        // From pass `linear` on (counted from 1), each fits a plane.
-        let linear = self.a.linear > 0 && self.pass + 1 >= self.a.linear;
+        let linear = self.a.fits_plane(self.pass);
         s.acc.fill(0.0);
         if linear {
             s.moments.clear();
@@ -908,8 +912,7 @@ fn accumulate_one(
         let geo = if kc[j] == kq[j] { hk } else { 0.0 };
         let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
         let e = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
-        let t = e + (lc[j] - lq[j]).abs() * isg[j];
-        let k = geo * exp2_neg(t);
+        let k = tap_weight(geo, e, (lc[j], lq[j]), isg[j]);
         ar[j] += k * (rq[j] - rc[j]);
         ag[j] += k * (gq[j] - gc[j]);
         ab[j] += k * (bq[j] - bc[j]);
@@ -933,8 +936,7 @@ fn accumulate(
     let (rq, gq, bq, lq, vq) = (&rq[..n], &gq[..n], &bq[..n], &lq[..n], &vq[..n]);
     let (ar, ag, ab, av, aw) = (&mut ar[..n], &mut ag[..n], &mut ab[..n], &mut av[..n], &mut aw[..n]);
     for j in 0..n {
-        let t = e[j] + (lc[j] - lq[j]).abs() * isg[j];
-        let k = geo[j] * exp2_neg(t);
+        let k = tap_weight(geo[j], e[j], (lc[j], lq[j]), isg[j]);
         ar[j] += k * (rq[j] - rc[j]);
         ag[j] += k * (gq[j] - gc[j]);
         ab[j] += k * (bq[j] - bc[j]);
@@ -1018,8 +1020,7 @@ fn tap_weights((geo, e, isg): (&[f32], &[f32], &[f32]), lc: &[f32], lq: &[f32], 
     let n = k.len();
     let (geo, e, isg, lc, lq) = (&geo[..n], &e[..n], &isg[..n], &lc[..n], &lq[..n]);
     for j in 0..n {
-        let t = e[j] + (lc[j] - lq[j]).abs() * isg[j];
-        k[j] = geo[j] * exp2_neg(t);
+        k[j] = tap_weight(geo[j], e[j], (lc[j], lq[j]), isg[j]);
     }
 }
 
@@ -1033,6 +1034,14 @@ fn weighted_differences(k: &[f32], d: f32, centres: [&[f32]; 3], taps: [&[f32]; 
             sum[j] += k[j] * d * (q[j] - c[j]);
         }
     }
+}
+
+/// A tap's weight from its geometric weight `geo` and exponent `e` (normal and depth stops),
+/// the centre's and the tap's luminance and the centre's colour stop `isg`:
+/// `geo 2^-(e + |Δl| isg)`.
+#[inline(always)]
+fn tap_weight(geo: f32, e: f32, (lc, lq): (f32, f32), isg: f32) -> f32 {
+    geo * exp2_neg(e + (lc - lq).abs() * isg)
 }
 
 /// `2^-t` for `t >= 0` (NaN and anything above 125 give about 2^-125), to a relative error
@@ -1108,7 +1117,7 @@ mod tests {
                     // With `linear`, the plane fitted by weighted least squares: the normal
                     // equations over the centre (offset 0, weight h0) and the taps, in f64, raw
                     // values rather than differences, solved by Cramer's rule.
-                    let linear = a.linear > 0 && pass + 1 >= a.linear;
+                    let linear = a.fits_plane(pass);
                     let mut normal = [[0.0f64; 3]; 3];
                     let mut rhs = [[0.0f64; 3]; 3];
                     let mut add = |wt: f32, d: [f64; 3], value: [f32; 3]| {
