@@ -291,8 +291,55 @@ pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Ve
     filter_with(Isa::avx2_or_portable(), layers, film, a, pure)
 }
 
-/// [`filter`] with the passes in the build `isa`.
+/// [`filter`] with the passes in the build `isa`, in bands of rows when the working buffers
+/// of the whole image would be large ([`band_rows`]).
 fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+    let k = layers.len();
+    let band = band_rows(film.width as usize, film.height as usize, k, a);
+    filter_in_bands(isa, layers, film, a, pure, band)
+}
+
+/// The most bytes the two working buffers of a call may take together before the image is
+/// filtered in bands: a 512x512 film's with a few layers stays whole, a 4K one (1.3 GB of
+/// buffers, most of a call's fresh memory) goes in bands.
+const WHOLE_BYTES: usize = 64 << 20;
+/// The rows a band filters at least, besides the rows its passes read above and below it.
+const BAND: usize = 128;
+
+/// The output rows of each band, or `None` for the whole image at once: [`BAND`] rows once the
+/// whole image's buffers would take more than [`WHOLE_BYTES`], and the image is tall enough for
+/// bands to save rows.
+fn band_rows(w: usize, h: usize, k: usize, a: &Atrous) -> Option<usize> {
+    let bytes = 2 * h * k * PLANES * w * size_of::<f32>();
+    let reach = band_reach(a, a.passes.max(a.direct.passes.unwrap_or(0)).max(a.caustic.passes.unwrap_or(0)));
+    (bytes > WHOLE_BYTES && h > BAND + 2 * reach).then_some(BAND)
+}
+
+/// The rows above and below its own that pass `pass` reads for one output row: its taps' reach,
+/// and at least the one row of the colour stops' 3x3 blur.
+fn pass_reach(a: &Atrous, pass: u32) -> usize {
+    ((a.kernel().len() / 2) << pass).max(1)
+}
+
+/// The rows above and below a band that its passes `0..passes` read, all together.
+fn band_reach(a: &Atrous, passes: u32) -> usize {
+    (0..passes).map(|p| pass_reach(a, p)).sum()
+}
+
+/// [`filter_with`] in bands of `band` output rows (all rows at once without): each band
+/// demodulates the rows its passes read, runs every pass over the rows the next pass reads,
+/// and multiplies back its own rows. Every row is computed from the same rows of the pass
+/// before as in one band, so the bands give the same bits; the rows around a band are computed
+/// again by its neighbours (about an eighth more arithmetic at 4K), and the buffers are a band's,
+/// not the image's.
+fn filter_in_bands(
+    isa: Isa,
+    layers: &[FilterInput],
+    film: &Film,
+    a: &Atrous,
+    pure: bool,
+    band: Option<usize>,
+) -> Vec<Image> {
     let (w, h) = (film.width as usize, film.height as usize);
     // Layers that are zero everywhere, or have no passes, stay as they are.
     let live: Vec<usize> = (0..layers.len())
@@ -304,76 +351,93 @@ fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: 
     }
     let guides = Guides::new(film, a, pure);
     let k = live.len();
-    let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
-    // Demodulated illumination, its luminance and its variance, row by row.
-    let mut cur = Plane::overwritten(h * k * PLANES * w);
-    cur.par_chunks_mut(k * PLANES * w).enumerate().for_each(|(y, row)| {
-        for (c, &li) in live.iter().enumerate() {
-            let layer = layers[li];
-            let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
-            for x in 0..w {
-                let i = y * w + x;
-                let (v, a) = (layer.image.pixels[i], albedo(i));
-                let u = demodulate(v, a);
-                let (lu, lv) = (luminance(u), luminance(v));
-                let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
-                let var = layer.variance.map_or(0.0, |v| v[i].max(0.0)) * ratio * ratio;
-                for (p, value) in
-                    [u.x, u.y, u.z, lu, if var.is_finite() { var } else { 0.0 }].into_iter().enumerate()
-                {
-                    planes[p * w + x] = value;
-                }
-            }
-        }
-    });
-    // Each pass writes the rows of its live layers only; a layer past its passes stays in the
-    // buffer its last pass wrote, and neither buffer's other planes are read.
-    let mut next = Plane::overwritten(cur.len());
-    let mut inv_sigma = Plane::overwritten(h * k * w);
     // Each layer's colour stop and passes.
     let strengths: Vec<(f32, u32)> = live.iter().map(|&li| a.strength(layers[li].component)).collect();
     // The passes run: none once a pass's every tap would fall outside the image.
     let run = (0..strengths.iter().map(|s| s.1).max().unwrap_or(0))
         .take_while(|&p| (1usize << p) < w.max(h))
         .count() as u32;
-    for pass in 0..run {
-        run_pass(isa, (a, &strengths), &guides, (w, h, k), pass, &cur, &mut next, &mut inv_sigma);
-        std::mem::swap(&mut cur, &mut next);
-    }
-    // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
-    // first made again as it was.
-    // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
-    // the layer's luminance deviation, scaled to a channel brighter than the luminance.
-    let bound = a.clamp;
-    for (c, &li) in live.iter().enumerate() {
-        let variance = layers[li].variance;
-        let image = &mut out[li];
-        // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
-        let cur = if (run - strengths[c].1.min(run)).is_multiple_of(2) { &cur } else { &next };
-        image.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let base = (y * k + c) * PLANES * w;
-            for (x, px) in row.iter_mut().enumerate() {
-                let i = y * w + x;
-                let albedo = albedo(i);
-                let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
-                let change = albedo * (last - demodulate(*px, albedo));
-                *px += match (bound, variance) {
-                    (Some(k), Some(v)) => {
-                        let lum = luminance(*px);
-                        let scale = if lum > 0.0 { (*px / lum).max(Vec3::ONE) } else { Vec3::ONE };
-                        let limit = k * v[i].max(0.0).sqrt() * scale;
-                        change.clamp(-limit, limit)
+    let band = band.unwrap_or(h).clamp(1, h);
+    let reach = band_reach(a, run);
+    // Rows `rest[p]` above and below a band that pass p writes: what the passes after it read.
+    let rest: Vec<usize> = (0..run).map(|p| band_reach(a, run) - band_reach(a, p + 1)).collect();
+    let rows_held = (band + 2 * reach).min(h);
+    // Demodulated illumination, its luminance and its variance, row by row.
+    let mut cur = Plane::overwritten(rows_held * k * PLANES * w);
+    // Each pass writes the rows of its live layers only; a layer past its passes stays in the
+    // buffer its last pass wrote, and neither buffer's other planes are read.
+    let mut next = Plane::overwritten(cur.len());
+    let mut inv_sigma = Plane::overwritten(rows_held * k * w);
+    let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
+    for b0 in (0..h).step_by(band) {
+        let b1 = (b0 + band).min(h);
+        // The image rows the buffers hold, from `row0`.
+        let row0 = b0.saturating_sub(reach);
+        let held = row0..(b1 + reach).min(h);
+        cur[..held.len() * k * PLANES * w].par_chunks_mut(k * PLANES * w).enumerate().for_each(|(r, row)| {
+            let y = row0 + r;
+            for (c, &li) in live.iter().enumerate() {
+                let layer = layers[li];
+                let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
+                for x in 0..w {
+                    let i = y * w + x;
+                    let (v, a) = (layer.image.pixels[i], albedo(i));
+                    let u = demodulate(v, a);
+                    let (lu, lv) = (luminance(u), luminance(v));
+                    let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
+                    let var = layer.variance.map_or(0.0, |v| v[i].max(0.0)) * ratio * ratio;
+                    for (p, value) in
+                        [u.x, u.y, u.z, lu, if var.is_finite() { var } else { 0.0 }].into_iter().enumerate()
+                    {
+                        planes[p * w + x] = value;
                     }
-                    _ => change,
-                };
+                }
             }
         });
+        for pass in 0..run {
+            let rows = b0.saturating_sub(rest[pass as usize])..(b1 + rest[pass as usize]).min(h);
+            let buffers = (&cur[..], &mut next[..], &mut inv_sigma[..]);
+            run_pass(isa, (a, &strengths), &guides, (w, h, k), pass, (rows, row0), buffers);
+            std::mem::swap(&mut cur, &mut next);
+        }
+        // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
+        // first made again as it was.
+        // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
+        // the layer's luminance deviation, scaled to a channel brighter than the luminance.
+        let bound = a.clamp;
+        for (c, &li) in live.iter().enumerate() {
+            let variance = layers[li].variance;
+            let image = &mut out[li];
+            // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
+            let cur = if (run - strengths[c].1.min(run)).is_multiple_of(2) { &cur } else { &next };
+            image.pixels[b0 * w..b1 * w].par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+                let y = b0 + r;
+                let base = ((y - row0) * k + c) * PLANES * w;
+                for (x, px) in row.iter_mut().enumerate() {
+                    let i = y * w + x;
+                    let albedo = albedo(i);
+                    let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
+                    let change = albedo * (last - demodulate(*px, albedo));
+                    *px += match (bound, variance) {
+                        (Some(k), Some(v)) => {
+                            let lum = luminance(*px);
+                            let scale = if lum > 0.0 { (*px / lum).max(Vec3::ONE) } else { Vec3::ONE };
+                            let limit = k * v[i].max(0.0).sqrt() * scale;
+                            change.clamp(-limit, limit)
+                        }
+                        _ => change,
+                    };
+                }
+            });
+        }
     }
     out
 }
 
 /// Pass `pass` (holes of `2^pass` pixels) over `cur`, rows of `k` layers of [`PLANES`] planes
-/// of width `w`, into `next`; `inv_sigma` (`h k w` floats) is scratch for the colour stops.
+/// of width `w` holding the image rows from `row0`, into the image rows `rows` of `next`, which
+/// holds the same rows as `cur`; `inv_sigma` (`k w` floats a row, from `row0` too) is scratch for
+/// the colour stops.
 #[allow(clippy::too_many_arguments)]
 fn run_pass(
     isa: Isa,
@@ -381,20 +445,21 @@ fn run_pass(
     guides: &Guides,
     (w, h, k): (usize, usize, usize),
     pass: u32,
-    cur: &[f32],
-    next: &mut [f32],
-    inv_sigma: &mut [f32],
+    (rows, row0): (std::ops::Range<usize>, usize),
+    (cur, next, inv_sigma): (&[f32], &mut [f32], &mut [f32]),
 ) {
     let step = 1usize << pass;
-    let pass = Pass { a, strengths, pass, w, h, k, step, guides, cur, inv_sigma: &[] };
-    inv_sigma.par_chunks_mut(k * w).enumerate().for_each_init(
+    let pass = Pass { a, strengths, pass, w, h, k, step, guides, cur, row0, inv_sigma: &[] };
+    let (first, last) = (rows.start - row0, rows.end - row0);
+    inv_sigma[first * k * w..last * k * w].par_chunks_mut(k * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new()),
-        |scratch, (y, out)| isa.run(ColourStops { pass: &pass, y, out, scratch }),
+        |scratch, (r, out)| isa.run(ColourStops { pass: &pass, y: rows.start + r, out, scratch }),
     );
     let pass = Pass { inv_sigma, ..pass };
-    next.par_chunks_mut(k * PLANES * w).enumerate().for_each_init(
+    let width = k * PLANES * w;
+    next[first * width..last * width].par_chunks_mut(width).enumerate().for_each_init(
         || Scratch::new(w, k),
-        |scratch, (y, out)| isa.run(Row { pass: &pass, y, out, scratch }),
+        |scratch, (r, out)| isa.run(Row { pass: &pass, y: rows.start + r, out, scratch }),
     );
 }
 
@@ -546,7 +611,10 @@ struct Pass<'a> {
     k: usize,
     step: usize,
     guides: &'a Guides,
+    /// The rows of the pass before, from image row `row0`.
     cur: &'a [f32],
+    /// The image row that the first row of `cur` and of `inv_sigma` holds.
+    row0: usize,
     /// Per row and layer: `log2 e / (σ_l sqrt(g3x3(V)))`.
     inv_sigma: &'a [f32],
 }
@@ -674,7 +742,7 @@ impl Pass<'_> {
     /// The plane `p` of layer `c` in row `y` of `cur`.
     #[inline(always)]
     fn plane(&self, y: usize, c: usize, p: usize) -> &[f32] {
-        let base = ((y * self.k + c) * PLANES + p) * self.w;
+        let base = (((y - self.row0) * self.k + c) * PLANES + p) * self.w;
         &self.cur[base..base + self.w]
     }
 
@@ -748,7 +816,8 @@ impl Pass<'_> {
             if self.pass >= self.strengths[c].1 {
                 s.spans[c].clear();
             } else {
-                active_spans(&self.inv_sigma[(y * k + c) * w..(y * k + c + 1) * w], &mut s.spans[c]);
+                let at = ((y - self.row0) * k + c) * w;
+                active_spans(&self.inv_sigma[at..at + w], &mut s.spans[c]);
             }
         }
         let hull = (
@@ -802,7 +871,7 @@ impl Pass<'_> {
                     );
                 }
                 for c in 0..k {
-                    let base = (y * k + c) * w;
+                    let base = ((y - self.row0) * k + c) * w;
                     let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at_mut(w);
                     let (ag, rest) = rest.split_at_mut(w);
                     let (ab, rest) = rest.split_at_mut(w);
@@ -1243,7 +1312,15 @@ mod tests {
                         let mut got = vec![0.0; cur.len()];
                         let mut scratch = vec![0.0; h * k * w];
                         let strengths = vec![(a.sigma_l, a.passes); k];
-                        run_pass(isa, (&a, &strengths), &g, (w, h, k), pass, &cur, &mut got, &mut scratch);
+                        run_pass(
+                            isa,
+                            (&a, &strengths),
+                            &g,
+                            (w, h, k),
+                            pass,
+                            (0..h, 0),
+                            (&cur, &mut got, &mut scratch),
+                        );
                         for (i, (x, y)) in got.iter().zip(&want).enumerate() {
                             assert!(
                                 (x - y).abs() <= if linear > 0 { 1e-4 } else { 1e-5 } * y.abs().max(1e-3),
@@ -1442,9 +1519,8 @@ mod tests {
             &g,
             (w, h, 1),
             0,
-            &cur,
-            &mut next,
-            &mut vec![0.0; h * w],
+            (0..h, 0),
+            (&cur, &mut next, &mut vec![0.0; h * w]),
         );
         let sum_h2: f32 = a.kernel().iter().map(|k| k * k).sum();
         assert_eq!(sum_h2, 0.2734375);
@@ -1511,9 +1587,6 @@ mod tests {
         assert_eq!(one, run(3));
     }
 
-    /// `clamp=K` bounds each channel's change by K deviations of the pixel's mean: 0 changes
-    /// nothing, a bound the filter never reaches changes nothing either, and in between no
-    /// channel moves further than its bound.
     #[test]
     fn the_avx2_build_gives_the_portable_builds_bits() {
         // On a CPU without AVX2 both runs are the portable build: the comparison then holds
@@ -1543,6 +1616,44 @@ mod tests {
         }
     }
 
+    /// Bands of rows give the image filtered whole, bit for bit: bands of one row to more than
+    /// the image, with passes that read past several bands (five passes of five taps reach 62
+    /// rows), a layer that stops its passes early, plane fits and the clamp.
+    #[test]
+    fn bands_give_the_whole_images_bits() {
+        let (w, h) = (37u32, 45u32);
+        let film = random_film(w, h, 21);
+        let (bright, bright_var) = noisy_layer(w, h, 22, 1.0);
+        let (dim, dim_var) = noisy_layer(w, h, 23, 0.01);
+        let two = [
+            FilterInput::new(&bright, Some(&bright_var)),
+            FilterInput { component: Some(Component::Direct), ..FilterInput::new(&dim, Some(&dim_var)) },
+        ];
+        let strong = Atrous {
+            taps: 5,
+            passes: 5,
+            direct: Strength { sigma_l: Some(1.5), passes: Some(2) },
+            linear: 2,
+            clamp: Some(2.0),
+            ..Atrous::default()
+        };
+        let denoise = match crate::filter::Setting::denoise().method {
+            Some(crate::filter::Method::Atrous(a)) => a,
+            _ => unreachable!("--denoise is à-trous"),
+        };
+        for (a, pure) in [(&Atrous::default(), false), (&strong, true), (&denoise, true)] {
+            let whole = filter_in_bands(Isa::best(), &two, &film, a, pure, None);
+            assert_ne!(whole[0], bright, "the filter changed the layer");
+            for band in [1, 2, 3, 7, 16, 44, 45, 100] {
+                let banded = filter_in_bands(Isa::best(), &two, &film, a, pure, Some(band));
+                assert!(banded == whole, "bands of {band} rows differ from the whole image ({})", a.name());
+            }
+        }
+    }
+
+    /// `clamp=K` bounds each channel's change by K deviations of the pixel's mean: 0 changes
+    /// nothing, a bound the filter never reaches changes nothing either, and in between no
+    /// channel moves further than its bound.
     #[test]
     fn clamp_bounds_the_change_by_the_noise() {
         let film = random_film(37, 23, 7);
