@@ -351,6 +351,34 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   alternated, medians): the Cornell box 20.8 to 19.3 ms, the gallery, whose caustics are a
   third live layer, 32.9 to 35.0 ms.
 
+**4K in bands of rows (2026-12-06; AMD EPYC, family 26 model 2, AVX-512).**
+- **Where a fresh 4K call went:** `filter FILM.exr --denoise` of a 3840x2160 Cornell box at 4
+  spp, `perf record` of the whole process: the kernel's `clear_page_erms` 43% of the samples,
+  writing the output EXR 30%, the passes about 3%. `strace` counted 7.45 GB of fresh anonymous
+  mappings of 1 MB or more: the decoder's 49 channels (1.6 GB) and our copy of them (1.6 GB),
+  the film's layers, and the passes' two working buffers, 665 MB each. On this VM a fresh page
+  is dear: in eleven runs before the bands the process took 8.9 to 24.6 s of wall time, 4.3 to
+  21.4 s of it in the kernel, and its `filter_seconds` read 3.3 to 6.4 s, once 1.3 s.
+- **Kept: the passes in bands** of 128 rows once the whole image's two buffers would pass 64 MB.
+  A band demodulates the rows its passes read (15 above and below for `--denoise`'s four passes
+  of three taps), runs each pass over the rows the passes after it read, and multiplies back its
+  own rows; its neighbours compute those shared rows again (13% more rows through the passes at
+  4K). The buffers are a band's, 50 MB rather than 1.3 GB. The same bits: `cmp` of the 4K
+  outputs, and a test filtering in bands of 1 to 100 rows against the whole image under three
+  settings. 256x256 is one band, as before.
+- **Measured**, three rounds alternated, 6ff5160 against the bands: `filter_seconds` 5.71 /
+  4.22 / 4.01 s to **1.37 / 1.49 / 1.39 s**; the whole process 17.7 / 14.8 / 14.5 s to 6.7 /
+  7.4 / 7.2 s wall (18.7 / 14.0 / 13.5 s to 3.9 / 4.3 / 4.2 s in the kernel); its peak resident
+  memory 4.13 to 3.19 GB. Criterion's warm 4K call (its planes come back from the pool and the
+  allocator), two rounds: 1.49 / 1.46 s to **1.31 / 1.25 s**; 256x256 within the noise (8.00 /
+  8.61 / 9.16 ms before, 9.05 / 8.52 / 8.81 ms after); a fresh 256x256 call of the gallery, ten
+  rounds alternated, medians 38.0 and 38.8 ms.
+- **Not kept: an EXR's channels moved out of the decoder** rather than copied. It took a fresh
+  4K read from 1.86 M to 1.48 M minor page faults, yet the filter after it got slower: the
+  gallery's fresh 256x256 `filter_seconds`, ten rounds, median 44.3 ms against 38.0 ms, and at
+  4K 4.5 to 6.1 s against 3.3 to 3.8 s. The copies' freed originals had been memory the
+  allocator gave the filter's planes again, already faulted in.
+
 """
 FINDINGS = FINDINGS.split("\n")
 PEER = "OIDN 2.5 (beauty + albedo + normal)"
