@@ -372,7 +372,9 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   memory 4.13 to 3.19 GB. Criterion's warm 4K call (its planes come back from the pool and the
   allocator), two rounds: 1.49 / 1.46 s to **1.31 / 1.25 s**; 256x256 within the noise (8.00 /
   8.61 / 9.16 ms before, 9.05 / 8.52 / 8.81 ms after); a fresh 256x256 call of the gallery, ten
-  rounds alternated, medians 38.0 and 38.8 ms.
+  rounds alternated, medians 38.0 and 38.8 ms. In a render: `render scenes/cornell.toml
+  --width 3840 --height 2160 --spp 4 --denoise --json`, two rounds, `filter_seconds` 6.61 /
+  5.51 s to **1.78 / 1.99 s**, the same image (`cmp`).
 - **Not kept: an EXR's channels moved out of the decoder** rather than copied. It took a fresh
   4K read from 1.86 M to 1.48 M minor page faults, yet the filter after it got slower: the
   gallery's fresh 256x256 `filter_seconds`, ten rounds, median 44.3 ms against 38.0 ms, and at
