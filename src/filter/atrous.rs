@@ -1587,24 +1587,38 @@ mod tests {
         assert_eq!(one, run(3));
     }
 
-    #[test]
-    fn the_avx2_build_gives_the_portable_builds_bits() {
-        // On a CPU without AVX2 both runs are the portable build: the comparison then holds
-        // trivially, and the AVX2 build is checked on the machines that run it.
-        let (w, h) = (67u32, 41u32);
-        let film = random_film(w, h, 11);
-        let (bright, bright_var) = noisy_layer(w, h, 12, 1.0);
-        let (dim, dim_var) = noisy_layer(w, h, 13, 0.01);
-        let two = [
-            FilterInput::new(&bright, Some(&bright_var)),
-            FilterInput { component: Some(Component::Direct), ..FilterInput::new(&dim, Some(&dim_var)) },
-        ];
-        let strong = Atrous {
+    /// A random film of `w` x `h` and two noisy layers on it, a bright one and a dim one, from
+    /// seeds `seed` to `seed + 2`.
+    fn film_and_layers(w: u32, h: u32, seed: u32) -> (Film, [(Image, Vec<f32>); 2]) {
+        (random_film(w, h, seed), [noisy_layer(w, h, seed + 1, 1.0), noisy_layer(w, h, seed + 2, 0.01)])
+    }
+
+    /// The layers of [`film_and_layers`] as inputs, the dim one as the direct light.
+    fn inputs(layers: &[(Image, Vec<f32>); 2]) -> [FilterInput<'_>; 2] {
+        let [(bright, bright_var), (dim, dim_var)] = layers;
+        [
+            FilterInput::new(bright, Some(bright_var)),
+            FilterInput { component: Some(Component::Direct), ..FilterInput::new(dim, Some(dim_var)) },
+        ]
+    }
+
+    /// Five passes of five taps, the direct light's two.
+    fn strong() -> Atrous {
+        Atrous {
             taps: 5,
             passes: 5,
             direct: Strength { sigma_l: Some(1.5), passes: Some(2) },
             ..Atrous::default()
-        };
+        }
+    }
+
+    #[test]
+    fn the_avx2_build_gives_the_portable_builds_bits() {
+        // On a CPU without AVX2 both runs are the portable build: the comparison then holds
+        // trivially, and the AVX2 build is checked on the machines that run it.
+        let (film, layers) = film_and_layers(67, 41, 11);
+        let two = inputs(&layers);
+        let strong = strong();
         for (layers, a, pure) in
             [(&two[..], &Atrous::default(), false), (&two[..], &strong, true), (&two[..1], &strong, false)]
         {
@@ -1621,29 +1635,16 @@ mod tests {
     /// rows), a layer that stops its passes early, plane fits and the clamp.
     #[test]
     fn bands_give_the_whole_images_bits() {
-        let (w, h) = (37u32, 45u32);
-        let film = random_film(w, h, 21);
-        let (bright, bright_var) = noisy_layer(w, h, 22, 1.0);
-        let (dim, dim_var) = noisy_layer(w, h, 23, 0.01);
-        let two = [
-            FilterInput::new(&bright, Some(&bright_var)),
-            FilterInput { component: Some(Component::Direct), ..FilterInput::new(&dim, Some(&dim_var)) },
-        ];
-        let strong = Atrous {
-            taps: 5,
-            passes: 5,
-            direct: Strength { sigma_l: Some(1.5), passes: Some(2) },
-            linear: 2,
-            clamp: Some(2.0),
-            ..Atrous::default()
-        };
+        let (film, layers) = film_and_layers(37, 45, 21);
+        let two = inputs(&layers);
+        let strong = Atrous { linear: 2, clamp: Some(2.0), ..strong() };
         let denoise = match crate::filter::Setting::denoise().method {
             Some(crate::filter::Method::Atrous(a)) => a,
             _ => unreachable!("--denoise is à-trous"),
         };
         for (a, pure) in [(&Atrous::default(), false), (&strong, true), (&denoise, true)] {
             let whole = filter_in_bands(Isa::best(), &two, &film, a, pure, None);
-            assert_ne!(whole[0], bright, "the filter changed the layer");
+            assert_ne!(whole[0], layers[0].0, "the filter changed the layer");
             for band in [1, 2, 3, 7, 16, 44, 45, 100] {
                 let banded = filter_in_bands(Isa::best(), &two, &film, a, pure, Some(band));
                 assert!(banded == whole, "bands of {band} rows differ from the whole image ({})", a.name());
