@@ -1365,6 +1365,50 @@ mod tests {
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
     }
 
+    /// An image read from a render's EXR is its beauty alone, the other layers' channels left
+    /// undecoded; an EXR of half floats reads as well, and one without a colour channel names it.
+    #[test]
+    fn an_image_read_from_a_renders_exr_is_its_beauty() {
+        let mut film = Film::new(5, 3);
+        film.components[Component::Direct]
+            .pixels
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, p)| *p = Vec3::splat(i as f32));
+        let beauty = Image {
+            width: 5,
+            height: 3,
+            pixels: (0..15).map(|i| Vec3::new(i as f32, 0.5 - i as f32, 1e-3 * i as f32)).collect(),
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("film.exr");
+        write_film(film, beauty.clone(), None, &path, 0.0, &Metadata::default()).expect("write");
+        assert_eq!(read_image(&path).expect("read"), beauty);
+
+        let half = dir.path().join("half.exr");
+        // Half floats: channel c of pixel i holds i (c + 1).
+        let write = |names: &[&str]| {
+            use exr::prelude::*;
+            let list = names.iter().enumerate().map(|(c, n)| {
+                let samples = (0..15).map(|i| f16::from_f32(i as f32 * (c + 1) as f32)).collect();
+                AnyChannel::new(*n, FlatSamples::F16(samples))
+            });
+            let layer = Layer::new(
+                (5, 3),
+                LayerAttributes::default(),
+                Encoding::SMALL_LOSSLESS,
+                AnyChannels::sort(SmallVec::from_vec(list.collect())),
+            );
+            exr::image::Image::from_layer(layer).write().to_file(&half).expect("write a half-float EXR");
+        };
+        write(&["R", "G", "B", "Z"]);
+        let back = read_image(&half).expect("read");
+        assert!(back.pixels.iter().enumerate().all(|(i, p)| *p == Vec3::new(1.0, 2.0, 3.0) * i as f32));
+        write(&["R", "B"]);
+        let e = read_image(&half).expect_err("no G");
+        assert!(e.0.contains("no `G` channel") && e.0.contains("half.exr"), "{}", e.0);
+    }
+
     /// The variance layers are all there or none: a file with some is damaged, one without any
     /// was written before they existed.
     #[test]
