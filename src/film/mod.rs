@@ -1007,16 +1007,16 @@ pub fn read_layer(path: &Path, layer: &str) -> Result<Image, ReadError> {
         return read_image(path);
     }
     let at = |e: String| ReadError(format!("{}: {e}", path.display()));
-    let (width, height, channels) = read_exr_channels(path).map_err(ReadError)?;
-    let find = |c: &str| channels.iter().find(|(n, _)| *n == format!("{layer}.{c}")).map(|(_, v)| v);
-    let [Some(r), Some(g), Some(b)] = ["R", "G", "B"].map(find) else {
-        let mut layers: Vec<&str> =
-            channels.iter().filter_map(|(n, _)| n.rsplit_once('.').map(|p| p.0)).collect();
-        layers.dedup();
-        return Err(at(format!("no layer `{layer}` (R, G, B); it has {}", layers.join(", "))));
-    };
-    let pixels = r.iter().zip(g).zip(b).map(|((&r, &g), &b)| Vec3::new(r, g, b)).collect();
-    Ok(Image { width, height, pixels })
+    // Only the layer's three channels are decoded.
+    match crate::scene::image::read_exr_rgb(path, &format!("{layer}.")).map_err(at)? {
+        Ok(image) => Ok(image),
+        Err(names) => {
+            let mut layers: Vec<&str> =
+                names.iter().filter_map(|n| n.rsplit_once('.').map(|p| p.0)).collect();
+            layers.dedup();
+            Err(at(format!("no layer `{layer}` (R, G, B); it has {}", layers.join(", "))))
+        }
+    }
 }
 
 /// The film of a multi-layer EXR that `lightsplit render` wrote ([`Film::from_channels`]).

@@ -294,9 +294,7 @@ pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Ve
 /// [`filter`] with the passes in the build `isa`, in bands of rows when the working buffers
 /// of the whole image would be large ([`band_rows`]).
 fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
-    let k = layers.len();
-    let band = band_rows(film.width as usize, film.height as usize, k, a);
-    filter_in_bands(isa, layers, film, a, pure, band)
+    filter_in_bands(isa, layers, film, a, pure, None)
 }
 
 /// The most bytes the two working buffers of a call may take together before the image is
@@ -306,13 +304,16 @@ const WHOLE_BYTES: usize = 64 << 20;
 /// The rows a band filters at least, besides the rows its passes read above and below it.
 const BAND: usize = 128;
 
-/// The output rows of each band, or `None` for the whole image at once: [`BAND`] rows once the
-/// whole image's buffers would take more than [`WHOLE_BYTES`], and the image is tall enough for
-/// bands to save rows.
-fn band_rows(w: usize, h: usize, k: usize, a: &Atrous) -> Option<usize> {
+/// The output rows of each band for an image of `w` x `h` with `k` live layers whose passes read
+/// `reach` rows around a band: [`BAND`] once the whole image's two buffers would take more than
+/// [`WHOLE_BYTES`] and the image is tall enough for bands to save rows, else all of them.
+fn band_rows(w: usize, h: usize, k: usize, reach: usize) -> usize {
     let bytes = 2 * h * k * PLANES * w * size_of::<f32>();
-    let reach = band_reach(a, a.passes.max(a.direct.passes.unwrap_or(0)).max(a.caustic.passes.unwrap_or(0)));
-    (bytes > WHOLE_BYTES && h > BAND + 2 * reach).then_some(BAND)
+    if bytes > WHOLE_BYTES && h > BAND + 2 * reach {
+        BAND
+    } else {
+        h
+    }
 }
 
 /// The rows above and below its own that pass `pass` reads for one output row: its taps' reach,
@@ -326,7 +327,7 @@ fn band_reach(a: &Atrous, passes: u32) -> usize {
     (0..passes).map(|p| pass_reach(a, p)).sum()
 }
 
-/// [`filter_with`] in bands of `band` output rows (all rows at once without): each band
+/// [`filter_with`] in bands of `band` output rows ([`band_rows`] without): each band
 /// demodulates the rows its passes read, runs every pass over the rows the next pass reads,
 /// and multiplies back its own rows. Every row is computed from the same rows of the pass
 /// before as in one band, so the bands give the same bits; the rows around a band are computed
@@ -357,10 +358,10 @@ fn filter_in_bands(
     let run = (0..strengths.iter().map(|s| s.1).max().unwrap_or(0))
         .take_while(|&p| (1usize << p) < w.max(h))
         .count() as u32;
-    let band = band.unwrap_or(h).clamp(1, h);
     let reach = band_reach(a, run);
+    let band = band.unwrap_or_else(|| band_rows(w, h, k, reach)).clamp(1, h);
     // Rows `rest[p]` above and below a band that pass p writes: what the passes after it read.
-    let rest: Vec<usize> = (0..run).map(|p| band_reach(a, run) - band_reach(a, p + 1)).collect();
+    let rest: Vec<usize> = (0..run).map(|p| reach - band_reach(a, p + 1)).collect();
     let rows_held = (band + 2 * reach).min(h);
     // Demodulated illumination, its luminance and its variance, row by row.
     let mut cur = Plane::overwritten(rows_held * k * PLANES * w);
@@ -369,6 +370,9 @@ fn filter_in_bands(
     let mut next = Plane::overwritten(cur.len());
     let mut inv_sigma = Plane::overwritten(rows_held * k * w);
     let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
+    // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
+    // the layer's luminance deviation, scaled to a channel brighter than the luminance.
+    let bound = a.clamp;
     for b0 in (0..h).step_by(band) {
         let b1 = (b0 + band).min(h);
         // The image rows the buffers hold, from `row0`.
@@ -401,10 +405,7 @@ fn filter_in_bands(
             std::mem::swap(&mut cur, &mut next);
         }
         // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
-        // first made again as it was.
-        // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
-        // the layer's luminance deviation, scaled to a channel brighter than the luminance.
-        let bound = a.clamp;
+        // first made again as it was (bounded by `bound`).
         for (c, &li) in live.iter().enumerate() {
             let variance = layers[li].variance;
             let image = &mut out[li];
@@ -1643,7 +1644,7 @@ mod tests {
             _ => unreachable!("--denoise is à-trous"),
         };
         for (a, pure) in [(&Atrous::default(), false), (&strong, true), (&denoise, true)] {
-            let whole = filter_in_bands(Isa::best(), &two, &film, a, pure, None);
+            let whole = filter_in_bands(Isa::best(), &two, &film, a, pure, Some(film.height as usize));
             assert_ne!(whole[0], layers[0].0, "the filter changed the layer");
             for band in [1, 2, 3, 7, 16, 44, 45, 100] {
                 let banded = filter_in_bands(Isa::best(), &two, &film, a, pure, Some(band));

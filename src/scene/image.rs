@@ -102,26 +102,25 @@ pub(crate) fn exr_layer(path: &Path) -> Result<(u32, u32, Channels, Words), Stri
     Ok((size.width() as u32, size.height() as u32, channels, words))
 }
 
-/// The `R`, `G` and `B` channels of an EXR's first layer, decoded into the image and no other
-/// channel kept: a render's EXR holds 49 channels, which [`exr_layer`] would hold all of (1.6 GB
-/// at 4K, to compare three).
-fn read_exr_rgb(path: &Path) -> Result<Image, String> {
+/// The channels `{prefix}R`, `{prefix}G` and `{prefix}B` of an EXR's first layer, decoded into
+/// the image and no other channel kept: a render's EXR holds 49 channels, which [`exr_layer`]
+/// would hold all of (1.6 GB at 4K, to compare three). Without one of them, `Ok(Err(names))`:
+/// the first layer's channel names, for the caller's message.
+pub fn read_exr_rgb(path: &Path, prefix: &str) -> Result<Result<Image, Vec<String>>, String> {
     use exr::prelude::*;
-    check_exr_headers(path)?;
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    let meta = check_exr_headers(path)?;
     let header = meta.headers.first().ok_or("no layers")?;
-    if let Some(name) =
-        ["R", "G", "B"].into_iter().find(|&n| !header.channels.list.iter().any(|c| c.name.to_string() == n))
-    {
-        return Err(format!("no `{name}` channel"));
+    let [r, g, b] = ["R", "G", "B"].map(|c| format!("{prefix}{c}"));
+    if ![&r, &g, &b].into_iter().all(|n| header.channels.list.iter().any(|c| c.name == *n.as_str())) {
+        return Ok(Err(header.channels.list.iter().map(|c| c.name.to_string()).collect()));
     }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .specific_channels()
-        .required("R")
-        .required("G")
-        .required("B")
+        .required(r.as_str())
+        .required(g.as_str())
+        .required(b.as_str())
         .collect_pixels(
             |size, _| (size.width(), vec![Vec3::ZERO; size.width() * size.height()]),
             |(width, pixels): &mut (usize, Vec<Vec3>), at, (r, g, b): (f32, f32, f32)| {
@@ -134,7 +133,7 @@ fn read_exr_rgb(path: &Path) -> Result<Image, String> {
         .map_err(|e| e.to_string())?;
     let layer = image.layer_data;
     let (width, height) = (layer.size.width() as u32, layer.size.height() as u32);
-    Ok(self::Image { width, height, pixels: layer.channel_data.pixels.1 })
+    Ok(Ok(self::Image { width, height, pixels: layer.channel_data.pixels.1 }))
 }
 
 /// The most bytes of pixels an EXR's compression packs into one byte of file, with room to
@@ -148,8 +147,9 @@ const MAX_PACKING: u64 = 4096;
 /// at most [`MAX_SIZE`](limits::MAX_SIZE) a side and [`MAX_IMAGE_PIXELS`](limits::MAX_IMAGE_PIXELS)
 /// in all, with tiles of at most that size; the file must be long enough to hold the pixels it
 /// declares (uncompressed, byte for byte; compressed, at [`MAX_PACKING`]); and the samples,
-/// with their 32-bit copies and the block offsets, must fit in the memory available.
-pub fn check_exr_headers(path: &Path) -> Result<(), String> {
+/// with their 32-bit copies and the block offsets, must fit in the memory available. Returns
+/// the headers it read.
+pub fn check_exr_headers(path: &Path) -> Result<exr::meta::MetaData, String> {
     use exr::meta::{BlockDescription, MetaData};
     let meta = MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
     let file_bytes = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
@@ -193,7 +193,8 @@ pub fn check_exr_headers(path: &Path) -> Result<(), String> {
         // The decoder's samples, the 32-bit copy made of them and the offset table.
         need += pixel_bytes + w * h * channels * 4 + header.chunk_count as u64 * 8;
     }
-    limits::check_memory(need, "reading its pixels")
+    limits::check_memory(need, "reading its pixels")?;
+    Ok(meta)
 }
 
 /// A portable float map (`PF`, RGB; `Pf`, grey): a negative scale means little-endian floats;
@@ -271,7 +272,15 @@ fn read_with(path: &Path, srgb: bool) -> Result<Image, String> {
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("exr") => read_exr_rgb(path).map_err(|e| format!("{}: {e}", path.display())),
+        Some("exr") => match read_exr_rgb(path, "") {
+            Ok(Ok(image)) => Ok(image),
+            Ok(Err(names)) => {
+                let missing =
+                    ["R", "G", "B"].into_iter().find(|c| !names.iter().any(|n| n == c)).unwrap_or("R");
+                Err(format!("{}: no `{missing}` channel", path.display()))
+            }
+            Err(e) => Err(format!("{}: {e}", path.display())),
+        },
         Some("pfm") => read_pfm(path),
         Some("hdr") => {
             let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.into_rgb32f();
