@@ -386,6 +386,19 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   gallery's fresh 256x256 `filter_seconds`, ten rounds, median 44.3 ms against 38.0 ms, and at
   4K 4.5 to 6.1 s against 3.3 to 3.8 s. The copies' freed originals had been memory the
   allocator gave the filter's planes again, already faulted in.
+- **The gallery's relMSE, the stops scanned again** (2026-12-06, a4c1efc; `filter` of the 64-spp
+  films of seeds 1 and 2, means; RMSE / relMSE; OIDN on the same films: the Cornell box 1.49e-2
+  / 2.51e-4, the gallery 5.58e-3 / 7.43e-4, paper-sky 5.12e-3 / 9.60e-5). `--denoise`: the
+  Cornell box 6.39e-3 / 2.34e-4, the gallery 4.38e-3 / 9.17e-4 (1.23x OIDN's relMSE), paper-sky
+  3.29e-3 / 5.85e-5. The indirect layer's `sigma_l` at 8, 10 and 12: the gallery 8.94e-4,
+  8.93e-4 and 8.96e-4; paper-sky 6.33e-5, 6.91e-5 and 7.55e-5. Without the check against the
+  halves (`cross=0`), the gallery goes to 8.76e-4 at `sigma_l` 6 and to **8.39e-4** at 10, 1.13x
+  OIDN's. The check is what keeps clean third-party models from getting worse, so it stays.
+  Five and six passes: the gallery 9.26e-4 and 9.53e-4. The variance carried between passes
+  kept from falling below a half, 0.8 or all of the pass's input (a temporary setting): the
+  gallery 9.65e-4, 1.02e-3 and 1.05e-3, and every scene worse. The colour stop tightening
+  pass by pass is what works here, not what holds the error up. No setting of these stops
+  reaches OIDN's relMSE on the gallery.
 
 """
 FINDINGS = FINDINGS.split("\n")
