@@ -399,6 +399,19 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   gallery 9.65e-4, 1.02e-3 and 1.05e-3, and every scene worse. The colour stop tightening
   pass by pass is what works here, not what holds the error up. No setting of these stops
   reaches OIDN's relMSE on the gallery.
+- **Where a fresh 4K `filter --denoise` spends its wall time now** (2026-12-06, a4c1efc; the
+  Cornell box at 3840x2160 and 4 spp, 394 MB in): 14.0 to 23.4 s of wall over five runs, of which
+  `filter_seconds` is 1.4 to 1.7 s. `perf record` of the whole process: deflating the output
+  EXR (`miniz_oxide`, the `exr` crate's ZIP at its fixed level 4) 42% of the samples, the
+  kernel clearing fresh pages 25% (almost all of them in the copy of the decoded channels),
+  decoding 7%. The output's compression, one run each through a temporary setting: ZIP 23.4 s
+  wall (17.2 s user) for 447 MB, PIZ 19.9 s (10.8 s) for 504 MB, RLE 15.4 s (6.5 s) for 602 MB,
+  none 18.7 s (5.6 s) for 1,725 MB. Moving the decoded channels into the film rather than
+  copying them, measured again now that the passes run in bands (three rounds alternated):
+  14.2 to 20.2 s against 14.0 to 18.7 s wall, no difference through this machine's noise, so
+  not kept. A choice of the EXR's compression (RLE: the run 1.5x shorter than with ZIP, for
+  1.35x the bytes) is what would shorten the wait; it is a command-line option DESIGN.md does not
+  have yet.
 
 """
 FINDINGS = FINDINGS.split("\n")
