@@ -292,6 +292,24 @@ fn render_filter_and_compare_work_together() {
     let v: serde_json::Value = serde_json::from_slice(&same.stdout).expect("json");
     assert_eq!(v["sse"], 0.0);
 
+    // Another compression: the same channels, bit for bit, and the header says which; an
+    // unknown one is status 2 and writes nothing.
+    let args = ["filter", &p("f.exr"), "-o", &p("rle.exr"), "--filter", "median3", "--edge-aware"];
+    let out = run(&[&args[..], &["--exr-compression", "rle"]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let header = lightsplit::film::Metadata::of_exr(Path::new(&p("rle.exr"))).expect("header");
+    assert_eq!(header.compression, lightsplit::film::ExrCompression::Rle);
+    let read = |name: &str| lightsplit::film::read_exr_channels(Path::new(&p(name))).expect("reads").2;
+    let bits = |c: Vec<(String, Vec<f32>)>| -> Vec<(String, Vec<u32>)> {
+        c.into_iter().map(|(n, v)| (n, v.iter().map(|x| x.to_bits()).collect())).collect()
+    };
+    assert_eq!(bits(read("rle.exr")), bits(read("g.exr")));
+    let lzw = p("lzw.exr");
+    let out = run(&["filter", &p("f.exr"), "-o", &lzw, "--filter", "median3", "--exr-compression", "lzw"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("exr-compression"));
+    assert!(!Path::new(&lzw).exists());
+
     // A different size, a file without the layers, a bad kernel: status 2 each.
     run(&["render", &scene, "-o", &p("other.exr"), "--width", "16", "--height", "16", "--spp", "1"]);
     let out = run(&["compare", &p("f.exr"), &p("other.exr")]);

@@ -759,6 +759,60 @@ fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>) -> R
     result.map_err(|e| WriteError::Io(path.to_path_buf(), e))
 }
 
+/// How an EXR's pixels are compressed, all lossless. ZIP (the default) makes the smallest
+/// files; the others trade bytes for time. A fresh 4K `filter --denoise` (49 channels, 1.6 GB
+/// of floats) measured 23.4 s and 447 MB with ZIP, 19.9 s and 504 MB with PIZ, 15.4 s and
+/// 602 MB with RLE, 18.7 s and 1.7 GB uncompressed (docs/RESULTS.md, "Denoising").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum ExrCompression {
+    /// Deflate over blocks of 16 lines: the smallest files, the slowest to write.
+    #[default]
+    Zip,
+    /// Wavelet and Huffman coding: OpenEXR's choice for grainy images.
+    Piz,
+    /// Run lengths: little smaller than raw for noisy floats, fast.
+    Rle,
+    /// No compression.
+    None,
+}
+
+impl ExrCompression {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ExrCompression::Zip => "zip",
+            ExrCompression::Piz => "piz",
+            ExrCompression::Rle => "rle",
+            ExrCompression::None => "none",
+        }
+    }
+
+    /// The `exr` crate's encoding: scan lines in increasing order, as ZIP had.
+    fn encoding(self) -> exr::image::Encoding {
+        use exr::prelude::*;
+        let compression = match self {
+            ExrCompression::Zip => return Encoding::SMALL_LOSSLESS,
+            ExrCompression::Piz => Compression::PIZ,
+            ExrCompression::Rle => Compression::RLE,
+            ExrCompression::None => Compression::Uncompressed,
+        };
+        Encoding { compression, blocks: Blocks::ScanLines, line_order: LineOrder::Increasing }
+    }
+
+    /// What an EXR header's compression is, as one of these (a lossy or other codec that
+    /// lightsplit does not write reads as ZIP, the one it writes by default).
+    fn of(compression: exr::compression::Compression) -> Self {
+        use exr::compression::Compression as C;
+        match compression {
+            C::PIZ => ExrCompression::Piz,
+            C::RLE => ExrCompression::Rle,
+            C::Uncompressed => ExrCompression::None,
+            _ => ExrCompression::Zip,
+        }
+    }
+}
+
 /// How an image was made, as its file records it: an EXR's header attributes (pbrt-v4's names
 /// where it has one) and, for every format, the software that wrote it. What is not known (a
 /// filtered file read back without it, say) is left out.
@@ -785,6 +839,8 @@ pub struct Metadata {
     /// lightsplit's own text attributes (`lightsplit.*`: a part file's key, part and spp),
     /// read back sorted by name.
     pub extra: Vec<(String, String)>,
+    /// How an EXR's pixels are compressed (`compression`, the header's own).
+    pub compression: ExrCompression,
 }
 
 impl Metadata {
@@ -867,6 +923,7 @@ impl Metadata {
             world_to_camera: a.world_to_camera,
             world_to_ndc: a.world_to_normalized_device,
             extra,
+            compression: ExrCompression::of(header.compression),
         })
     }
 }
@@ -900,7 +957,7 @@ fn write_exr_samples(
     let layer = Layer::new(
         (width as usize, height as usize),
         meta.exr_attributes(),
-        Encoding::SMALL_LOSSLESS,
+        meta.compression.encoding(),
         AnyChannels::sort(SmallVec::from_vec(list)),
     );
     exr::image::Image::from_layer(layer).write().to_file(path).map_err(|e| e.to_string())
@@ -1186,6 +1243,37 @@ mod tests {
         assert_eq!((back.variance, back.component_variance), want);
     }
 
+    /// Every compression gives back every channel bit for bit, and the header says which it
+    /// is; the raw floats take the most bytes.
+    #[test]
+    fn every_exr_compression_is_lossless() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (w, h) = (37, 21);
+        let mut film = Film::new(w, h);
+        // Noise-like values (a hash of the index), as a render's are.
+        let value = |i: u32| (i.wrapping_mul(2_654_435_761) % 1000) as f32 / 997.0;
+        film.raw.pixels = (0..w * h).map(|i| Vec3::new(value(i), value(i + 7), value(3 * i))).collect();
+        film.variance = (0..w * h).map(|i| value(5 * i + 1)).collect();
+        let beauty = film.raw.clone();
+        let mut sizes = Vec::new();
+        let mut first = None;
+        for c in [ExrCompression::Zip, ExrCompression::Piz, ExrCompression::Rle, ExrCompression::None] {
+            let path = dir.path().join(format!("{}.exr", c.name()));
+            let meta = Metadata { compression: c, ..Metadata::default() };
+            write_film(film.clone(), beauty.clone(), None, &path, 0.0, &meta).expect("write");
+            assert_eq!(Metadata::of_exr(&path).expect("header").compression, c);
+            let (_, _, channels) = read_exr_channels(&path).expect("read");
+            let bits: Vec<(String, Vec<u32>)> =
+                channels.into_iter().map(|(n, v)| (n, v.iter().map(|x| x.to_bits()).collect())).collect();
+            match &first {
+                None => first = Some(bits),
+                Some(want) => assert_eq!(&bits, want, "{}", c.name()),
+            }
+            sizes.push(fs::metadata(&path).expect("size").len());
+        }
+        assert!(sizes[3] > sizes[0], "uncompressed {} bytes against zip's {}", sizes[3], sizes[0]);
+    }
+
     #[test]
     fn exr_round_trips_exactly() {
         let dir = tempfile::tempdir().expect("tempdir");
@@ -1289,6 +1377,7 @@ mod tests {
             world_to_camera: Some(std::array::from_fn(|i| i as f32)),
             world_to_ndc: Some(std::array::from_fn(|i| -(i as f32))),
             extra: vec![("lightsplit.part".into(), "2/7".into())],
+            compression: ExrCompression::Piz,
         };
         write_film(Film::new(5, 3), gradient(), None, &path, 0.0, &meta).expect("write");
         assert_eq!(Metadata::of_exr(&path).expect("read"), meta);

@@ -193,6 +193,7 @@ pub fn metadata(scene: &Scene, options: &RenderOptions, seconds: f64) -> film::M
             (film::AOV_LPES_ATTRIBUTE.into(), lpes.join(";"))
         }))
         .collect(),
+        compression: film::ExrCompression::default(),
     }
 }
 
