@@ -102,10 +102,13 @@ class Render:
         """The part of a render this is (`"i/n"`, rendered with `part=`), or None."""
         return self._native.part
 
-    def save(self, path: Union[str, os.PathLike], exposure: float = 0.0) -> None:
-        """Writes the render as `lightsplit render` does: .exr (every layer), .png (the final
-        image, `exposure` stops) or .hdr; a part (`part=`) as its part file, an .exr."""
-        self._native.save(os.fspath(path), exposure)
+    def save(
+        self, path: Union[str, os.PathLike], exposure: float = 0.0, compression: Optional[str] = None
+    ) -> None:
+        """Writes the render as `lightsplit render` does: .exr (every layer, compressed as
+        `compression` says: "zip", the default, "piz", "rle" or "none"), .png (the final image,
+        `exposure` stops) or .hdr; a part (`part=`) as its part file, an .exr."""
+        self._native.save(os.fspath(path), exposure, compression)
 
     def _repr_png_(self) -> bytes:
         with tempfile.TemporaryDirectory() as d:

@@ -562,14 +562,24 @@ impl Render {
         self.part.as_ref().map(|p| p.0.part.to_string())
     }
 
-    /// Writes the render as `lightsplit render` would: an EXR with every layer, or the final
-    /// image as PNG (with `exposure` stops) or HDR; a part as its part file (an EXR).
-    #[pyo3(signature = (path, exposure=0.0))]
-    fn save(&self, py: Python<'_>, path: PathBuf, exposure: f32) -> PyResult<()> {
+    /// Writes the render as `lightsplit render` would: an EXR with every layer (compressed as
+    /// `compression` says, as `--exr-compression`), or the final image as PNG (with `exposure`
+    /// stops) or HDR; a part as its part file (an EXR).
+    #[pyo3(signature = (path, exposure=0.0, compression=None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, exposure: f32, compression: Option<&str>) -> PyResult<()> {
         let format = film::check_output(&path).map_err(py_error)?;
         if let Some(warning) = output::exposure_warning(exposure, format) {
             return Err(PyValueError::new_err(warning));
         }
+        let compression =
+            compression.map(film::ExrCompression::parse).transpose().map_err(PyValueError::new_err)?;
+        if compression.is_some() && (format != Format::Exr || self.part.is_some()) {
+            return Err(PyValueError::new_err(format!(
+                "{}: compression applies to an .exr only, and not to a part file",
+                path.display()
+            )));
+        }
+        let meta = Metadata { compression: compression.unwrap_or_default(), ..self.meta.clone() };
         if let Some(held) = &self.part {
             if format != Format::Exr {
                 return Err(PyValueError::new_err(format!(
@@ -580,7 +590,7 @@ impl Render {
             return py.detach(|| part::write(&path, &held.1, &held.0).map_err(py_error));
         }
         py.detach(|| {
-            output::write(self.film.clone(), &self.setting, &path, Layer::Final, exposure, &self.meta)
+            output::write(self.film.clone(), &self.setting, &path, Layer::Final, exposure, &meta)
                 .map(|_| ())
                 .map_err(py_error)
         })

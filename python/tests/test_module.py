@@ -332,4 +332,17 @@ def test_save_and_show(tmp_path):
     render.save(tmp_path / "y.exr")
     back = lightsplit.read(tmp_path / "y.exr")
     assert np.array_equal(back.image, render.image)
+    # Another compression: the same channels, and the header says which; ZIP by default.
+    render.save(tmp_path / "rle.exr", compression="rle")
+    with OpenEXR.File(str(tmp_path / "rle.exr")) as f:
+        assert f.header()["compression"] == OpenEXR.RLE_COMPRESSION
+    with OpenEXR.File(str(tmp_path / "y.exr")) as f:
+        assert f.header()["compression"] == OpenEXR.ZIP_COMPRESSION
+    a, b = exr_channels(tmp_path / "rle.exr"), exr_channels(tmp_path / "y.exr")
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    with pytest.raises(ValueError, match="lzw"):
+        render.save(tmp_path / "z.exr", compression="lzw")
+    with pytest.raises(ValueError, match="exr only"):
+        render.save(tmp_path / "z.png", compression="rle")
+    assert not (tmp_path / "z.exr").exists() and not (tmp_path / "z.png").exists()
     assert "Render(16x16" in repr(render)

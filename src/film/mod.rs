@@ -788,6 +788,14 @@ impl ExrCompression {
         }
     }
 
+    /// The compression named `name` (as [`ExrCompression::name`] spells it).
+    pub fn parse(name: &str) -> Result<ExrCompression, String> {
+        [ExrCompression::Zip, ExrCompression::Piz, ExrCompression::Rle, ExrCompression::None]
+            .into_iter()
+            .find(|c| c.name() == name)
+            .ok_or_else(|| format!("unknown EXR compression `{name}` (zip, piz, rle or none)"))
+    }
+
     /// The `exr` crate's encoding: scan lines in increasing order, as ZIP had.
     fn encoding(self) -> exr::image::Encoding {
         use exr::prelude::*;
