@@ -778,6 +778,10 @@ pub enum ExrCompression {
 }
 
 impl ExrCompression {
+    /// Every compression, in the order the command line lists them.
+    pub const ALL: [ExrCompression; 4] =
+        [ExrCompression::Zip, ExrCompression::Piz, ExrCompression::Rle, ExrCompression::None];
+
     /// The name on the command line.
     pub fn name(self) -> &'static str {
         match self {
@@ -790,17 +794,18 @@ impl ExrCompression {
 
     /// The compression named `name` (as [`ExrCompression::name`] spells it).
     pub fn parse(name: &str) -> Result<ExrCompression, String> {
-        [ExrCompression::Zip, ExrCompression::Piz, ExrCompression::Rle, ExrCompression::None]
+        ExrCompression::ALL
             .into_iter()
             .find(|c| c.name() == name)
             .ok_or_else(|| format!("unknown EXR compression `{name}` (zip, piz, rle or none)"))
     }
 
-    /// The `exr` crate's encoding: scan lines in increasing order, as ZIP had.
+    /// The `exr` crate's encoding: scan lines in increasing order (for ZIP, blocks of 16 lines:
+    /// the crate's `SMALL_LOSSLESS`).
     fn encoding(self) -> exr::image::Encoding {
         use exr::prelude::*;
         let compression = match self {
-            ExrCompression::Zip => return Encoding::SMALL_LOSSLESS,
+            ExrCompression::Zip => Compression::ZIP16,
             ExrCompression::Piz => Compression::PIZ,
             ExrCompression::Rle => Compression::RLE,
             ExrCompression::None => Compression::Uncompressed,
@@ -1265,7 +1270,7 @@ mod tests {
         let beauty = film.raw.clone();
         let mut sizes = Vec::new();
         let mut first = None;
-        for c in [ExrCompression::Zip, ExrCompression::Piz, ExrCompression::Rle, ExrCompression::None] {
+        for c in ExrCompression::ALL {
             let path = dir.path().join(format!("{}.exr", c.name()));
             let meta = Metadata { compression: c, ..Metadata::default() };
             write_film(film.clone(), beauty.clone(), None, &path, 0.0, &meta).expect("write");
