@@ -224,7 +224,7 @@ pub struct FilterArgs {
     #[arg(long)]
     pub filter: Option<String>,
     /// Denoise with the best setting measured (docs/RESULTS.md, "Denoising"): the à-trous
-    /// filter (atrous:taps=3:passes=4:sigma_l=6:linear=2, --edge-pure) on each component,
+    /// filter (atrous:taps=3:passes=4:sigma_l=5:linear=2, --edge-pure) on each component,
     /// emitted light left alone, kept only where the halves of the samples say it lowers the
     /// error.
     #[arg(

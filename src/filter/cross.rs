@@ -4,6 +4,10 @@
 //! the noise it leaves) against the unfiltered image's noise, and the filtered image is kept
 //! only where it wins, down to not at all. The filtered image is the filtered halves weighted by
 //! their shares of the samples, `F = (1 - s) F_A + s F_B`: two runs of the filter, not three.
+//! Each half's colour stop compares the centre with its taps' luminance in the other half
+//! (`FilterInput::stops_from`): a tap's weight then does not depend on the value it adds, so
+//! the mean is not pulled toward the common side of skewed noise, and the filtered half at a
+//! pixel stays independent of the other half there, which the estimates below assume.
 //!
 //! Per pixel, with `A` and `B` the halves' means, `s` the second half's share of the samples,
 //! `F_A`, `F_B` the filtered halves, and squares summed over the channels:

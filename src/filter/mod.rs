@@ -141,7 +141,8 @@ impl Setting {
             method: Some(Method::Atrous(Atrous {
                 taps: 3,
                 passes: 4,
-                sigma_l: 6.0,
+                // 5 since each half's colour stop is the other half's (6 before: RESULTS).
+                sigma_l: 5.0,
                 sigma_n: 32.0,
                 sigma_z: 2.0,
                 // The direct light is the least noisy: a light touch, one pass. The caustic
@@ -338,11 +339,24 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
     // check's estimate is that mix's error: [`cross`]).
     let whole: Vec<usize> = (0..layers.len()).filter(|&i| !halved.iter().any(|h| h.layer == i)).collect();
     let mut inputs: Vec<FilterInput> =
-        whole.iter().map(|&i| FilterInput { halves: None, ..layers[i] }).collect();
+        whole.iter().map(|&i| FilterInput { halves: None, stops_from: None, ..layers[i] }).collect();
+    // Each half's colour stop reads its taps' luminance in the other half: weights made from
+    // the values they average favour the taps whose noise agrees with the centre's, which
+    // pulls the mean toward the common side of skewed noise (docs/RESULTS.md, "Denoising").
     for h in &halved {
         let component = layers[h.layer].component;
-        for (image, variance) in [(&h.halves.0, &h.variances.0), (&h.halves.1, &h.variances.1)] {
-            inputs.push(FilterInput { image, variance: variance.as_deref(), component, halves: None });
+        let first = inputs.len();
+        for (i, (image, variance)) in
+            [(&h.halves.0, &h.variances.0), (&h.halves.1, &h.variances.1)].into_iter().enumerate()
+        {
+            let stops_from = Some(first + 1 - i);
+            inputs.push(FilterInput {
+                image,
+                variance: variance.as_deref(),
+                component,
+                halves: None,
+                stops_from,
+            });
         }
     }
     let mut filtered = atrous::filter(&inputs, film, a, stops.pure).into_iter();
@@ -712,6 +726,7 @@ pub fn composite<'a>(
         variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
         component: Some(c),
         halves: film.has_halves().then(|| (&film.component_half[c], film.half_share.as_slice())),
+        stops_from: None,
     };
     let filtered: &[Component] = match target {
         Target::None => return (Cow::Borrowed(&film.raw), None),
