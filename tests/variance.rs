@@ -112,7 +112,7 @@ fn the_halves_estimate_a_sobol_renders_noise() {
 
 #[test]
 fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
-    use lightsplit::filter::{composite, Setting};
+    use lightsplit::filter::{composite, FilterInput, Method, Setting};
     // A noisy render (4 spp): `--denoise` changes it, and the check keeps most of the filter.
     let film = render_of("cornell.toml", 4, 1, |_| {});
     let setting = Setting::denoise();
@@ -121,28 +121,42 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
     assert_ne!(checked.pixels, film.raw.pixels, "the filter was dropped on a noisy render");
     // Halves that agree measure no noise: the filter is kept whole. Each half is filtered as a
     // mean of half the samples (at 4 spp each half has two of the four), with twice the
-    // variance, and the halves' filtered images are then equal: the unchecked filter with the
-    // variances doubled.
+    // variance, its colour stop reading the other half at the taps; the halves' filtered images
+    // are then equal, and the output is that image: the pairs of halves through the filter,
+    // component by component, added to the emitted light.
     assert!(film.half_share.iter().all(|&s| s == 0.5), "halves of equal size at 4 spp");
     let mut agreeing = film.clone();
     for c in Component::ALL {
         agreeing.component_half[c].pixels =
             film.components[c].pixels.iter().zip(&film.half_share).map(|(&p, &s)| p * s).collect();
     }
-    let unchecked = {
-        let mut f = agreeing.clone();
-        for layer in lightsplit::film::layers::LAYERS
-            .iter()
-            .filter(|l| l.group == lightsplit::film::layers::Group::Halves)
-        {
-            f.set_values(layer.buffer, Vec::new());
-        }
-        assert!(!f.has_halves());
-        for c in Component::ALL {
-            f.component_variance[c].iter_mut().for_each(|v| *v *= 2.0);
-        }
-        composite(&f, Some(method), setting.target, &setting.stops).0.into_owned()
-    };
+    let Some(Method::Atrous(a)) = setting.method.as_ref() else { panic!("--denoise is not atrous") };
+    let split = [Component::Direct, Component::Caustic, Component::Indirect];
+    let doubled: Vec<Vec<f32>> =
+        split.iter().map(|&c| agreeing.component_variance[c].iter().map(|v| v * 2.0).collect()).collect();
+    let live: Vec<usize> = (0..3).filter(|&i| !agreeing.components[split[i]].is_black()).collect();
+    let (agreed, doubled) = (&agreeing, &doubled);
+    let inputs: Vec<FilterInput> = live
+        .iter()
+        .enumerate()
+        .flat_map(|(n, &i)| {
+            (0..2).map(move |h| FilterInput {
+                image: &agreed.components[split[i]],
+                variance: Some(&doubled[i]),
+                component: Some(split[i]),
+                halves: None,
+                stops_from: Some(2 * n + 1 - h),
+            })
+        })
+        .collect();
+    let halves = lightsplit::filter::atrous::filter(&inputs, &agreeing, a, setting.stops.pure);
+    let mut whole = agreeing.components[Component::Emitted].clone();
+    for (i, &c) in split.iter().enumerate() {
+        let image = live.iter().position(|&l| l == i).map_or(&agreeing.components[c], |n| &halves[2 * n]);
+        assert!(live.iter().position(|&l| l == i).is_none_or(|n| halves[2 * n] == halves[2 * n + 1]));
+        whole.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
+    }
     let kept = composite(&agreeing, Some(method), setting.target, &setting.stops).0.into_owned();
-    assert_eq!(kept.pixels, unchecked.pixels);
+    assert_ne!(kept.pixels, agreeing.raw.pixels, "nothing filtered");
+    assert_eq!(kept.pixels, whole.pixels);
 }

@@ -12,7 +12,7 @@
 //!   `t_n = σ_n (1 - n_p·n_q)`, `t_z = |z_p - z_q| / (σ_z |∇z|_p s |(dx, dy)|)` and
 //!   `t_l = |l_p - l'_q| / (σ_l sqrt(g3x3(V)_p))` (the exponents in units of log2 e), `l'` the
 //!   layer's own luminance or, for one half of a layer's samples, the other half's
-//!   ([`FilterInput::stops_from`]);
+//!   ([`FilterInput::stops_from`]), against which the first pass takes `l_p` blurred as `V`;
 //! - `u'_p = u_p + Σ k_q (u_q - u_p) / W` with `W = h(0) + Σ k_q` (the centre counts with its
 //!   kernel weight alone), so a constant image is exact;
 //! - `V'_p = (h(0)² V_p + Σ k_q² V_q) / W²`, the variance of that weighted mean;
@@ -640,7 +640,7 @@ struct Pass<'a> {
     /// The image row that the first row of `cur` and of `inv_sigma` holds.
     row0: usize,
     /// Per row, per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the luminance its
-    /// colour stop gives the centre ([`Pass::centre_luminance`]).
+    /// colour stop gives the centre where [`Pass::blurs_centre`].
     inv_sigma: &'a [f32],
 }
 
@@ -951,9 +951,10 @@ impl Pass<'_> {
                             [&mut ar[a..b], &mut ag[a..b], &mut ab[a..b], &mut av[a..b], &mut aw[a..b]];
                         // The taps' luminance for the colour stop: [`FilterInput::stops_from`].
                         let from = self.stops_from[c];
-                        let lc = match self.blurs_centre(c) {
-                            true => &self.inv_sigma[base + k * w + a..base + k * w + b],
-                            false => centre(3),
+                        let lc = if self.blurs_centre(c) {
+                            &self.inv_sigma[base + k * w + a..base + k * w + b]
+                        } else {
+                            centre(3)
                         };
                         let centres = [centre(0), centre(1), centre(2), lc];
                         let taps = [tap(0), tap(1), tap(2), &self.plane(yy, from, 3)[q..q + b - a], tap(4)];
