@@ -438,6 +438,11 @@ Firecracker VM; criterion medians, the two bench binaries alternated round by ro
   | the same, `sigma_l` 4.5 | 6.36e-3 / 2.24e-4 | 4.25e-3 / 8.65e-4 | 3.27e-3 / 5.68e-5 |
   | the same, `sigma_l` 6 | 6.35e-3 / 2.20e-4 | 4.26e-3 / 8.61e-4 | 3.28e-3 / 5.97e-5 |
 
+  Also scanned on a39493e (relMSE, the Cornell box / the gallery / paper-sky), none kept: the
+  plane fit from the first pass (`linear=1`) 2.24e-4 / 8.62e-4 / 5.57e-5, five passes 2.22e-4
+  / 8.65e-4 / 5.82e-5, the direct light in two passes 2.21e-4 / 8.62e-4 / 5.77e-5. None moves
+  the gallery; `linear=1` is 1% worse on the Cornell box and 3% better on paper-sky, five
+  passes worse on two scenes, two direct passes within 0.3%.
   The gallery goes from 1.23x to **1.16x** OIDN's relMSE: still above it. At few samples the
   gain is larger (`converge`, the table above): at 4 spp the gallery 1.74e-2 / 1.10e-2 before
   against 1.49e-2 / 6.27e-3, the Cornell box 5.22e-2 / 3.35e-3 against 5.20e-2 / 2.70e-3. **Not kept: the centre's luminance and variance
