@@ -388,7 +388,7 @@ fn filter_in_bands(
     // Each pass writes the rows of its live layers only; a layer past its passes stays in the
     // buffer its last pass wrote, and neither buffer's other planes are read.
     let mut next = Plane::overwritten(cur.len());
-    let mut inv_sigma = Plane::overwritten(rows_held * 2 * k * w);
+    let mut stops = Plane::overwritten(rows_held * 2 * k * w);
     let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
     // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
     // the layer's luminance deviation, scaled to a channel brighter than the luminance.
@@ -420,7 +420,7 @@ fn filter_in_bands(
         });
         for pass in 0..run {
             let rows = b0.saturating_sub(rest[pass as usize])..(b1 + rest[pass as usize]).min(h);
-            let buffers = (&cur[..], &mut next[..], &mut inv_sigma[..]);
+            let buffers = (&cur[..], &mut next[..], &mut stops[..]);
             run_pass(isa, (a, &strengths, &stops_from), &guides, (w, h, k), pass, (rows, row0), buffers);
             std::mem::swap(&mut cur, &mut next);
         }
@@ -457,8 +457,8 @@ fn filter_in_bands(
 
 /// Pass `pass` (holes of `2^pass` pixels) over `cur`, rows of `k` layers of [`PLANES`] planes
 /// of width `w` holding the image rows from `row0`, into the image rows `rows` of `next`, which
-/// holds the same rows as `cur`; `inv_sigma` (`2 k w` floats a row, from `row0` too) is scratch
-/// for the colour stops ([`Pass::inv_sigma`]).
+/// holds the same rows as `cur`; `stops` (`2 k w` floats a row, from `row0` too) is scratch
+/// for the colour stops ([`Pass::stops`]).
 #[allow(clippy::too_many_arguments)]
 fn run_pass(
     isa: Isa,
@@ -467,16 +467,16 @@ fn run_pass(
     (w, h, k): (usize, usize, usize),
     pass: u32,
     (rows, row0): (std::ops::Range<usize>, usize),
-    (cur, next, inv_sigma): (&[f32], &mut [f32], &mut [f32]),
+    (cur, next, stops): (&[f32], &mut [f32], &mut [f32]),
 ) {
     let step = 1usize << pass;
-    let pass = Pass { a, strengths, stops_from, pass, w, h, k, step, guides, cur, row0, inv_sigma: &[] };
+    let pass = Pass { a, strengths, stops_from, pass, w, h, k, step, guides, cur, row0, stops: &[] };
     let (first, last) = (rows.start - row0, rows.end - row0);
-    inv_sigma[first * 2 * k * w..last * 2 * k * w].par_chunks_mut(2 * k * w).enumerate().for_each_init(
+    stops[first * 2 * k * w..last * 2 * k * w].par_chunks_mut(2 * k * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new(), Vec::new()),
         |scratch, (r, out)| isa.run(ColourStops { pass: &pass, y: rows.start + r, out, scratch }),
     );
-    let pass = Pass { inv_sigma, ..pass };
+    let pass = Pass { stops, ..pass };
     let width = k * PLANES * w;
     next[first * width..last * width].par_chunks_mut(width).enumerate().for_each_init(
         || Scratch::new(w, k),
@@ -637,11 +637,11 @@ struct Pass<'a> {
     guides: &'a Guides,
     /// The rows of the pass before, from image row `row0`.
     cur: &'a [f32],
-    /// The image row that the first row of `cur` and of `inv_sigma` holds.
+    /// The image row that the first row of `cur` and of `stops` holds.
     row0: usize,
     /// Per row, per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the luminance its
     /// colour stop gives the centre where [`Pass::blurs_centre`].
-    inv_sigma: &'a [f32],
+    stops: &'a [f32],
 }
 
 /// Per-thread accumulators for one output row: per layer r, g, b, v and the weight sum; and the
@@ -840,7 +840,7 @@ impl Pass<'_> {
         }
     }
 
-    /// Where row `y`'s colour stops of layer `c` start in [`Self::inv_sigma`]; its centre
+    /// Where row `y`'s colour stops of layer `c` start in [`Self::stops`]; its centre
     /// luminance ([`Self::blurs_centre`]) follows `k w` floats later.
     #[inline(always)]
     fn stops_at(&self, y: usize, c: usize) -> usize {
@@ -879,7 +879,7 @@ impl Pass<'_> {
                 s.spans[c].clear();
             } else {
                 let at = self.stops_at(y, c);
-                active_spans(&self.inv_sigma[at..at + w], &mut s.spans[c]);
+                active_spans(&self.stops[at..at + w], &mut s.spans[c]);
             }
         }
         let hull = (
@@ -946,13 +946,13 @@ impl Pass<'_> {
                         let q = (a as i64 + off) as usize;
                         let centre = |p: usize| &self.plane(y, c, p)[a..b];
                         let tap = |p: usize| &self.plane(yy, c, p)[q..q + b - a];
-                        let isg = &self.inv_sigma[base + a..base + b];
+                        let isg = &self.stops[base + a..base + b];
                         let sums =
                             [&mut ar[a..b], &mut ag[a..b], &mut ab[a..b], &mut av[a..b], &mut aw[a..b]];
                         // The taps' luminance for the colour stop: [`FilterInput::stops_from`].
                         let from = self.stops_from[c];
                         let lc = if self.blurs_centre(c) {
-                            &self.inv_sigma[base + k * w + a..base + k * w + b]
+                            &self.stops[base + k * w + a..base + k * w + b]
                         } else {
                             centre(3)
                         };
