@@ -35,7 +35,7 @@ impl Frame {
 
 /// Cosine-weighted direction on the hemisphere around +z; pdf = cos(theta) / pi. Always
 /// inlined, the concentric disk with it: called apart, it ran in the portable build even from
-/// the path loop's AVX-512 build (`Isa::avx512_or_portable`), 7% of the Cornell box's time.
+/// the path loop's AVX-512 build (`Isa::for_loops`), 7% of the Cornell box's time.
 #[inline(always)]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
     let d = concentric_disk(u);

@@ -43,7 +43,7 @@ pub struct Integrator<'a, A: Accel, const F: u8 = { super::features::ALL }> {
     /// The learned incident light that guides directions at diffuse-like vertices, when the
     /// render is guided ([`super::guide`]).
     pub guide: Option<&'a Guide>,
-    /// The build the path loop runs in ([`Isa::avx512_or_portable`]; the same results in any).
+    /// The build the path loop runs in ([`Isa::for_loops`]; the same results in any).
     pub isa: Isa,
 }
 
@@ -486,7 +486,7 @@ impl<'a, A: Accel, const F: u8> Integrator<'a, A, F> {
             max_depth: scene.render.max_depth,
             cone: Cone::of_camera(&scene.camera, scene.film.height, spp),
             guide: None,
-            isa: Isa::avx512_or_portable(),
+            isa: Isa::for_loops(),
         }
     }
 }
@@ -520,7 +520,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
         rays: &mut u64,
         aovs: &mut [Vec3],
     ) -> PathSample {
-        self.isa.run_avx512_or_portable(PathJob { integrator: self, ray, hit, sampler, rays, aovs })
+        self.isa.run(PathJob { integrator: self, ray, hit, sampler, rays, aovs })
     }
 
     /// [`Integrator::sample`] of a training path: its guided bounces become the guide's
@@ -912,7 +912,7 @@ impl<A: Accel, const F: u8> Integrator<'_, A, F> {
     }
 }
 
-/// [`Integrator::sample_from_into`]'s path, as a job [`Isa::run_avx512_or_portable`] compiles for
+/// [`Integrator::sample_from_into`]'s path, as a job [`Isa::run`] compiles for
 /// the instructions it chose (the whole path loop inlines into it).
 struct PathJob<'s, 'i, A: Accel, const F: u8> {
     integrator: &'s Integrator<'i, A, F>,
@@ -982,10 +982,10 @@ mod tests {
     use crate::math::{uniform_sphere, Frame};
     use crate::render::bsdf::{Diffuse, Glossy, GlossyLobes};
 
-    /// The path loop compiled for AVX-512 ([`Isa::avx512_or_portable`], where this CPU has it) gives
-    /// the portable build's path samples bit for bit: every component and guide value, over
-    /// scenes of every material kind and area, sky and sun lights. (On a CPU without AVX-512
-    /// both are the portable build.)
+    /// The path loop in every build this CPU runs (AVX2's and AVX-512's, whichever
+    /// [`Isa::for_loops`] picks) gives the portable build's path samples bit for bit: every
+    /// component and guide value, over scenes of every material kind and area, sky and sun
+    /// lights.
     #[test]
     fn the_path_loop_in_any_build_gives_the_same_bits() {
         for name in ["materials", "cornell", "sky-sphere"] {
@@ -1001,7 +1001,11 @@ mod tests {
                 Integrator::of_scene(&scene, &accel, &lights, &paths, &faces, 4);
             let portable = Integrator { isa: Isa::Portable, ..integrator };
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-            for (x, y, k) in (0..w * h).flat_map(|i| (0..4).map(move |k| (i % w, i / w, k))) {
+            for (x, y, k, isa) in (0..w * h)
+                .flat_map(|i| (0..4).map(move |k| (i % w, i / w, k)))
+                .flat_map(|(x, y, k)| Isa::all().into_iter().skip(1).map(move |isa| (x, y, k, isa)))
+            {
+                let integrator = Integrator { isa, ..integrator };
                 let run = |it: &Integrator<'_, _>| {
                     let mut sampler = Sampler::new(5, (y * w + x) as u64, k);
                     let ray = camera.generate(x, y, &mut sampler);

@@ -855,7 +855,7 @@ fn render_features<A: Accel, const F: u8>(
             false => integrator::Cone::default(),
         },
         guide: None,
-        isa: crate::accel::bvh::simd::Isa::avx512_or_portable(),
+        isa: crate::accel::bvh::simd::Isa::for_loops(),
     };
     // The guide: given, or trained now (the same on any threads, so every part of a split
     // render and a resumed one train the same).

@@ -95,6 +95,13 @@ impl Avx2 {
             .then_some(Avx2 { _detected: () })
     }
 
+    /// Whether this CPU runs 256-bit vectors at full width ([`runs_256_bits_whole`]).
+    pub fn full_width() -> bool {
+        use std::arch::x86_64::__cpuid;
+        let vendor = __cpuid(0);
+        runs_256_bits_whole([vendor.ebx, vendor.edx, vendor.ecx], __cpuid(1).eax)
+    }
+
     /// The closest hit, by a traversal compiled for AVX2.
     pub fn intersect<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
         // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that
@@ -107,6 +114,21 @@ impl Avx2 {
         // SAFETY: as in `intersect`: AVX and AVX2 were detected.
         unsafe { occluded_avx2::<N>(self, bvh, ray, filter) }
     }
+}
+
+/// Whether a CPU of this vendor (CPUID leaf 0's ebx, edx, ecx) and signature (leaf 1's eax)
+/// runs 256-bit vectors at full width: every x86-64 CPU with AVX2 but AMD's and Hygon's before
+/// Zen 2, which split each 256-bit operation into two 128-bit halves (families 0x15 and 0x16,
+/// Zen 1 and Zen+ as family 0x17 below model 0x30, Hygon's Zen 1 as family 0x18).
+#[cfg(target_arch = "x86_64")]
+fn runs_256_bits_whole(vendor: [u32; 3], signature: u32) -> bool {
+    // "AuthenticAMD" and "HygonGenuine", four bytes a register.
+    const AMD: [u32; 3] = [0x6874_7541, 0x6974_6e65, 0x444d_4163];
+    const HYGON: [u32; 3] = [0x6f67_7948, 0x6e65_476e, 0x656e_6975];
+    let family = ((signature >> 8) & 0xf) + ((signature >> 20) & 0xff);
+    let model = ((signature >> 4) & 0xf) | ((signature >> 12) & 0xf0);
+    let halves = family < 0x17 || family == 0x18 || (family == 0x17 && model < 0x30);
+    !((vendor == AMD || vendor == HYGON) && halves)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -299,9 +321,10 @@ impl BoxTest for Avx512 {
 /// (Rust contracts no multiply-add), which the users' tests compare.
 ///
 /// Which builds a user offers is its own measured choice (docs/RESULTS.md): the path loop and
-/// the light tree's walks AVX-512 or portable ([`Isa::avx512_or_portable`]: the whole program
-/// for AVX2 alone was slower on a Zen 1 machine, `render-regression`), the à-trous filter's
-/// passes AVX2 or portable ([`Isa::avx2_or_portable`]), the noise and the BVH the best.
+/// the light tree's walks the best but AVX2 on CPUs whose vectors are 128 bits wide inside
+/// ([`Isa::for_loops`]: AVX2 was slower than portable on a Zen 1 machine, faster on a Zen 3
+/// one; `render-regression`), the à-trous filter's passes AVX2 or portable
+/// ([`Isa::avx2_or_portable`]), the noise and the BVH the best.
 #[derive(Clone, Copy, Debug, Default)]
 pub enum Isa {
     #[default]
@@ -353,11 +376,18 @@ impl Isa {
         }
     }
 
-    /// AVX-512 where this CPU has it, else portable (never AVX2 alone).
-    pub fn avx512_or_portable() -> Isa {
+    /// The build the path loop and the light tree's walks run in: AVX-512 where this CPU has
+    /// it; else AVX2 where the CPU runs 256-bit vectors at full width ([`Avx2::full_width`]);
+    /// else portable. The AVX2 build was slower than the portable one on a Zen 1 machine, whose
+    /// units are 128 bits wide, and faster on a Zen 3 one (docs/RESULTS.md, `render-regression`).
+    pub fn for_loops() -> Isa {
         #[cfg(target_arch = "x86_64")]
         if let Some(k) = Avx512::detect() {
             return Isa::Avx512(k);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = Avx2::detect().filter(|_| Avx2::full_width()) {
+            return Isa::Avx2(k);
         }
         Isa::Portable
     }
@@ -389,18 +419,6 @@ impl Isa {
             Isa::Avx512(k) => k.run(job),
         }
     }
-
-    /// `job` in this build when it is AVX-512's, else in the portable one: the job is compiled
-    /// twice, not three times (the path loop, whose AVX2 build was slower, and whose every
-    /// copy costs build time).
-    #[inline(always)]
-    pub fn run_avx512_or_portable<J: Inlined>(self, job: J) -> J::Output {
-        #[cfg(target_arch = "x86_64")]
-        if let Isa::Avx512(k) = self {
-            return k.run(job);
-        }
-        job.run()
-    }
 }
 
 impl BoxTest for Isa {
@@ -429,6 +447,29 @@ mod tests {
         let best = Isa::best().name();
         assert_eq!(Isa::named(best).map(Isa::name), Some(best));
         assert!(Isa::named("sse9").is_none() && Isa::named("AVX2").is_none());
+    }
+
+    /// The CPUs whose 256-bit vectors run in two halves, from their CPUID signatures: AMD's
+    /// Zen 1, Zen+ and Excavator and Hygon's Dhyana; not Zen 2, Zen 3, Zen 4 or Intel's.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn cpus_that_split_256_bit_vectors_are_known() {
+        let amd = [0x6874_7541, 0x6974_6e65, 0x444d_4163];
+        let hygon = [0x6f67_7948, 0x6e65_476e, 0x656e_6975];
+        let intel = [0x756e_6547, 0x4965_6e69, 0x6c65_746e]; // "GenuineIntel"
+        for (what, vendor, signature, whole) in [
+            ("Zen 1 (EPYC 7001)", amd, 0x0080_0f12, false),
+            ("Zen+ (Ryzen 2000)", amd, 0x0080_0f82, false),
+            ("Excavator", amd, 0x0066_0f01, false),
+            ("Hygon Dhyana", hygon, 0x0090_0f01, false),
+            ("Zen 2 (EPYC 7002)", amd, 0x0083_0f10, true),
+            ("Zen 3 (EPYC 7003)", amd, 0x00a0_0f11, true),
+            ("Zen 4 (EPYC 9004)", amd, 0x00a1_0f11, true),
+            ("Haswell", intel, 0x0003_06c3, true),
+            ("Ice Lake server", intel, 0x0006_06a6, true),
+        ] {
+            assert_eq!(runs_256_bits_whole(vendor, signature), whole, "{what}");
+        }
     }
 
     /// The AVX2 slab test gives the portable test's distances and masks bit for bit.

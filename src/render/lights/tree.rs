@@ -253,7 +253,7 @@ impl LightTree {
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * items.len()),
             leaf_of: vec![NONE; items.len()],
-            isa: Isa::avx512_or_portable(),
+            isa: Isa::for_loops(),
         };
         if items.is_empty() {
             return tree;
@@ -303,7 +303,7 @@ impl LightTree {
     /// Picks an item as seen from `p` (surface normal `n`) with the uniform number `u`: the
     /// item, its probability and `u` rescaled for reuse. `None` when no light can reach `p`.
     pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
-        self.isa.run_avx512_or_portable(SampleWalk { tree: self, p, n, u })
+        self.isa.run(SampleWalk { tree: self, p, n, u })
     }
 
     /// [`LightTree::sample`] in the build it runs in.
@@ -334,7 +334,7 @@ impl LightTree {
 
     /// The probability that [`LightTree::sample`] picks `item` from `p` (normal `n`).
     pub fn pmf(&self, item: u32, p: Vec3, n: Vec3) -> f32 {
-        self.isa.run_avx512_or_portable(PmfWalk { tree: self, item, p, n })
+        self.isa.run(PmfWalk { tree: self, item, p, n })
     }
 
     /// [`LightTree::pmf`] in the build it runs in.
@@ -509,16 +509,16 @@ mod tests {
             .collect()
     }
 
-    /// The walks in the build the tree chose ([`Isa::avx512_or_portable`]: AVX-512 where this CPU has
-    /// it) give the portable build's samples and probabilities bit for bit.
+    /// The walks in every build this CPU runs (AVX2's and AVX-512's, whichever
+    /// [`Isa::for_loops`] picks) give the portable build's samples and probabilities bit for bit.
     #[test]
     fn the_walks_in_any_build_give_the_same_bits() {
         let items = field(300);
-        let tree = LightTree::new(&items);
-        let portable = LightTree { isa: Isa::Portable, ..tree.clone() };
+        let portable = LightTree { isa: Isa::Portable, ..LightTree::new(&items) };
         let mut s = Sampler::new(4, 1, 7);
         let bits = |x: Option<(u32, f32, f32)>| x.map(|(i, p, u)| (i, p.to_bits(), u.to_bits()));
-        for (p, n) in receivers() {
+        let trees = Isa::all().into_iter().skip(1).map(|isa| LightTree { isa, ..portable.clone() });
+        for ((p, n), tree) in receivers().into_iter().flat_map(|r| trees.clone().map(move |t| (r, t))) {
             for _ in 0..100 {
                 let u = s.next_1d();
                 assert_eq!(bits(tree.sample(p, n, u)), bits(portable.sample(p, n, u)), "{}", tree.isa.name());
