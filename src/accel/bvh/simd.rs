@@ -321,7 +321,7 @@ impl BoxTest for Avx512 {
 /// (Rust contracts no multiply-add), which the users' tests compare.
 ///
 /// Which builds a user offers is its own measured choice (docs/RESULTS.md): the path loop and
-/// the light tree's walks the best but AVX2 on CPUs whose vectors are 128 bits wide inside
+/// the light tree's walks the best, except AVX2 on CPUs that split 256-bit vectors into halves
 /// ([`Isa::for_loops`]: AVX2 was slower than portable on a Zen 1 machine, faster on a Zen 3
 /// one; `render-regression`), the à-trous filter's passes AVX2 or portable
 /// ([`Isa::avx2_or_portable`]), the noise and the BVH the best.
