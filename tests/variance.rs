@@ -152,8 +152,13 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
     let halves = lightsplit::filter::atrous::filter(&inputs, &agreeing, a, setting.stops.pure);
     let mut whole = agreeing.components[Component::Emitted].clone();
     for (i, &c) in split.iter().enumerate() {
-        let image = live.iter().position(|&l| l == i).map_or(&agreeing.components[c], |n| &halves[2 * n]);
-        assert!(live.iter().position(|&l| l == i).is_none_or(|n| halves[2 * n] == halves[2 * n + 1]));
+        let image = match live.iter().position(|&l| l == i) {
+            Some(n) => {
+                assert!(halves[2 * n] == halves[2 * n + 1], "the halves' filtered images differ");
+                &halves[2 * n]
+            }
+            None => &agreeing.components[c],
+        };
         whole.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
     }
     let kept = composite(&agreeing, Some(method), setting.target, &setting.stops).0.into_owned();

@@ -116,15 +116,19 @@ impl Avx2 {
     }
 }
 
+/// CPUID leaf 0's vendor, "AuthenticAMD" and "HygonGenuine", four bytes a register (ebx, edx,
+/// ecx).
+#[cfg(target_arch = "x86_64")]
+const AMD: [u32; 3] = [0x6874_7541, 0x6974_6e65, 0x444d_4163];
+#[cfg(target_arch = "x86_64")]
+const HYGON: [u32; 3] = [0x6f67_7948, 0x6e65_476e, 0x656e_6975];
+
 /// Whether a CPU of this vendor (CPUID leaf 0's ebx, edx, ecx) and signature (leaf 1's eax)
 /// runs 256-bit vectors at full width: every x86-64 CPU with AVX2 but AMD's and Hygon's before
 /// Zen 2, which split each 256-bit operation into two 128-bit halves (families 0x15 and 0x16,
 /// Zen 1 and Zen+ as family 0x17 below model 0x30, Hygon's Zen 1 as family 0x18).
 #[cfg(target_arch = "x86_64")]
 fn runs_256_bits_whole(vendor: [u32; 3], signature: u32) -> bool {
-    // "AuthenticAMD" and "HygonGenuine", four bytes a register.
-    const AMD: [u32; 3] = [0x6874_7541, 0x6974_6e65, 0x444d_4163];
-    const HYGON: [u32; 3] = [0x6f67_7948, 0x6e65_476e, 0x656e_6975];
     let family = ((signature >> 8) & 0xf) + ((signature >> 20) & 0xff);
     let model = ((signature >> 4) & 0xf) | ((signature >> 12) & 0xf0);
     let halves = family < 0x17 || family == 0x18 || (family == 0x17 && model < 0x30);
@@ -454,8 +458,7 @@ mod tests {
     #[test]
     #[cfg(target_arch = "x86_64")]
     fn cpus_that_split_256_bit_vectors_are_known() {
-        let amd = [0x6874_7541, 0x6974_6e65, 0x444d_4163];
-        let hygon = [0x6f67_7948, 0x6e65_476e, 0x656e_6975];
+        let (amd, hygon) = (AMD, HYGON);
         let intel = [0x756e_6547, 0x4965_6e69, 0x6c65_746e]; // "GenuineIntel"
         for (what, vendor, signature, whole) in [
             ("Zen 1 (EPYC 7001)", amd, 0x0080_0f12, false),

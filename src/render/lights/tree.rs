@@ -517,8 +517,9 @@ mod tests {
         let portable = LightTree { isa: Isa::Portable, ..LightTree::new(&items) };
         let mut s = Sampler::new(4, 1, 7);
         let bits = |x: Option<(u32, f32, f32)>| x.map(|(i, p, u)| (i, p.to_bits(), u.to_bits()));
-        let trees = Isa::all().into_iter().skip(1).map(|isa| LightTree { isa, ..portable.clone() });
-        for ((p, n), tree) in receivers().into_iter().flat_map(|r| trees.clone().map(move |t| (r, t))) {
+        let trees: Vec<LightTree> =
+            Isa::all().into_iter().skip(1).map(|isa| LightTree { isa, ..portable.clone() }).collect();
+        for ((p, n), tree) in receivers().into_iter().flat_map(|r| trees.iter().map(move |t| (r, t))) {
             for _ in 0..100 {
                 let u = s.next_1d();
                 assert_eq!(bits(tree.sample(p, n, u)), bits(portable.sample(p, n, u)), "{}", tree.isa.name());
