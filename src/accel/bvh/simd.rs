@@ -327,8 +327,7 @@ impl BoxTest for Avx512 {
 /// Which builds a user offers is its own measured choice (docs/RESULTS.md): the path loop and
 /// the light tree's walks the best, except AVX2 on CPUs that split 256-bit vectors into halves
 /// ([`Isa::for_loops`]: AVX2 was slower than portable on a Zen 1 machine, faster on a Zen 3
-/// one; `render-regression`), the à-trous filter's passes AVX2 or portable
-/// ([`Isa::avx2_or_portable`]), the noise and the BVH the best.
+/// one; `render-regression`), the à-trous filter's passes, the noise and the BVH the best.
 #[derive(Clone, Copy, Debug, Default)]
 pub enum Isa {
     #[default]
@@ -394,11 +393,6 @@ impl Isa {
             return Isa::Avx2(k);
         }
         Isa::Portable
-    }
-
-    /// AVX2 where this CPU has it (never AVX-512), else portable.
-    pub fn avx2_or_portable() -> Isa {
-        Isa::avx2().unwrap_or(Isa::Portable)
     }
 
     /// The kernels' name, as reports print it.
