@@ -452,18 +452,17 @@ mod tests {
     #[test]
     #[cfg(target_arch = "x86_64")]
     fn cpus_that_split_256_bit_vectors_are_known() {
-        let (amd, hygon) = (AMD, HYGON);
-        let intel = [0x756e_6547, 0x4965_6e69, 0x6c65_746e]; // "GenuineIntel"
+        const INTEL: [u32; 3] = [0x756e_6547, 0x4965_6e69, 0x6c65_746e]; // "GenuineIntel"
         for (what, vendor, signature, whole) in [
-            ("Zen 1 (EPYC 7001)", amd, 0x0080_0f12, false),
-            ("Zen+ (Ryzen 2000)", amd, 0x0080_0f82, false),
-            ("Excavator", amd, 0x0066_0f01, false),
-            ("Hygon Dhyana", hygon, 0x0090_0f01, false),
-            ("Zen 2 (EPYC 7002)", amd, 0x0083_0f10, true),
-            ("Zen 3 (EPYC 7003)", amd, 0x00a0_0f11, true),
-            ("Zen 4 (EPYC 9004)", amd, 0x00a1_0f11, true),
-            ("Haswell", intel, 0x0003_06c3, true),
-            ("Ice Lake server", intel, 0x0006_06a6, true),
+            ("Zen 1 (EPYC 7001)", AMD, 0x0080_0f12, false),
+            ("Zen+ (Ryzen 2000)", AMD, 0x0080_0f82, false),
+            ("Excavator", AMD, 0x0066_0f01, false),
+            ("Hygon Dhyana", HYGON, 0x0090_0f01, false),
+            ("Zen 2 (EPYC 7002)", AMD, 0x0083_0f10, true),
+            ("Zen 3 (EPYC 7003)", AMD, 0x00a0_0f11, true),
+            ("Zen 4 (EPYC 9004)", AMD, 0x00a1_0f11, true),
+            ("Haswell", INTEL, 0x0003_06c3, true),
+            ("Ice Lake server", INTEL, 0x0006_06a6, true),
         ] {
             assert_eq!(runs_256_bits_whole(vendor, signature), whole, "{what}");
         }
