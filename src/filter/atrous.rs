@@ -390,7 +390,6 @@ fn filter_in_bands(
     // Each pass writes the rows of its live layers only; a layer past its passes stays in the
     // buffer its last pass wrote, and neither buffer's other planes are read.
     let mut next = Plane::overwritten(cur.len());
-    let mut stops = Plane::overwritten(rows_held * 2 * k * w);
     let albedo = |i: usize| film.albedo.pixels[i].max(Vec3::ZERO);
     // With `clamp`, each channel's change at most K standard deviations of the pixel's mean:
     // the layer's luminance deviation, scaled to a channel brighter than the luminance.
@@ -422,7 +421,7 @@ fn filter_in_bands(
         });
         for pass in 0..run {
             let rows = b0.saturating_sub(rest[pass as usize])..(b1 + rest[pass as usize]).min(h);
-            let buffers = (&cur[..], &mut next[..], &mut stops[..]);
+            let buffers = (&cur[..], &mut next[..]);
             run_pass(isa, (a, &strengths, &stops_from), &guides, (w, h, k), pass, (rows, row0), buffers);
             std::mem::swap(&mut cur, &mut next);
         }
@@ -459,8 +458,7 @@ fn filter_in_bands(
 
 /// Pass `pass` (holes of `2^pass` pixels) over `cur`, rows of `k` layers of [`PLANES`] planes
 /// of width `w` holding the image rows from `row0`, into the image rows `rows` of `next`, which
-/// holds the same rows as `cur`; `stops` (`2 k w` floats a row, from `row0` too) is scratch
-/// for the colour stops ([`Pass::stops`]).
+/// holds the same rows as `cur`.
 #[allow(clippy::too_many_arguments)]
 fn run_pass(
     isa: Isa,
@@ -469,16 +467,11 @@ fn run_pass(
     (w, h, k): (usize, usize, usize),
     pass: u32,
     (rows, row0): (std::ops::Range<usize>, usize),
-    (cur, next, stops): (&[f32], &mut [f32], &mut [f32]),
+    (cur, next): (&[f32], &mut [f32]),
 ) {
     let step = 1usize << pass;
-    let pass = Pass { a, strengths, stops_from, pass, w, h, k, step, guides, cur, row0, stops: &[] };
+    let pass = Pass { a, strengths, stops_from, pass, w, h, k, step, guides, cur, row0 };
     let (first, last) = (rows.start - row0, rows.end - row0);
-    stops[first * 2 * k * w..last * 2 * k * w].par_chunks_mut(2 * k * w).enumerate().for_each_init(
-        || (Vec::new(), Vec::new(), Vec::new()),
-        |scratch, (r, out)| isa.run(ColourStops { pass: &pass, y: rows.start + r, out, scratch }),
-    );
-    let pass = Pass { stops, ..pass };
     let width = k * PLANES * w;
     next[first * width..last * width].par_chunks_mut(width).enumerate().for_each_init(
         || Scratch::new(w, k),
@@ -486,27 +479,10 @@ fn run_pass(
     );
 }
 
-/// One row of a pass's colour stops ([`Pass::colour_stops`]), as a job [`Isa::run`] compiles
-/// for its build. A job, not a closure: a closure run in the AVX2 build was left outlined, in
-/// the portable build, and the passes took 1.3x as long (criterion 11.8 to 13.1 ms against 9.1
-/// to 9.4 ms at 256x256).
-struct ColourStops<'p, 'a> {
-    pass: &'p Pass<'a>,
-    y: usize,
-    out: &'p mut [f32],
-    scratch: &'p mut (Vec<f32>, Vec<f32>, Vec<f32>),
-}
-
-impl Inlined for ColourStops<'_, '_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn run(self) {
-        self.pass.colour_stops(self.y, self.out, self.scratch)
-    }
-}
-
-/// One output row of a pass ([`Pass::row`]), as a job (see [`ColourStops`]).
+/// One output row of a pass ([`Pass::row`]) with its colour stops first ([`Pass::colour_stops`]),
+/// as a job [`Isa::run`] compiles for its build. A job, not a closure: a closure run in the AVX2
+/// build was left outlined, in the portable build, and the passes took 1.3x as long (criterion
+/// 11.8 to 13.1 ms against 9.1 to 9.4 ms at 256x256).
 struct Row<'p, 'a> {
     pass: &'p Pass<'a>,
     y: usize,
@@ -519,7 +495,9 @@ impl Inlined for Row<'_, '_> {
 
     #[inline(always)]
     fn run(self) {
-        self.pass.row(self.y, self.out, self.scratch)
+        let s = self.scratch;
+        self.pass.colour_stops(self.y, &mut s.stops, &mut s.blur);
+        self.pass.row(self.y, self.out, s)
     }
 }
 
@@ -639,11 +617,8 @@ struct Pass<'a> {
     guides: &'a Guides,
     /// The rows of the pass before, from image row `row0`.
     cur: &'a [f32],
-    /// The image row that the first row of `cur` and of `stops` holds.
+    /// The image row that the first row of `cur` holds.
     row0: usize,
-    /// Per row, per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the luminance its
-    /// colour stop gives the centre where [`Pass::blurs_centre`].
-    stops: &'a [f32],
 }
 
 /// Per-thread accumulators for one output row: per layer r, g, b, v and the weight sum; and the
@@ -658,6 +633,13 @@ struct Scratch {
     exponent: Vec<f32>,
     /// Per layer, the runs of the row's pixels with noise to remove.
     spans: Vec<Vec<(usize, usize)>>,
+    /// The row's colour stops: per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the
+    /// luminance its colour stop gives the centre where [`Pass::blurs_centre`]. Made by the row's
+    /// own job: no other row reads them, and a separate parallel step a pass cost its threads'
+    /// wake-ups and a round trip of the stops through memory.
+    stops: Vec<f32>,
+    /// Scratch of [`Pass::colour_stops`]'s blur.
+    blur: (Vec<f32>, Vec<f32>, Vec<f32>),
 }
 
 impl Scratch {
@@ -669,6 +651,8 @@ impl Scratch {
             geo: vec![0.0; w],
             exponent: vec![0.0; w],
             spans: vec![Vec::new(); k],
+            stops: vec![0.0; 2 * k * w],
+            blur: (Vec::new(), Vec::new(), Vec::new()),
         }
     }
 }
@@ -842,13 +826,6 @@ impl Pass<'_> {
         }
     }
 
-    /// Where row `y`'s colour stops of layer `c` start in [`Self::stops`]; its centre
-    /// luminance ([`Self::blurs_centre`]) follows `k w` floats later.
-    #[inline(always)]
-    fn stops_at(&self, y: usize, c: usize) -> usize {
-        ((y - self.row0) * 2 * self.k + c) * self.w
-    }
-
     /// Whether layer `c`'s colour stop gives the centre its luminance blurred over 3x3 (among
     /// same-object neighbours, as the variance) rather than its own: in the first pass, for a
     /// half whose taps' luminance is the other half's ([`FilterInput::stops_from`]). Against
@@ -880,8 +857,7 @@ impl Pass<'_> {
             if self.pass >= self.strengths[c].1 {
                 s.spans[c].clear();
             } else {
-                let at = self.stops_at(y, c);
-                active_spans(&self.stops[at..at + w], &mut s.spans[c]);
+                active_spans(&s.stops[c * w..(c + 1) * w], &mut s.spans[c]);
             }
         }
         let hull = (
@@ -935,7 +911,7 @@ impl Pass<'_> {
                     );
                 }
                 for c in 0..k {
-                    let base = self.stops_at(y, c);
+                    let base = c * w;
                     let (ar, rest) = s.acc[c * PLANES * w..(c + 1) * PLANES * w].split_at_mut(w);
                     let (ag, rest) = rest.split_at_mut(w);
                     let (ab, rest) = rest.split_at_mut(w);
@@ -948,13 +924,13 @@ impl Pass<'_> {
                         let q = (a as i64 + off) as usize;
                         let centre = |p: usize| &self.plane(y, c, p)[a..b];
                         let tap = |p: usize| &self.plane(yy, c, p)[q..q + b - a];
-                        let isg = &self.stops[base + a..base + b];
+                        let isg = &s.stops[base + a..base + b];
                         let sums =
                             [&mut ar[a..b], &mut ag[a..b], &mut ab[a..b], &mut av[a..b], &mut aw[a..b]];
                         // The taps' luminance for the colour stop: [`FilterInput::stops_from`].
                         let from = self.stops_from[c];
                         let lc = if self.blurs_centre(c) {
-                            &self.stops[base + k * w + a..base + k * w + b]
+                            &s.stops[base + k * w + a..base + k * w + b]
                         } else {
                             centre(3)
                         };
@@ -1115,20 +1091,29 @@ fn accumulate_linear(
     let k = &weights[..n];
     let [rc, gc, bc, _] = centres;
     let [rq, gq, bq, _, vq] = taps;
+    let [ar, ag, ab, av, aw] = sums;
     {
-        let [ar, ag, ab, av, aw] = sums;
         let (vq, av, aw) = (&vq[..n], &mut av[..n], &mut aw[..n]);
         for j in 0..n {
             av[j] += k[j] * k[j] * vq[j];
             aw[j] += k[j];
         }
-        weighted_differences(k, 1.0, [rc, gc, bc], [rq, gq, bq], [ar, ag, ab]);
     }
     if dx != 0.0 {
-        moments_along(k, dx, [rc, gc, bc], [rq, gq, bq], [sx, sxx, rx, gx, bx]);
+        weight_moments(k, dx, [sx, sxx]);
     }
     if dy != 0.0 {
-        moments_along(k, dy, [rc, gc, bc], [rq, gq, bq], [sy, syy, ry, gy, by]);
+        weight_moments(k, dy, [sy, syy]);
+    }
+    // The weighted differences and their first moments, channel by channel, each difference
+    // read once for the three sums it adds to.
+    for (c, q, sums) in [(rc, rq, [ar, rx, ry]), (gc, gq, [ag, gx, gy]), (bc, bq, [ab, bx, by])] {
+        match (dx != 0.0, dy != 0.0) {
+            (true, true) => differences::<true, true>(k, (dx, dy), c, q, sums),
+            (true, false) => differences::<true, false>(k, (dx, dy), c, q, sums),
+            (false, true) => differences::<false, true>(k, (dx, dy), c, q, sums),
+            (false, false) => differences::<false, false>(k, (dx, dy), c, q, sums),
+        }
     }
     if dx != 0.0 && dy != 0.0 {
         let (sxy, d) = (&mut sxy[..n], dx * dy);
@@ -1138,19 +1123,43 @@ fn accumulate_linear(
     }
 }
 
-/// One axis of [`accumulate_linear`], for a tap `d` kernel steps along it: `Σk d`, `Σk d²` and
-/// the weighted differences' `Σk Δ d`. A function, not a closure: a closure was left outlined,
-/// in the portable build.
+/// One axis of [`accumulate_linear`]'s weight moments, for a tap `d` kernel steps along it:
+/// `Σk d`, `Σk d²`. A function, not a closure: a closure was left outlined, in the portable
+/// build.
 #[inline(always)]
-fn moments_along(k: &[f32], d: f32, centres: [&[f32]; 3], taps: [&[f32]; 3], sums: [&mut [f32]; 5]) {
+fn weight_moments(k: &[f32], d: f32, [s, ss]: [&mut [f32]; 2]) {
     let n = k.len();
-    let [s, ss, r, g, b] = sums;
     let (s, ss, dd) = (&mut s[..n], &mut ss[..n], d * d);
     for j in 0..n {
         s[j] += k[j] * d;
         ss[j] += k[j] * dd;
     }
-    weighted_differences(k, d, centres, taps, [r, g, b]);
+}
+
+/// One channel's weighted differences `Σk Δ` and, along each axis the tap is off the centre
+/// (`X`, `Y`), their first moments `Σk d Δ`, from one read of the centres `c` and the tap `q`:
+/// each sum is `(k d) Δ`, as when the three were summed in loops of their own (the same bits).
+#[inline(always)]
+fn differences<const X: bool, const Y: bool>(
+    k: &[f32],
+    (dx, dy): (f32, f32),
+    c: &[f32],
+    q: &[f32],
+    [sum, along_x, along_y]: [&mut [f32]; 3],
+) {
+    let n = k.len();
+    let (c, q, sum, along_x, along_y) =
+        (&c[..n], &q[..n], &mut sum[..n], &mut along_x[..n], &mut along_y[..n]);
+    for j in 0..n {
+        let d = q[j] - c[j];
+        sum[j] += k[j] * d;
+        if X {
+            along_x[j] += k[j] * dx * d;
+        }
+        if Y {
+            along_y[j] += k[j] * dy * d;
+        }
+    }
 }
 
 /// A tap's weights `k = geo 2^-(e + |Δl| inv_sigma)` for a run of centres, from the centres'
@@ -1161,18 +1170,6 @@ fn tap_weights((geo, e, isg): (&[f32], &[f32], &[f32]), lc: &[f32], lq: &[f32], 
     let (geo, e, isg, lc, lq) = (&geo[..n], &e[..n], &isg[..n], &lc[..n], &lq[..n]);
     for j in 0..n {
         k[j] = tap_weight(geo[j], e[j], (lc[j], lq[j]), isg[j]);
-    }
-}
-
-/// `sum += k d (tap - centre)`, channel by channel.
-#[inline(always)]
-fn weighted_differences(k: &[f32], d: f32, centres: [&[f32]; 3], taps: [&[f32]; 3], sums: [&mut [f32]; 3]) {
-    let n = k.len();
-    for ((c, q), sum) in centres.into_iter().zip(taps).zip(sums) {
-        let (c, q, sum) = (&c[..n], &q[..n], &mut sum[..n]);
-        for j in 0..n {
-            sum[j] += k[j] * d * (q[j] - c[j]);
-        }
     }
 }
 
@@ -1393,7 +1390,6 @@ mod tests {
                     for ((pass, isa), stops_from) in runs.flat_map(|r| [(r, &own), (r, &swapped)]) {
                         let want = pass_by_definition(&a, &g, (w, h, k), pass, &cur, stops_from);
                         let mut got = vec![0.0; cur.len()];
-                        let mut scratch = vec![0.0; 2 * h * k * w];
                         let strengths = vec![(a.sigma_l, a.passes); k];
                         run_pass(
                             isa,
@@ -1402,7 +1398,7 @@ mod tests {
                             (w, h, k),
                             pass,
                             (0..h, 0),
-                            (&cur, &mut got, &mut scratch),
+                            (&cur, &mut got),
                         );
                         for (i, (x, y)) in got.iter().zip(&want).enumerate() {
                             assert!(
@@ -1603,7 +1599,7 @@ mod tests {
             (w, h, 1),
             0,
             (0..h, 0),
-            (&cur, &mut next, &mut vec![0.0; 2 * h * w]),
+            (&cur, &mut next),
         );
         let sum_h2: f32 = a.kernel().iter().map(|k| k * k).sum();
         assert_eq!(sum_h2, 0.2734375);
