@@ -635,8 +635,8 @@ struct Scratch {
     spans: Vec<Vec<(usize, usize)>>,
     /// The row's colour stops: per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the
     /// luminance its colour stop gives the centre where [`Pass::blurs_centre`]. Made by the row's
-    /// own job: no other row reads them, and a separate parallel step a pass cost its threads'
-    /// wake-ups and a round trip of the stops through memory.
+    /// own job, as no other row reads them: not in a parallel step of their own that wrote them
+    /// to a buffer for the rows to read back.
     stops: Vec<f32>,
     /// Scratch of [`Pass::colour_stops`]'s blur.
     blur: (Vec<f32>, Vec<f32>, Vec<f32>),
