@@ -621,8 +621,8 @@ struct Pass<'a> {
     row0: usize,
 }
 
-/// Per-thread accumulators for one output row: per layer r, g, b, v and the weight sum; and the
-/// tap's geometric weight and exponent.
+/// Per-thread scratch for one output row: per layer the accumulators of r, g, b, v and the weight
+/// sum; the tap's geometric weight and exponent; and the row's colour stops.
 struct Scratch {
     acc: Vec<f32>,
     /// Per layer, the [`MOMENTS`] sums of a pass that fits a plane.
@@ -635,8 +635,7 @@ struct Scratch {
     spans: Vec<Vec<(usize, usize)>>,
     /// The row's colour stops: per layer `log2 e / (σ_l sqrt(g3x3(V)))`, then per layer the
     /// luminance its colour stop gives the centre where [`Pass::blurs_centre`]. Made by the row's
-    /// own job, as no other row reads them: not in a parallel step of their own that wrote them
-    /// to a buffer for the rows to read back.
+    /// own job, as no other row reads them.
     stops: Vec<f32>,
     /// Scratch of [`Pass::colour_stops`]'s blur.
     blur: (Vec<f32>, Vec<f32>, Vec<f32>),
@@ -1106,7 +1105,7 @@ fn accumulate_linear(
         weight_moments(k, dy, [sy, syy]);
     }
     // The weighted differences and their first moments, channel by channel, each difference
-    // read once for the three sums it adds to.
+    // read once for every sum it adds to.
     for (c, q, sums) in [(rc, rq, [ar, rx, ry]), (gc, gq, [ag, gx, gy]), (bc, bq, [ab, bx, by])] {
         match (dx != 0.0, dy != 0.0) {
             (true, true) => differences::<true, true>(k, (dx, dy), c, q, sums),
