@@ -63,7 +63,7 @@ pub(super) fn build(prims: Vec<Prim>, options: BuildOptions) -> Bvh {
     // Degenerate (zero-area) triangles can never be hit by the watertight test; leaving them out
     // keeps them from costing traversal.
     let bounds = |i: usize| match &prims[i] {
-        Prim::Triangle { v, .. } if (v[1] - v[0]).cross(v[2] - v[0]) == glam::Vec3::ZERO => None,
+        Prim::Triangle { v, .. } if super::degenerate(v) => None,
         p => Some(prim_bounds(p)),
     };
     let Some((nodes, order)) = tree(prims.len(), bounds, options) else {

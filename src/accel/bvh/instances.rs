@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use glam::{Affine3A, Vec3A};
 
-use super::{any, build, closest, Aabb, BuildOptions, Bvh, Filter, Node, Prim, TooLarge};
+use super::{any, build, closest, Aabb, BuildOptions, Bvh, Filter, Node, TooLarge};
 use crate::accel::{Hit, Ray};
 use crate::scene::cutout::Cutouts;
 use crate::scene::{Geometry, Scene};
@@ -51,13 +51,14 @@ impl Instances {
                 Some(&m) => m,
                 None => {
                     // The build leaves out degenerate triangles.
-                    let prims = (0..mesh.indices.len() as u32)
-                        .map(|t| Prim::Triangle { v: mesh.local_triangle(t), shape: 0, prim: t })
-                        .collect::<Vec<_>>();
+                    let pair = mesh.indices.len() >= options.quad_min;
+                    let prims =
+                        super::mesh_prims(mesh.indices.len() as u32, 0, pair, |t| mesh.local_triangle(t));
                     if prims.len() > super::wide::MAX_PRIMS as usize {
                         return Err(TooLarge(prims.len()));
                     }
-                    meshes.push(build::build(prims, options));
+                    meshes
+                        .push(build::build(prims, if pair { super::quad_options(options) } else { options }));
                     by_arrays.insert(mesh.arrays(), meshes.len() as u32 - 1);
                     meshes.len() as u32 - 1
                 }

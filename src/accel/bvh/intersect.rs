@@ -152,5 +152,13 @@ pub fn prim_hit(p: &Prim, ray: &Ray, rt: &RayTri, t_max: f32) -> Option<Hit> {
         Prim::Sphere { center, radius, shape } => {
             sphere(ray, center, radius, t_max).map(|t| Hit { t, shape, prim: 0, u: 0.0, v: 0.0 })
         }
+        Prim::Quad { ref v, shape, prim, rot } => {
+            // The first triangle, then the second within the first's distance (a tie goes to
+            // the second, as in the leaf test).
+            let [a, b] = Prim::quad_triangles(v, rot);
+            let first = rt.hit(&a, t_max).map(|(t, u, w)| Hit { t, shape, prim, u, v: w });
+            let second = rt.hit(&b, first.map_or(t_max, |h| h.t));
+            second.map(|(t, u, w)| Hit { t, shape, prim: prim + 1, u, v: w }).or(first)
+        }
     }
 }

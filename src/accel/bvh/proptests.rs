@@ -127,8 +127,7 @@ proptest! {
         prop_assume!(n1.length() > 1e-2 && n2.length() > 1e-2);
         // Triangles (a, b, c) and (a, e, b) share the edge a-b, wound alike.
         let scene = scene_of(vec![mesh(vec![a, b, c, e], vec![[0, 1, 2], [0, 3, 1]])]);
-        let bvh = Bvh::with_reference(&scene).expect("builds");
-        {
+        for (kind, bvh) in Bvh::both_kinds(&scene) {
             let target = a + (b - a) * s;
             let d = target - o;
             prop_assume!(d.length() > 1e-2);
@@ -139,7 +138,7 @@ proptest! {
             prop_assume!(c1 * c2 > 0.0 && c1.abs() > 1e-3 && c2.abs() > 1e-3);
             let ray = ray_of(o, d);
             prop_assert!(bvh.intersect(&ray).is_some() && bvh.intersect_binary(&ray).is_some(),
-                         "slipped through at {target}");
+                         "{kind}: slipped through at {target}");
         }
     }
 
@@ -165,10 +164,11 @@ proptest! {
         positions.extend(&ring);
         let indices: Vec<[u32; 3]> = (0..5u32).map(|k| [0, 1 + k, 1 + (k + 1) % 5]).collect();
         let scene = scene_of(vec![mesh(positions, indices)]);
-        let bvh = Bvh::with_reference(&scene).expect("builds");
         let origin = place(Vec3::new(lateral.0, lateral.1, 10.0));
         let ray = ray_of(origin, apex - origin);
-        prop_assert!(bvh.intersect(&ray).is_some() && bvh.intersect_binary(&ray).is_some() && bvh.occluded(&ray),
-                     "slipped through the apex");
+        for (kind, bvh) in Bvh::both_kinds(&scene) {
+            prop_assert!(bvh.intersect(&ray).is_some() && bvh.intersect_binary(&ray).is_some() && bvh.occluded(&ray),
+                         "{kind}: slipped through the apex");
+        }
     }
 }

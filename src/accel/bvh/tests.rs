@@ -65,18 +65,30 @@ pub(super) fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Geometry {
     })
 }
 
-/// A random triangle soup plus spheres.
+/// A random triangle soup plus spheres: every second item a pair of triangles sharing an edge
+/// (which the build pairs as a [`Prim::Quad`]), each triangle's vertices starting at a random
+/// one of its three, so every rotation of both triangles occurs.
 fn soup(n: usize, seed: u64) -> Scene {
     let mut s = Sampler::new(seed, 0, 0);
     let mut p = || Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * 20.0 - Vec3::splat(10.0);
     let mut positions = Vec::new();
     let mut indices = Vec::new();
-    for i in 0..n as u32 {
+    let rotated = |t: [u32; 3], r: u32| std::array::from_fn(|k| t[(k + r as usize) % 3]);
+    let mut i = 0;
+    while i < n as u32 {
+        let at = positions.len() as u32;
         let c = p();
         let a = c + (p() * 0.05);
         let b = c + (p() * 0.05);
         positions.extend([c, a, b]);
-        indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        indices.push(rotated([at, at + 1, at + 2], i % 3));
+        if i % 2 == 0 && i + 1 < n as u32 {
+            // c a b and c b d share the edge b c, run in opposite directions.
+            positions.push(c + (p() * 0.05));
+            indices.push(rotated([at, at + 2, at + 3], (i / 2) % 3));
+            i += 1;
+        }
+        i += 1;
     }
     let mut shapes = vec![mesh(positions, indices)];
     for _ in 0..5 {
@@ -113,7 +125,12 @@ fn brute_force(scene: &Scene, ray: &Ray) -> Option<Hit> {
 #[test]
 fn tree_is_valid_and_matches_brute_force() {
     let scene = soup(3000, 1);
-    let bvh = Bvh::with_reference(&scene).expect("builds");
+    for (kind, bvh) in Bvh::both_kinds(&scene) {
+        matches_brute_force(&scene, &bvh, kind);
+    }
+}
+
+fn matches_brute_force(scene: &Scene, bvh: &Bvh, kind: &str) {
     bvh.validate(BuildOptions::default().max_leaf).expect("valid tree");
     let mut s = Sampler::new(9, 1, 1);
     let mut hits = 0;
@@ -123,12 +140,41 @@ fn tree_is_valid_and_matches_brute_force() {
         let target = Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) * 20.0 - Vec3::splat(10.0);
         let dir = (target - origin).normalize();
         let ray = Ray { origin, dir, t_max: if s.next_1d() < 0.5 { f32::INFINITY } else { 12.0 } };
-        let want = brute_force(&scene, &ray);
-        assert_eq!(bvh.intersect(&ray).map(|h| (h.shape, h.prim, h.t)), want.map(|h| (h.shape, h.prim, h.t)));
-        assert_eq!(bvh.occluded(&ray), want.is_some());
+        let want = brute_force(scene, &ray);
+        let bits = |h: Hit| (h.shape, h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits());
+        assert_eq!(bvh.intersect(&ray).map(bits), want.map(bits), "{kind}");
+        assert_eq!(bvh.occluded(&ray), want.is_some(), "{kind}");
         hits += want.is_some() as u32;
     }
     assert!(hits > 300, "only {hits} rays hit: the test would prove little");
+    let quads = bvh.prims.iter().filter(|p| matches!(p, Prim::Quad { .. })).count();
+    match kind {
+        "quads" => assert!(quads > 1000 && bvh.wide.quads, "only {quads} quads: the pairs were not paired"),
+        _ => assert!(quads == 0 && !bvh.wide.quads, "{quads} quads in a tree of triangles"),
+    }
+}
+
+/// A pair sharing an edge becomes a quad whose two triangles are the pair's, vertex for vertex
+/// in the pair's own order, whichever vertex each starts at; a pair wound inconsistently, or
+/// with a degenerate triangle, stays two triangles.
+#[test]
+fn quads_keep_their_triangles_vertex_order() {
+    let [a, b, c, d] = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(-1.0, 0.5, 0.25)];
+    let rotated = |t: [Vec3; 3], r: usize| std::array::from_fn(|k| t[(k + r) % 3]);
+    for ra in 0..3 {
+        for rb in 0..3 {
+            // a b c and a c d share the edge c a.
+            let (first, second) = (rotated([a, b, c], ra), rotated([a, c, d], rb));
+            let Some(Prim::Quad { v, prim, shape, rot }) = Prim::quad(first, second, 3, 8) else {
+                panic!("rotations {ra} {rb}: not paired")
+            };
+            assert_eq!((prim, shape), (8, 3));
+            assert_eq!(Prim::quad_triangles(&v, rot), [first, second], "rotations {ra} {rb}");
+            // The same edge in the same direction: the pair is not consistently wound.
+            assert!(Prim::quad(first, rotated([c, a, d], rb), 0, 0).is_none());
+        }
+    }
+    assert!(Prim::quad([a, b, c], [a, c, a], 0, 0).is_none(), "degenerate second triangle");
 }
 
 #[test]
@@ -264,9 +310,14 @@ fn the_avx512_traversal_equals_the_portable_one() {
 
 fn traversal_equals_the_portable_one(isa: super::simd::Isa) {
     let scene = soup(3000, 11);
-    let fast = Bvh::new(&scene).expect("builds").with_isa(isa);
+    for ((kind, fast), (_, portable)) in Bvh::both_kinds(&scene).into_iter().zip(Bvh::both_kinds(&scene)) {
+        assert_eq!(fast.wide.quads, kind == "quads");
+        traversals_agree(&fast.with_isa(isa), &portable.portable(), isa);
+    }
+}
+
+fn traversals_agree(fast: &Bvh, portable: &Bvh, isa: super::simd::Isa) {
     assert_eq!(fast.isa().name(), isa.name());
-    let portable = Bvh::new(&scene).expect("builds").portable();
     assert_eq!(portable.isa().name(), "portable");
     let mut rng = Sampler::new(5, 0, 0);
     let mut f = |scale: f32| (rng.next_1d() * 2.0 - 1.0) * scale;
@@ -281,7 +332,8 @@ fn traversal_equals_the_portable_one(isa: super::simd::Isa) {
         let t_max = if i % 3 == 0 { f(1.0).abs() } else { f32::INFINITY };
         let ray = Ray { origin, dir, t_max };
         let (a, b) = (fast.intersect(&ray), portable.intersect(&ray));
-        assert_eq!(a.map(|h| (h.shape, h.prim, h.t.to_bits())), b.map(|h| (h.shape, h.prim, h.t.to_bits())));
+        let bits = |h: Hit| (h.shape, h.prim, h.t.to_bits(), h.u.to_bits(), h.v.to_bits());
+        assert_eq!(a.map(bits), b.map(bits));
         assert_eq!(fast.occluded(&ray), portable.occluded(&ray), "{ray:?}");
         hits += usize::from(a.is_some());
         occluded += usize::from(fast.occluded(&ray));
@@ -296,8 +348,9 @@ fn traversal_equals_the_portable_one(isa: super::simd::Isa) {
 #[test]
 fn each_node_is_followed_by_its_leaves() {
     for (name, scene) in [("soup", soup(3000, 5)), ("one leaf", soup(3, 1))] {
-        let bvh = Bvh::new(&scene).expect("builds");
-        bvh.wide.check_layout().unwrap_or_else(|e| panic!("{name}: {e}"));
+        for (kind, bvh) in Bvh::both_kinds(&scene) {
+            bvh.wide.check_layout().unwrap_or_else(|e| panic!("{name}, {kind}: {e}"));
+        }
     }
     let n = 40;
     let positions: Vec<Vec3> = (0..=n)
@@ -311,7 +364,9 @@ fn each_node_is_followed_by_its_leaves() {
             })
         })
         .collect();
-    let grid = Bvh::new(&scene_of(vec![mesh(positions, indices)])).expect("builds");
-    assert!(grid.wide.node_count() > 10);
-    grid.wide.check_layout().expect("grid");
+    for (kind, grid) in Bvh::both_kinds(&scene_of(vec![mesh(positions, indices)])) {
+        assert!(grid.wide.node_count() > 10, "{kind}");
+        assert_eq!(grid.wide.quads, kind == "quads");
+        grid.wide.check_layout().unwrap_or_else(|e| panic!("grid, {kind}: {e}"));
+    }
 }

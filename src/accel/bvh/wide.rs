@@ -2,7 +2,8 @@
 //! holds up to eight children, their boxes stored axis by axis so one slab test checks all eight
 //! at once: AVX-512 or AVX2 where the CPU has them, chosen at run time, or the portable test of
 //! the `wide` crate ([`super::simd`], the only module with `unsafe`). A leaf is one or two blocks
-//! of (up to) four triangles, each block tested at once by the watertight test, four lanes wide.
+//! of four lanes, each a triangle or a quad (two triangles sharing an edge, paired as the scene
+//! is read: [`Prim::Quad`]), each block tested at once by the watertight test, four lanes wide.
 
 use arrayvec::ArrayVec;
 use wide::f32x4;
@@ -16,7 +17,7 @@ use crate::accel::{Hit, Ray};
 
 /// A reference to a child, 32 bits so a node's eight children take 32 bytes: the cache line of
 /// the tree's array where it starts, for an inner node with the top bit clear; for a leaf (its
-/// first [`Leaf4`]) with the top bit set, and the next bit set when a second block of four
+/// first block) with the top bit set, and the next bit set when a second block of four
 /// follows it.
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(transparent)]
@@ -24,11 +25,11 @@ pub struct Child(u32);
 
 const LEAF: u32 = 1 << 31;
 const TWO: u32 = 1 << 30;
-/// The most primitives a leaf can hold: two blocks of four triangles.
+/// The most primitives a leaf can hold: two blocks of four lanes.
 pub const MAX_LEAF: u32 = 8;
 /// The most primitives a tree can hold: every line index fits below [`TWO`]. With n primitives
-/// there are at most n leaf blocks of three lines, and fewer than n nodes of four (each has two
-/// children at least), so fewer than 7 n lines.
+/// there are at most n leaf blocks of four lines, and fewer than n nodes of four (each has two
+/// children at least), so fewer than 8 n lines.
 pub const MAX_PRIMS: u32 = TWO / 8 - 1;
 
 impl Child {
@@ -63,63 +64,193 @@ impl Child {
     }
 }
 
-/// A leaf's triangles, structure-of-arrays so that one SIMD pass tests all four: `v[3 * k + a]`
-/// holds axis `a` of vertex `k` of each triangle. Unused lanes hold NaN vertices, which no ray
-/// hits, so the test needs no lane mask. Spheres (rare) are kept aside and tested one by one.
+/// What both kinds of leaf block hold besides vertices: each lane's shape and primitive, and
+/// the block's counts.
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-#[repr(C, align(64))]
-pub struct Leaf4 {
-    v: [[f32; 4]; 9],
+#[repr(C)]
+struct Head {
     shape: [u32; 4],
+    /// Each lane's (first) triangle; a quad's second is the next one.
     prim: [u32; 4],
-    triangles: u32,
+    triangles: u16,
+    /// The lanes that hold a quad: zero when the block has none, whose second test is skipped.
+    quads: u16,
     spheres_first: u32,
     spheres_count: u32,
     /// The lanes whose shape has a cut-out ([`Bvh8::mark_cutouts`]): their hits are asked
     /// whether they count. Zero for the blocks of a scene without alpha, which test nothing
-    /// more. (It also fills the block to three cache lines: blocks are cast from the tree's
-    /// [`Line`]s, plain data.)
+    /// more.
     cut: u32,
 }
 
-impl Leaf4 {
-    /// No triangles: every lane's vertices are NaN, which no ray hits.
-    const EMPTY: Leaf4 = Leaf4 {
-        v: [[f32::NAN; 4]; 9],
+impl Head {
+    const EMPTY: Head = Head {
         shape: [0; 4],
         prim: [0; 4],
         triangles: 0,
+        quads: 0,
         spheres_first: 0,
         spheres_count: 0,
         cut: 0,
     };
 }
 
-/// Packs a leaf's primitives into `blocks` (empty, enough for all of them), four triangles a
-/// block, and counts its spheres in the first block. Unused lanes keep the NaN vertices of
-/// [`Leaf4::EMPTY`]. Returns the blocks used (at least one) and the spheres, which the caller
-/// stores.
-fn pack<'a>(blocks: &mut [Leaf4], prims: impl Iterator<Item = &'a Prim>) -> (usize, u32) {
-    let (mut triangles, mut spheres) = (0, 0);
-    for prim in prims {
-        match *prim {
-            Prim::Triangle { v, shape, prim } => {
-                let (block, lane) = (&mut blocks[triangles / 4], triangles % 4);
-                for (k, vertex) in v.iter().enumerate() {
-                    for a in 0..3 {
-                        block.v[3 * k + a][lane] = vertex[a];
-                    }
-                }
-                block.shape[lane] = shape;
-                block.prim[lane] = prim;
-                block.triangles += 1;
-                triangles += 1;
-            }
-            Prim::Sphere { .. } => spheres += 1,
+/// A leaf block of four triangles, structure-of-arrays so that one SIMD pass tests all four:
+/// `v[3 * k + a]` holds axis `a` of vertex `k` of each triangle. Unused lanes hold NaN
+/// vertices, which no ray hits, so the test needs no lane mask. Spheres (rare) are kept aside
+/// and tested one by one. Three cache lines (blocks are cast from the tree's [`Line`]s, plain
+/// data).
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C, align(64))]
+pub struct Tri4 {
+    v: [[f32; 4]; 9],
+    head: Head,
+}
+
+/// A leaf block of four lanes, each a triangle `v0 v1 v2` or two sharing an edge
+/// ([`Prim::Quad`]: `v0 v1 v2` and `v0 v2 v3`), as [`Tri4`] with a fourth vertex row `v3` (NaN
+/// in a lane of one triangle) and each lane's rotations. Four cache lines for up to eight
+/// triangles, against six for two [`Tri4`]s: the trees of large meshes take them
+/// ([`QUAD_MIN`](super::QUAD_MIN)).
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C, align(64))]
+pub struct Quad4 {
+    v: [[f32; 4]; 9],
+    v3: [[f32; 4]; 3],
+    /// Each lane's rotations (`rot` of [`Prim::Quad`]): the hit's barycentrics and distance are
+    /// computed in the triangle's own vertex order, so they are the scalar test's to the bit.
+    rot: [u32; 4],
+    head: Head,
+}
+
+/// What the traversal and the packing ask of a leaf block, [`Tri4`] or [`Quad4`]: a tree holds
+/// one kind, and its traversal is compiled for it.
+trait Block: bytemuck::Pod + Send + Sync {
+    /// No triangles: every lane's vertices are NaN, which no ray hits.
+    const EMPTY: Self;
+    const LINES: usize;
+    fn v(&self) -> &[[f32; 4]; 9];
+    fn head(&self) -> &Head;
+    fn head_mut(&mut self) -> &mut Head;
+    /// The fourth vertex row and the rotations, where the block has quads.
+    fn quads(&self) -> Option<(&[[f32; 4]; 3], &[u32; 4])>;
+    /// Writes a triangle (three vertices) or a quad (four) into `lane`.
+    fn put(&mut self, lane: usize, vertices: &[glam::Vec3], rot: u8);
+    /// The blocks of a leaf from its lines (`n` blocks, one or two).
+    fn of(lines: &[Line], n: usize) -> &[Self];
+}
+
+/// Writes `vertices` (three or four) into the rows of `lane`.
+fn put_rows(rows: &mut [[f32; 4]], lane: usize, vertices: &[glam::Vec3]) {
+    for (k, vertex) in vertices.iter().enumerate() {
+        for a in 0..3 {
+            rows[3 * k + a][lane] = vertex[a];
         }
     }
-    let used = triangles.div_ceil(4).max(1);
-    blocks[0].spheres_count = spheres;
+}
+
+/// `n` (one or two) blocks of `L` lines each from the start of `lines`: cast from lines of a
+/// size known when compiling, so no run-time check of the alignment and of the length's
+/// multiple (a division), which `cast_slice` makes at every visit.
+macro_rules! blocks_of_lines {
+    ($lines:expr, $n:expr, $l:literal, $t:ty) => {{
+        let blocks = match $n {
+            1 => $lines.first_chunk::<$l>().map(|l| std::slice::from_ref(bytemuck::cast_ref::<_, $t>(l))),
+            _ => $lines.first_chunk::<{ 2 * $l }>().map(|l| bytemuck::cast_ref::<_, [$t; 2]>(l).as_slice()),
+        };
+        let Some(blocks) = blocks else { unreachable!("a child names blocks inside the tree") };
+        blocks
+    }};
+}
+
+impl Block for Tri4 {
+    const EMPTY: Tri4 = Tri4 { v: [[f32::NAN; 4]; 9], head: Head::EMPTY };
+    const LINES: usize = 3;
+    #[inline(always)]
+    fn v(&self) -> &[[f32; 4]; 9] {
+        &self.v
+    }
+    #[inline(always)]
+    fn head(&self) -> &Head {
+        &self.head
+    }
+    fn head_mut(&mut self) -> &mut Head {
+        &mut self.head
+    }
+    #[inline(always)]
+    fn quads(&self) -> Option<(&[[f32; 4]; 3], &[u32; 4])> {
+        None
+    }
+    fn put(&mut self, lane: usize, vertices: &[glam::Vec3], _rot: u8) {
+        debug_assert_eq!(vertices.len(), 3, "a tree of triangle blocks holds no quads");
+        put_rows(&mut self.v, lane, &vertices[..3]);
+    }
+    #[inline(always)]
+    fn of(lines: &[Line], n: usize) -> &[Tri4] {
+        blocks_of_lines!(lines, n, 3, Tri4)
+    }
+}
+
+impl Block for Quad4 {
+    const EMPTY: Quad4 =
+        Quad4 { v: [[f32::NAN; 4]; 9], v3: [[f32::NAN; 4]; 3], rot: [0; 4], head: Head::EMPTY };
+    const LINES: usize = 4;
+    #[inline(always)]
+    fn v(&self) -> &[[f32; 4]; 9] {
+        &self.v
+    }
+    #[inline(always)]
+    fn head(&self) -> &Head {
+        &self.head
+    }
+    fn head_mut(&mut self) -> &mut Head {
+        &mut self.head
+    }
+    #[inline(always)]
+    fn quads(&self) -> Option<(&[[f32; 4]; 3], &[u32; 4])> {
+        (self.head.quads != 0).then_some((&self.v3, &self.rot))
+    }
+    fn put(&mut self, lane: usize, vertices: &[glam::Vec3], rot: u8) {
+        put_rows(&mut self.v, lane, &vertices[..3]);
+        if let Some(&d) = vertices.get(3) {
+            put_rows(&mut self.v3, lane, &[d]);
+        }
+        self.rot[lane] = u32::from(rot);
+    }
+    #[inline(always)]
+    fn of(lines: &[Line], n: usize) -> &[Quad4] {
+        blocks_of_lines!(lines, n, 4, Quad4)
+    }
+}
+
+/// Packs a leaf's primitives into `blocks` (empty, enough for all of them), a triangle or a
+/// quad a lane, four lanes a block, and counts its spheres in the first block. Unused vertices
+/// keep the NaN of [`Block::EMPTY`]. Returns the blocks used (at least one) and the spheres,
+/// which the caller stores.
+fn pack<'a, B: Block>(blocks: &mut [B], prims: impl Iterator<Item = &'a Prim>) -> (usize, u32) {
+    let (mut lanes, mut spheres) = (0, 0);
+    for prim in prims {
+        let (vertices, shape, prim, rot): (&[glam::Vec3], _, _, _) = match prim {
+            Prim::Triangle { v, shape, prim } => (v, *shape, *prim, 0),
+            Prim::Quad { v, shape, prim, rot } => (v, *shape, *prim, *rot),
+            Prim::Sphere { .. } => {
+                spheres += 1;
+                continue;
+            }
+        };
+        let (block, lane) = (&mut blocks[lanes / 4], lanes % 4);
+        block.put(lane, vertices, rot);
+        let head = block.head_mut();
+        head.shape[lane] = shape;
+        head.prim[lane] = prim;
+        head.triangles += vertices.len() as u16 - 2;
+        if vertices.len() == 4 {
+            head.quads |= 1 << lane;
+        }
+        lanes += 1;
+    }
+    let used = lanes.div_ceil(4).max(1);
+    blocks[0].head_mut().spheres_count = spheres;
     (used, spheres)
 }
 
@@ -189,7 +320,7 @@ pub struct WideStats {
     pub leaves: usize,
     /// Children per inner node (at most eight).
     pub mean_children: f64,
-    /// Triangles per leaf block (at most four).
+    /// Triangles per leaf block (at most eight: four quads).
     pub mean_leaf_triangles: f64,
     /// Bytes of nodes, leaves and spheres, exactly.
     pub bytes: usize,
@@ -208,15 +339,16 @@ struct Ordered<'a> {
     order: &'a [u32],
 }
 
-/// A cache line of the tree's array: nodes take [`NODE_LINES`], leaf blocks [`LEAF_LINES`].
+/// A cache line of the tree's array: nodes take [`NODE_LINES`], leaf blocks [`Block::LINES`].
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 struct Line([u8; 64]);
 
 const NODE_LINES: usize = std::mem::size_of::<Node8>() / 64;
-const LEAF_LINES: usize = std::mem::size_of::<Leaf4>() / 64;
 const _: () = assert!(
-    NODE_LINES * 64 == std::mem::size_of::<Node8>() && LEAF_LINES * 64 == std::mem::size_of::<Leaf4>()
+    NODE_LINES * 64 == std::mem::size_of::<Node8>()
+        && Tri4::LINES * 64 == std::mem::size_of::<Tri4>()
+        && Quad4::LINES * 64 == std::mem::size_of::<Quad4>()
 );
 
 /// What [`Bvh8::walk`] finds.
@@ -242,6 +374,8 @@ pub struct Bvh8 {
     lines: Pages<Line>,
     node_count: usize,
     block_count: usize,
+    /// Whether the leaf blocks are [`Quad4`]s (else [`Tri4`]s): the tree holds quads.
+    pub(super) quads: bool,
     spheres: Vec<SphereRef>,
     root: Child,
     /// The slab test this CPU runs best.
@@ -272,6 +406,7 @@ impl Bvh8 {
             lines: Pages::default(),
             node_count: 0,
             block_count: 0,
+            quads: prims.iter().any(|p| matches!(p, Prim::Quad { .. })),
             spheres: Vec::new(),
             root: Child::EMPTY,
             isa: Isa::best(),
@@ -316,6 +451,7 @@ impl Bvh8 {
         }
         // A leaf gets blocks for all its primitives (spheres, rare, leave some unused).
         let blocks_of = |p: usize| binary[pending[p].2].count.div_ceil(4).max(1) as usize;
+        let leaf_lines = self.leaf_lines();
         // Where each node and each leaf starts, in lines, and the order they are met in, each
         // with its length in lines.
         let (mut node_line, mut leaf_line) = (vec![0u32; nodes.len()], vec![0u32; pending.len()]);
@@ -323,7 +459,7 @@ impl Bvh8 {
         let mut cursor = 0usize;
         let mut stack = Vec::new();
         if nodes.is_empty() {
-            items.push((Item::Leaf(0), LEAF_LINES * blocks_of(0)));
+            items.push((Item::Leaf(0), leaf_lines * blocks_of(0)));
             cursor = items[0].1;
         } else {
             stack.push(0);
@@ -334,8 +470,8 @@ impl Bvh8 {
             cursor += NODE_LINES;
             for p in leaves_of[n].clone() {
                 leaf_line[p] = cursor as u32;
-                items.push((Item::Leaf(p), LEAF_LINES * blocks_of(p)));
-                cursor += LEAF_LINES * blocks_of(p);
+                items.push((Item::Leaf(p), leaf_lines * blocks_of(p)));
+                cursor += leaf_lines * blocks_of(p);
             }
             // Inner children in slot order: pushed in reverse, popped first to last.
             for c in nodes[n].children.iter().rev().filter(|c| **c != Child::EMPTY && !c.is_leaf()) {
@@ -362,12 +498,20 @@ impl Bvh8 {
             prims.order[binary[i].prims()].iter().map(|&q| &prims.prims[q as usize])
         };
         // Each leaf's blocks used and spheres.
+        fn packed_in<'a, B: Block>(
+            lines: &mut [Line],
+            prims: impl Iterator<Item = &'a Prim>,
+        ) -> (usize, u32) {
+            let blocks: &mut [B] = bytemuck::cast_slice_mut(lines);
+            blocks.fill(B::EMPTY);
+            pack(blocks, prims)
+        }
+        let quads = self.quads;
         let packed: Vec<(usize, usize, u32)> = leaf_slices
             .into_par_iter()
             .map(|(p, lines)| {
-                let blocks: &mut [Leaf4] = bytemuck::cast_slice_mut(lines);
-                blocks.fill(Leaf4::EMPTY);
-                let (used, spheres) = pack(blocks, of(p));
+                let (used, spheres) =
+                    if quads { packed_in::<Quad4>(lines, of(p)) } else { packed_in::<Tri4>(lines, of(p)) };
                 (p, used, spheres)
             })
             .collect();
@@ -390,7 +534,7 @@ impl Bvh8 {
         for &(p, _, spheres) in &packed {
             if spheres > 0 {
                 let first = self.spheres.len() as u32;
-                self.blocks_mut(children[p])[0].spheres_first = first;
+                self.head_mut(children[p]).spheres_first = first;
                 for prim in of(p) {
                     if let Prim::Sphere { center, radius, shape } = *prim {
                         self.spheres.push(SphereRef { center, radius, shape });
@@ -421,7 +565,7 @@ impl Bvh8 {
         let mut stack = vec![self.root];
         while let Some(c) = stack.pop() {
             if c.is_leaf() {
-                claim(c.index(), LEAF_LINES * c.blocks(), "leaf")?;
+                claim(c.index(), self.leaf_lines() * c.blocks(), "leaf")?;
                 continue;
             }
             claim(c.0 as usize, NODE_LINES, "node")?;
@@ -435,7 +579,7 @@ impl Bvh8 {
                             child.index()
                         ));
                     }
-                    next += LEAF_LINES * child.blocks();
+                    next += self.leaf_lines() * child.blocks();
                 }
                 stack.push(child);
             }
@@ -461,16 +605,48 @@ impl Bvh8 {
                 stack.extend(self.node(child).children.iter().copied());
             }
         }
+        fn mark<B: Block>(blocks: &mut [B], cuts: &impl Fn(u32) -> bool) -> bool {
+            let mut any = false;
+            for block in blocks {
+                // A used lane has a first vertex (an unused one NaN).
+                let used = std::array::from_fn::<bool, 4, _>(|l| !block.v()[0][l].is_nan());
+                let head = block.head_mut();
+                head.cut = (0..4).filter(|&l| used[l] && cuts(head.shape[l])).fold(0, |m, l| m | 1 << l);
+                any |= head.cut != 0;
+            }
+            any
+        }
         let mut any = false;
         for child in leaves {
-            for block in self.blocks_mut(child) {
-                block.cut = (0..block.triangles as usize)
-                    .filter(|&l| cuts(block.shape[l]))
-                    .fold(0, |m, l| m | 1 << l);
-                any |= block.cut != 0;
-            }
+            let lines = self.leaf_lines() * child.blocks();
+            let lines = &mut self.lines[child.index()..child.index() + lines];
+            any |= if self.quads {
+                mark::<Quad4>(bytemuck::cast_slice_mut(lines), &cuts)
+            } else {
+                mark::<Tri4>(bytemuck::cast_slice_mut(lines), &cuts)
+            };
         }
         any
+    }
+
+    /// Lines a leaf block takes in this tree.
+    fn leaf_lines(&self) -> usize {
+        if self.quads {
+            Quad4::LINES
+        } else {
+            Tri4::LINES
+        }
+    }
+
+    /// The first block's counts of leaf `child`.
+    fn head_mut(&mut self, child: Child) -> &mut Head {
+        let (at, lines) = (child.index(), self.leaf_lines());
+        let lines = &mut self.lines[at..at + lines];
+        if self.quads {
+            &mut bytemuck::cast_slice_mut::<Line, Quad4>(lines)[0].head
+        } else {
+            &mut bytemuck::cast_slice_mut::<Line, Tri4>(lines)[0].head
+        }
     }
 
     /// Inner node `child`.
@@ -484,23 +660,10 @@ impl Bvh8 {
         bytemuck::cast_ref::<[Line; NODE_LINES], Node8>(lines)
     }
 
-    /// Leaf `child`'s blocks.
+    /// Leaf `child`'s blocks, of kind `B` (the tree's).
     #[inline(always)]
-    fn blocks(&self, child: Child) -> &[Leaf4] {
-        let lines = &self.lines[child.index()..];
-        let blocks = match child.blocks() {
-            1 => lines.first_chunk::<LEAF_LINES>().map(|l| std::slice::from_ref(bytemuck::cast_ref(l))),
-            _ => lines
-                .first_chunk::<{ 2 * LEAF_LINES }>()
-                .map(|l| bytemuck::cast_ref::<[Line; 2 * LEAF_LINES], [Leaf4; 2]>(l).as_slice()),
-        };
-        let Some(blocks) = blocks else { unreachable!("a child names blocks inside the tree") };
-        blocks
-    }
-
-    fn blocks_mut(&mut self, child: Child) -> &mut [Leaf4] {
-        let at = child.index();
-        bytemuck::cast_slice_mut(&mut self.lines[at..at + LEAF_LINES * child.blocks()])
+    fn blocks<B: Block>(&self, child: Child) -> &[B] {
+        B::of(&self.lines[child.index()..], child.blocks())
     }
 
     /// Fills wide node `at` from binary inner node `index`: its children, then the inner child
@@ -561,7 +724,7 @@ impl Bvh8 {
         self.node_count
     }
 
-    fn leaf_spheres(&self, leaf: &Leaf4) -> &[SphereRef] {
+    fn leaf_spheres(&self, leaf: &Head) -> &[SphereRef] {
         &self.spheres[leaf.spheres_first as usize..(leaf.spheres_first + leaf.spheres_count) as usize]
     }
 
@@ -589,10 +752,17 @@ impl Bvh8 {
     /// areas, and leaf areas times blocks, over the root's area).
     fn walk(&self) -> Walk {
         let mut walk = Walk { children: 0, triangles: 0, sah_nodes: 0.0, sah_leaves: 0.0 };
-        let count = |blocks: &[Leaf4]| blocks.iter().map(|b| b.triangles as usize).sum::<usize>();
+        let count = |c: Child| {
+            let heads: Vec<&Head> = if self.quads {
+                self.blocks::<Quad4>(c).iter().map(|b| &b.head).collect()
+            } else {
+                self.blocks::<Tri4>(c).iter().map(|b| &b.head).collect()
+            };
+            heads.iter().map(|h| h.triangles as usize).sum::<usize>()
+        };
         if self.root == Child::EMPTY || self.root.is_leaf() {
             if self.root != Child::EMPTY {
-                walk.triangles = count(self.blocks(self.root));
+                walk.triangles = count(self.root);
                 walk.sah_leaves = self.root.blocks() as f64;
             }
             return walk;
@@ -614,7 +784,7 @@ impl Bvh8 {
                 }
                 walk.children += 1;
                 if c.is_leaf() {
-                    walk.triangles += count(self.blocks(c));
+                    walk.triangles += count(c);
                     walk.sah_leaves += n.child_box(slot).half_area() as f64 * c.blocks() as f64 / root;
                 } else {
                     stack.push(c);
@@ -644,14 +814,19 @@ struct Entry {
     t: f32,
 }
 
-/// The watertight test of [`RayTri`] on the four triangles of a leaf at once: the same
-/// formulas lane by lane (including the double-precision retry when an edge function rounds to
-/// zero), so what holds for the scalar test holds here.
+/// The watertight test of [`RayTri`] on the four lanes of a leaf block at once, each lane's
+/// first triangle and then, where the block has quads, their second ones: the same formulas lane
+/// by lane (including the double-precision retry when an edge function rounds to zero), so what
+/// holds for the scalar test holds here.
 struct RayTri4 {
     origin: [f32x4; 3],
     k: [usize; 3],
     shear: [f32; 3],
 }
+
+/// A hit in a block: distance, lane, barycentrics of the second and third vertices, and which
+/// of the lane's triangles (0 or 1).
+type LaneHit = (f32, usize, f32, f32, u32);
 
 impl RayTri4 {
     fn new(ray: &Ray) -> Self {
@@ -659,10 +834,38 @@ impl RayTri4 {
         RayTri4 { origin: ray.origin.to_array().map(f32x4::splat), k, shear }
     }
 
-    /// The nearest hit in the leaf within [0, t_max]: `(t, lane, u, v)`.
+    /// The `R` vertex rows `rows` (axis `a` of vertex `k` at `3 * k + a`) in the ray's sheared
+    /// frame: x and y sheared, z relative to the origin (not yet scaled by Sz). Transformed once
+    /// for both triangles of a quad, and the same way whichever triangle a vertex belongs to,
+    /// which keeps shared edges watertight.
     #[inline(always)]
-    fn hit(&self, leaf: &Leaf4, t_max: f32) -> Option<(f32, usize, f32, f32)> {
-        let (mut mask, t, inv, v, w) = self.lanes(leaf, t_max)?;
+    fn shear_vertices<const R: usize>(&self, rows: &[[f32; 4]]) -> [[f32x4; 3]; R] {
+        let [kx, ky, kz] = self.k;
+        let (sx, sy) = (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]));
+        let rel = |vertex: usize, axis: usize| f32x4::new(rows[3 * vertex + axis]) - self.origin[axis];
+        let sheared = |k: usize| {
+            let z = rel(k, kz);
+            [rel(k, kx) - sx * z, rel(k, ky) - sy * z, z]
+        };
+        let mut out = [[f32x4::ZERO; 3]; R];
+        // Unrolled by hand: R is 1 or 3.
+        out[0] = sheared(0);
+        if R == 3 {
+            out[1] = sheared(1);
+            out[2] = sheared(2);
+        }
+        out
+    }
+
+    /// The nearest hit in the block within [0, t_max].
+    #[inline(always)]
+    fn hit<B: Block>(&self, leaf: &B, t_max: f32) -> Option<LaneHit> {
+        if leaf.quads().is_some() {
+            return self.hit_kept(leaf, t_max, |_, _, _, _| true);
+        }
+        // A block of triangles alone (every block of most trees): the nearest lane hit.
+        let [a, b, c] = self.shear_vertices::<3>(leaf.v());
+        let (mut mask, t, inv, v, w) = self.lanes([a, b, c], None, t_max)?;
         let mut best = mask.trailing_zeros() as usize;
         mask &= mask - 1;
         while mask != 0 {
@@ -672,19 +875,46 @@ impl RayTri4 {
                 best = l;
             }
         }
-        Some((t[best], best, v[best] * inv[best], w[best] * inv[best]))
+        Some((t[best], best, v[best] * inv[best], w[best] * inv[best], 0))
     }
 
-    /// [`Self::hit`], each lane's hit taken only if `keeps(lane, u, v)` says it counts (a
-    /// cut-out's), nearest first: the nearest hit that counts.
+    /// [`Self::hit`], each lane's hit taken only if `keeps(lane, triangle, u, v)` says it counts
+    /// (asked only of lanes marked as cut-outs), nearest first: the nearest hit that counts. The
+    /// second triangles are tested within the first ones' nearest hit, so a tie goes to the
+    /// second, as in the scalar reference.
     #[inline(always)]
-    fn hit_kept(
+    fn hit_kept<B: Block>(
         &self,
-        leaf: &Leaf4,
+        leaf: &B,
         t_max: f32,
-        keeps: impl Fn(usize, f32, f32) -> bool,
-    ) -> Option<(f32, usize, f32, f32)> {
-        let (mut mask, t, inv, v, w) = self.lanes(leaf, t_max)?;
+        keeps: impl Fn(usize, u32, f32, f32) -> bool,
+    ) -> Option<LaneHit> {
+        let [a, b, c] = self.shear_vertices::<3>(leaf.v());
+        let Some((v3, rot)) = leaf.quads() else {
+            return self.nearest(leaf.head(), [a, b, c], None, t_max, 0, &keeps);
+        };
+        let [d] = self.shear_vertices::<1>(v3);
+        // Rotations only where a lane has one.
+        let rot = (*rot != [0; 4]).then(|| wide::i32x4::new(bytemuck::cast(*rot)));
+        let first = rot.map(|r| r & wide::i32x4::splat(3));
+        let best = self.nearest(leaf.head(), [a, b, c], first, t_max, 0, &keeps);
+        let t_max = best.map_or(t_max, |h| h.0);
+        let second = rot.map(|r| (r >> 2) & wide::i32x4::splat(3));
+        self.nearest(leaf.head(), [a, c, d], second, t_max, 1, &keeps).or(best)
+    }
+
+    /// The nearest kept hit of one triangle per lane, `tri` (0 or 1) of each lane.
+    #[inline(always)]
+    fn nearest(
+        &self,
+        leaf: &Head,
+        v: [[f32x4; 3]; 3],
+        rot: Option<wide::i32x4>,
+        t_max: f32,
+        tri: u32,
+        keeps: &impl Fn(usize, u32, f32, f32) -> bool,
+    ) -> Option<LaneHit> {
+        let (mut mask, t, inv, v, w) = self.lanes(v, rot, t_max)?;
         while mask != 0 {
             let mut best = mask.trailing_zeros() as usize;
             let mut rest = mask & (mask - 1);
@@ -696,30 +926,28 @@ impl RayTri4 {
                 }
             }
             let (u, v) = (v[best] * inv[best], w[best] * inv[best]);
-            if leaf.cut & (1 << best) == 0 || keeps(best, u, v) {
-                return Some((t[best], best, u, v));
+            if leaf.cut & (1 << best) == 0 || keeps(best, tri, u, v) {
+                return Some((t[best], best, u, v, tri));
             }
             mask &= !(1 << best);
         }
         None
     }
 
-    /// The lanes the ray hits within [0, t_max] (a bit mask, never empty) with their `t`, the
-    /// reciprocal of their determinant and their two unscaled barycentrics.
+    /// The lanes whose triangle `a b c` (sheared, [`Self::shear_vertices`]) the ray hits within
+    /// [0, t_max] (a bit mask, never empty) with their `t`, the reciprocal of their
+    /// determinant and their two unscaled barycentrics. `rot` is each lane's rotation of its
+    /// triangle's own vertex order (none: all zero): the sums are taken in that order, as the
+    /// scalar test does.
     #[inline(always)]
     #[allow(clippy::type_complexity)]
-    fn lanes(&self, leaf: &Leaf4, t_max: f32) -> Option<(u32, [f32; 4], [f32; 4], [f32; 4], [f32; 4])> {
-        let [kx, ky, kz] = self.k;
-        let (sx, sy, sz) =
-            (f32x4::splat(self.shear[0]), f32x4::splat(self.shear[1]), f32x4::splat(self.shear[2]));
-        let rel = |vertex: usize, axis: usize| f32x4::new(leaf.v[3 * vertex + axis]) - self.origin[axis];
-        let (az, bz, cz) = (rel(0, kz), rel(1, kz), rel(2, kz));
-        let ax = rel(0, kx) - sx * az;
-        let ay = rel(0, ky) - sy * az;
-        let bx = rel(1, kx) - sx * bz;
-        let by = rel(1, ky) - sy * bz;
-        let cx = rel(2, kx) - sx * cz;
-        let cy = rel(2, ky) - sy * cz;
+    fn lanes(
+        &self,
+        [[ax, ay, az], [bx, by, bz], [cx, cy, cz]]: [[f32x4; 3]; 3],
+        rot: Option<wide::i32x4>,
+        t_max: f32,
+    ) -> Option<(u32, [f32; 4], [f32; 4], [f32; 4], [f32; 4])> {
+        let sz = f32x4::splat(self.shear[2]);
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -744,6 +972,24 @@ impl RayTri4 {
         if inside.to_bitmask() == 0 {
             return None; // the common case: the ray passes beside all four
         }
+        // Back to each triangle's own vertex order (the bound below is symmetric in them).
+        let ([u, v, w], [az, bz, cz]) = match rot {
+            None => ([u, v, w], [az, bz, cz]),
+            Some(rot) => {
+                let (one, two) = (
+                    bytemuck::cast::<wide::i32x4, f32x4>(rot.simd_eq(wide::i32x4::splat(1))),
+                    bytemuck::cast::<wide::i32x4, f32x4>(rot.simd_eq(wide::i32x4::splat(2))),
+                );
+                let own = |e: [f32x4; 3]| {
+                    [
+                        one.bitselect(e[2], two.bitselect(e[1], e[0])),
+                        one.bitselect(e[0], two.bitselect(e[2], e[1])),
+                        one.bitselect(e[1], two.bitselect(e[0], e[2])),
+                    ]
+                };
+                (own([u, v, w]), own([az, bz, cz]))
+            }
+        };
         let det = u + v + w;
         let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
         // Fold det's sign into both sides: t = t_scaled / det must lie in (error bound, t_max].
@@ -839,6 +1085,21 @@ impl Bvh8 {
         filter: Filter,
         k: K,
     ) -> Option<Hit> {
+        if self.quads {
+            self.intersect_in::<K, N, Quad4>(ray, filter, k)
+        } else {
+            self.intersect_in::<K, N, Tri4>(ray, filter, k)
+        }
+    }
+
+    /// [`Self::intersect_with`] on a tree of leaf blocks `B`.
+    #[inline(always)]
+    fn intersect_in<K: BoxTest, const N: usize, B: Block>(
+        &self,
+        ray: &Ray,
+        filter: Filter,
+        k: K,
+    ) -> Option<Hit> {
         if self.root == Child::EMPTY {
             return None;
         }
@@ -852,19 +1113,22 @@ impl Bvh8 {
         loop {
             let child = current.child;
             if child.is_leaf() {
-                let blocks = self.blocks(child);
+                let blocks = self.blocks::<B>(child);
                 for leaf in blocks {
-                    let hit = if leaf.cut == 0 {
+                    let head = leaf.head();
+                    let hit = if head.cut == 0 {
                         rt.hit(leaf, t_max)
                     } else {
-                        rt.hit_kept(leaf, t_max, |l, u, v| filter.keeps(leaf.shape[l], leaf.prim[l], u, v))
+                        rt.hit_kept(leaf, t_max, |l, tri, u, v| {
+                            filter.keeps(head.shape[l], head.prim[l] + tri, u, v)
+                        })
                     };
-                    if let Some((t, lane, u, v)) = hit {
+                    if let Some((t, lane, u, v, tri)) = hit {
                         t_max = t;
-                        best = Some(Hit { t, shape: leaf.shape[lane], prim: leaf.prim[lane], u, v });
+                        best = Some(Hit { t, shape: head.shape[lane], prim: head.prim[lane] + tri, u, v });
                     }
                 }
-                for s in self.leaf_spheres(&blocks[0]) {
+                for s in self.leaf_spheres(blocks[0].head()) {
                     if let Some(t) = sphere(ray, s.center, s.radius, t_max) {
                         t_max = t;
                         best = Some(Hit { t, shape: s.shape, prim: 0, u: 0.0, v: 0.0 });
@@ -886,13 +1150,13 @@ impl Bvh8 {
                     // Several: push them ordered by decreasing entry distance (insertion into
                     // the top of the stack), then pop the nearest.
                     let base = stack.len();
-                    self.prefetch(k, first.child);
+                    self.prefetch::<K, B>(k, first.child);
                     stack.push(first);
                     while mask != 0 {
                         let slot = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
                         let e = Entry { child: node.children[slot], t: t_near[slot] };
-                        self.prefetch(k, e.child);
+                        self.prefetch::<K, B>(k, e.child);
                         stack.push(e);
                         let s = stack.as_mut_slice();
                         let mut j = s.len() - 1;
@@ -919,9 +1183,9 @@ impl Bvh8 {
 
     /// Hints the CPU to load `child`'s node or leaf.
     #[inline(always)]
-    fn prefetch<K: BoxTest>(&self, k: K, child: Child) {
+    fn prefetch<K: BoxTest, B: Block>(&self, k: K, child: Child) {
         if child.is_leaf() {
-            for leaf in self.blocks(child) {
+            for leaf in self.blocks::<B>(child) {
                 k.prefetch(leaf);
             }
         } else {
@@ -933,6 +1197,16 @@ impl Bvh8 {
     /// On a stack of `N` entries, which the caller has checked is enough ([`Self::shallow`]).
     #[inline(always)]
     pub(super) fn occluded_with<K: BoxTest, const N: usize>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
+        if self.quads {
+            self.occluded_in::<K, N, Quad4>(ray, filter, k)
+        } else {
+            self.occluded_in::<K, N, Tri4>(ray, filter, k)
+        }
+    }
+
+    /// [`Self::occluded_with`] on a tree of leaf blocks `B`.
+    #[inline(always)]
+    fn occluded_in<K: BoxTest, const N: usize, B: Block>(&self, ray: &Ray, filter: Filter, k: K) -> bool {
         if self.root == Child::EMPTY {
             return false;
         }
@@ -942,18 +1216,20 @@ impl Bvh8 {
         let mut current = self.root;
         loop {
             if current.is_leaf() {
-                let blocks = self.blocks(current);
-                let blocked = |leaf: &Leaf4| match leaf.cut {
+                let blocks = self.blocks::<B>(current);
+                let blocked = |leaf: &B| match leaf.head().cut {
                     0 => rt.hit(leaf, ray.t_max).is_some(),
                     _ => rt
-                        .hit_kept(leaf, ray.t_max, |l, u, v| filter.keeps(leaf.shape[l], leaf.prim[l], u, v))
+                        .hit_kept(leaf, ray.t_max, |l, tri, u, v| {
+                            filter.keeps(leaf.head().shape[l], leaf.head().prim[l] + tri, u, v)
+                        })
                         .is_some(),
                 };
                 if blocks.iter().any(blocked) {
                     return true;
                 }
                 if self
-                    .leaf_spheres(&blocks[0])
+                    .leaf_spheres(blocks[0].head())
                     .iter()
                     .any(|s| sphere(ray, s.center, s.radius, ray.t_max).is_some())
                 {
@@ -966,11 +1242,73 @@ impl Bvh8 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
                     stack.push(node.children[slot]);
-                    self.prefetch(k, node.children[slot]);
+                    self.prefetch::<K, B>(k, node.children[slot]);
                 }
             }
             let Some(next) = stack.pop() else { return false };
             current = next;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+
+    /// A block of two quads, the unit square at z = 0 and the same square at z = -1, each split
+    /// along its diagonal from (0, 0) to (1, 1) and stored rotated: a ray down through a point
+    /// of the square hits the first quad's triangle on that side, and a cut-out's verdict is
+    /// asked of that triangle, the nearest first, then of the next hit below.
+    #[test]
+    fn a_quad_lane_reports_each_triangle_and_asks_about_each() {
+        let square = |z: f32| {
+            let p = [
+                Vec3::new(0.0, 0.0, z),
+                Vec3::new(1.0, 0.0, z),
+                Vec3::new(1.0, 1.0, z),
+                Vec3::new(0.0, 1.0, z),
+            ];
+            // The first triangle starts at its second vertex, the second at its third.
+            Prim::quad([p[1], p[2], p[0]], [p[3], p[0], p[2]], 7, 10).expect("pairs")
+        };
+        let prims = [square(0.0), square(-1.0)];
+        let mut blocks = [Quad4::EMPTY];
+        assert_eq!(pack(&mut blocks, prims.iter()), (1, 0));
+        let block = &blocks[0];
+        assert_eq!((block.head.quads, block.head.triangles), (0b11, 4));
+        let down =
+            |x: f32, y: f32| Ray { origin: Vec3::new(x, y, 1.0), dir: Vec3::NEG_Z, t_max: f32::INFINITY };
+        let scalar = |ray: &Ray, tri: usize| {
+            let Prim::Quad { v, rot, .. } = prims[0] else { unreachable!("a quad") };
+            RayTri::new(ray).hit(&Prim::quad_triangles(&v, rot)[tri], f32::INFINITY)
+        };
+        for (x, y, tri) in [(0.7, 0.3, 0u32), (0.3, 0.7, 1)] {
+            let ray = down(x, y);
+            let rt = RayTri4::new(&ray);
+            let Some((t, lane, u, v, hit_tri)) = rt.hit(block, ray.t_max) else {
+                panic!("missed at {x} {y}")
+            };
+            assert_eq!((lane, hit_tri), (0, tri), "at {x} {y}");
+            // The scalar test on the triangle in its own vertex order, to the bit.
+            let Some((st, su, sv)) = scalar(&ray, tri as usize) else { panic!("the scalar test missed") };
+            assert_eq!((t.to_bits(), u.to_bits(), v.to_bits()), (st.to_bits(), su.to_bits(), sv.to_bits()));
+            // No lane marked as a cut-out: nothing is asked, the nearest hit stands.
+            let asked = std::cell::RefCell::new(Vec::new());
+            let ask = |l, tri, _, _| {
+                asked.borrow_mut().push((l, tri));
+                false
+            };
+            assert_eq!(rt.hit_kept(block, ray.t_max, ask).map(|h| (h.0, h.1, h.4)), Some((1.0, 0, tri)));
+            assert!(asked.borrow().is_empty(), "asked {:?} of a block with no cut-outs", asked.borrow());
+            // The upper square a cut-out that cuts everywhere: its hit triangle is asked about,
+            // and the same triangle of the square below is hit.
+            let mut cut = *block;
+            cut.head.cut = 0b01;
+            let kept = rt.hit_kept(&cut, ray.t_max, ask);
+            assert_eq!(kept.map(|h| (h.0, h.1, h.4)), Some((2.0, 1, tri)), "at {x} {y}");
+            assert_eq!(*asked.borrow(), [(0, tri)], "at {x} {y}");
         }
     }
 }
