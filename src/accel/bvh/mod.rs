@@ -143,8 +143,9 @@ pub(super) fn degenerate(v: &[Vec3; 3]) -> bool {
 /// triangles take six, but its test is two triangle tests where a block of four takes one:
 /// fewer bytes pay where the tree does not fit in the caches, more arithmetic costs where it
 /// does. Measured with `bench-accel` on the terrain at several sizes (one thread, AVX2, an
-/// Intel Xeon with 2 MB of L2 a core): about even at 200,000 triangles, 5% to 10% faster at
-/// 500,000 and 1,000,000, 2% to 10% slower at 50,000 and 10,000 (docs/RESULTS.md).
+/// Intel Xeon with 2 MB of L2 a core): primary rays about 10% slower at 10,000 triangles,
+/// about even at 50,000 and 200,000, 5% to 8% faster at 500,000 and 1,000,000
+/// (docs/RESULTS.md, the BVH's section).
 pub const QUAD_MIN: usize = 1 << 18;
 
 /// The build settings for a tree of quads: a block of them costs two triangle tests, so a
