@@ -52,8 +52,9 @@ impl Instances {
                 None => {
                     // The build leaves out degenerate triangles.
                     let pair = mesh.indices.len() >= options.quad_min;
-                    let prims =
+                    let mut prims =
                         super::mesh_prims(mesh.indices.len() as u32, 0, pair, |t| mesh.local_triangle(t));
+                    let pair = pair && super::keep_quads(&mut prims);
                     if prims.len() > super::wide::MAX_PRIMS as usize {
                         return Err(TooLarge(prims.len()));
                     }

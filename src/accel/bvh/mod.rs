@@ -139,8 +139,8 @@ pub(super) fn degenerate(v: &[Vec3; 3]) -> bool {
 }
 
 /// The fewest triangles in one tree for which its meshes are paired into quads
-/// ([`mesh_prims`]). A block of quads holds eight triangles in four cache lines, where two of
-/// triangles take six, but its test is two triangle tests where a block of four takes one:
+/// ([`mesh_prims`]). A block of quads holds eight triangles in four cache lines, where two
+/// blocks of triangles take six, but its test is two triangle tests where a block of four takes one:
 /// fewer bytes pay where the tree does not fit in the caches, more arithmetic costs where it
 /// does. Measured with `bench-accel` on the terrain at several sizes (one thread, AVX2, an
 /// Intel Xeon with 2 MB of L2 a core): primary rays about 10% slower at 10,000 triangles,
@@ -152,6 +152,39 @@ pub const QUAD_MIN: usize = 1 << 18;
 /// traversal step costs half as much beside it.
 pub(super) fn quad_options(options: BuildOptions) -> BuildOptions {
     BuildOptions { traversal_cost: options.traversal_cost * 0.5, ..options }
+}
+
+/// Keeps `prims`' quads where at least two thirds of their triangles are in one (a quad lane
+/// takes 64 bytes, a triangle's 48: at half the triangles paired the bytes are even, and each
+/// block of quads tests twice); otherwise splits them back into triangles. Returns whether
+/// quads are kept.
+pub(super) fn keep_quads(prims: &mut Vec<Prim>) -> bool {
+    let (mut quads, mut triangles) = (0usize, 0usize);
+    for p in prims.iter() {
+        match p {
+            Prim::Quad { .. } => quads += 1,
+            Prim::Triangle { .. } => triangles += 1,
+            Prim::Sphere { .. } => {}
+        }
+    }
+    if quads == 0 {
+        return false;
+    }
+    // 2 quads / (2 quads + triangles) >= 2 / 3.
+    if quads >= triangles {
+        return true;
+    }
+    *prims = prims
+        .iter()
+        .flat_map(|p| match *p {
+            Prim::Quad { ref v, shape, prim, rot } => {
+                let [a, b] = Prim::quad_triangles(v, rot);
+                vec![Prim::Triangle { v: a, shape, prim }, Prim::Triangle { v: b, shape, prim: prim + 1 }]
+            }
+            other => vec![other],
+        })
+        .collect();
+    false
 }
 
 /// The triangles of a mesh of `count` triangles (`triangle(t)` the vertices of triangle `t`) as
@@ -322,7 +355,7 @@ impl Bvh {
             BuildOptions { max_leaf: options.max_leaf.clamp(1, wide::MAX_LEAF as usize), ..options };
         let cutouts = Cutouts::new(scene).map(std::sync::Arc::new);
         let instances = instances::Instances::new(scene, options, cutouts.as_deref())?.map(Box::new);
-        let first = if pair { quad_options(options) } else { options };
+        let first = if pair && keep_quads(&mut prims) { quad_options(options) } else { options };
         let mut bvh = Bvh { instances, ..build::build(prims, first) };
         if let Some(c) = &cutouts {
             bvh.wide.mark_cutouts(|shape| c.cuts(shape));

@@ -952,8 +952,10 @@ impl RayTri4 {
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
         let zero = f32x4::splat(0.0);
-        if (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).any() {
-            // On an edge: decide in f64, lane by lane, as the scalar test does.
+        let on_edge = u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero);
+        if on_edge.any() {
+            // On an edge: decide in f64, as the scalar test does, in the lanes with a zero
+            // only (elsewhere the f32 values stand, as they do in the scalar test).
             let (ax, ay, bx, by, cx, cy) =
                 (ax.to_array(), ay.to_array(), bx.to_array(), by.to_array(), cx.to_array(), cy.to_array());
             let (mut uu, mut vv, mut ww) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
@@ -964,7 +966,9 @@ impl RayTri4 {
                 vv[l] = (ax * cy - ay * cx) as f32;
                 ww[l] = (bx * ay - by * ax) as f32;
             }
-            (u, v, w) = (f32x4::new(uu), f32x4::new(vv), f32x4::new(ww));
+            u = on_edge.bitselect(f32x4::new(uu), u);
+            v = on_edge.bitselect(f32x4::new(vv), v);
+            w = on_edge.bitselect(f32x4::new(ww), w);
         }
         // All three edge functions of one sign (or zero): false for the NaN of unused lanes.
         let inside = (u.simd_ge(zero) & v.simd_ge(zero) & w.simd_ge(zero))
