@@ -163,20 +163,31 @@ macro_rules! blocks_of_lines {
     }};
 }
 
+/// What both kinds of block do alike: their lines, first three vertex rows and counts.
+macro_rules! common_block_fns {
+    ($t:ty, $lines:literal) => {
+        const LINES: usize = $lines;
+        #[inline(always)]
+        fn v(&self) -> &[[f32; 4]; 9] {
+            &self.v
+        }
+        #[inline(always)]
+        fn head(&self) -> &Head {
+            &self.head
+        }
+        fn head_mut(&mut self) -> &mut Head {
+            &mut self.head
+        }
+        #[inline(always)]
+        fn of(lines: &[Line], n: usize) -> &[$t] {
+            blocks_of_lines!(lines, n, $lines, $t)
+        }
+    };
+}
+
 impl Block for Tri4 {
     const EMPTY: Tri4 = Tri4 { v: [[f32::NAN; 4]; 9], head: Head::EMPTY };
-    const LINES: usize = 3;
-    #[inline(always)]
-    fn v(&self) -> &[[f32; 4]; 9] {
-        &self.v
-    }
-    #[inline(always)]
-    fn head(&self) -> &Head {
-        &self.head
-    }
-    fn head_mut(&mut self) -> &mut Head {
-        &mut self.head
-    }
+    common_block_fns!(Tri4, 3);
     #[inline(always)]
     fn quads(&self) -> Option<(&[[f32; 4]; 3], &[u32; 4])> {
         None
@@ -185,27 +196,12 @@ impl Block for Tri4 {
         debug_assert_eq!(vertices.len(), 3, "a tree of triangle blocks holds no quads");
         put_rows(&mut self.v, lane, &vertices[..3]);
     }
-    #[inline(always)]
-    fn of(lines: &[Line], n: usize) -> &[Tri4] {
-        blocks_of_lines!(lines, n, 3, Tri4)
-    }
 }
 
 impl Block for Quad4 {
     const EMPTY: Quad4 =
         Quad4 { v: [[f32::NAN; 4]; 9], v3: [[f32::NAN; 4]; 3], rot: [0; 4], head: Head::EMPTY };
-    const LINES: usize = 4;
-    #[inline(always)]
-    fn v(&self) -> &[[f32; 4]; 9] {
-        &self.v
-    }
-    #[inline(always)]
-    fn head(&self) -> &Head {
-        &self.head
-    }
-    fn head_mut(&mut self) -> &mut Head {
-        &mut self.head
-    }
+    common_block_fns!(Quad4, 4);
     #[inline(always)]
     fn quads(&self) -> Option<(&[[f32; 4]; 3], &[u32; 4])> {
         (self.head.quads != 0).then_some((&self.v3, &self.rot))
@@ -216,10 +212,6 @@ impl Block for Quad4 {
             put_rows(&mut self.v3, lane, &[d]);
         }
         self.rot[lane] = u32::from(rot);
-    }
-    #[inline(always)]
-    fn of(lines: &[Line], n: usize) -> &[Quad4] {
-        blocks_of_lines!(lines, n, 4, Quad4)
     }
 }
 
