@@ -176,12 +176,17 @@ pub(super) fn keep_quads(prims: &mut Vec<Prim>) -> bool {
     }
     *prims = prims
         .iter()
-        .flat_map(|p| match *p {
-            Prim::Quad { ref v, shape, prim, rot } => {
-                let [a, b] = Prim::quad_triangles(v, rot);
-                vec![Prim::Triangle { v: a, shape, prim }, Prim::Triangle { v: b, shape, prim: prim + 1 }]
+        .flat_map(|p| {
+            let mut out = arrayvec::ArrayVec::<Prim, 2>::new();
+            match *p {
+                Prim::Quad { ref v, shape, prim, rot } => {
+                    let [a, b] = Prim::quad_triangles(v, rot);
+                    out.push(Prim::Triangle { v: a, shape, prim });
+                    out.push(Prim::Triangle { v: b, shape, prim: prim + 1 });
+                }
+                other => out.push(other),
             }
-            other => vec![other],
+            out
         })
         .collect();
     false

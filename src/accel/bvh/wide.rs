@@ -744,13 +744,15 @@ impl Bvh8 {
     /// areas, and leaf areas times blocks, over the root's area).
     fn walk(&self) -> Walk {
         let mut walk = Walk { children: 0, triangles: 0, sah_nodes: 0.0, sah_leaves: 0.0 };
+        fn triangles<B: Block>(blocks: &[B]) -> usize {
+            blocks.iter().map(|b| b.head().triangles as usize).sum()
+        }
         let count = |c: Child| {
-            let heads: Vec<&Head> = if self.quads {
-                self.blocks::<Quad4>(c).iter().map(|b| &b.head).collect()
+            if self.quads {
+                triangles(self.blocks::<Quad4>(c))
             } else {
-                self.blocks::<Tri4>(c).iter().map(|b| &b.head).collect()
-            };
-            heads.iter().map(|h| h.triangles as usize).sum::<usize>()
+                triangles(self.blocks::<Tri4>(c))
+            }
         };
         if self.root == Child::EMPTY || self.root.is_leaf() {
             if self.root != Child::EMPTY {
@@ -855,7 +857,8 @@ impl RayTri4 {
         if leaf.quads().is_some() {
             return self.hit_kept(leaf, t_max, |_, _, _, _| true);
         }
-        // A block of triangles alone (every block of most trees): the nearest lane hit.
+        // A block of triangles alone (every block of most trees): the nearest lane hit, without
+        // `hit_kept`'s cut-out loop (through it, trees of triangles measured 6% to 13% slower).
         let [a, b, c] = self.shear_vertices::<3>(leaf.v());
         let (mut mask, t, inv, v, w) = self.lanes([a, b, c], None, t_max)?;
         let mut best = mask.trailing_zeros() as usize;
