@@ -24,11 +24,14 @@
 //! (every tap of another luminance would weigh 2^-125 or less anyway); rows are filtered only
 //! over their runs of noisy pixels.
 //!
+//! The sums are fused multiply-adds (`mul_add`: one rounding each, in every build: the SIMD
+//! builds have FMA, the portable one computes it by a call), as is the cubic of [`exp2_neg`].
+//!
 //! Taps outside the image are left out (not replicated: at a hole of 16 pixels replication
 //! would pile weight onto the border). Every output pixel is computed on its own from the
 //! previous pass, so the result is the same for any number of threads.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::bvh::simd::{Inlined, Isa};
@@ -357,7 +360,11 @@ fn filter_in_bands(
     let live: Vec<usize> = (0..layers.len())
         .filter(|&i| a.strength(layers[i].component).1 > 0 && !layers[i].image.is_black())
         .collect();
-    let mut out: Vec<Image> = layers.iter().map(|l| l.image.clone()).collect();
+    // Copied in parallel: the copies were a third of the time one thread worked alone.
+    let mut out: Vec<Image> = layers
+        .iter()
+        .map(|l| Image { pixels: l.image.pixels.par_iter().copied().collect(), ..*l.image })
+        .collect();
     if live.is_empty() || w == 0 || h == 0 {
         return out;
     }
@@ -400,24 +407,7 @@ fn filter_in_bands(
         let row0 = b0.saturating_sub(reach);
         let held = row0..(b1 + reach).min(h);
         cur[..held.len() * k * PLANES * w].par_chunks_mut(k * PLANES * w).enumerate().for_each(|(r, row)| {
-            let y = row0 + r;
-            for (c, &li) in live.iter().enumerate() {
-                let layer = layers[li];
-                let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
-                for x in 0..w {
-                    let i = y * w + x;
-                    let (v, a) = (layer.image.pixels[i], albedo(i));
-                    let u = demodulate(v, a);
-                    let (lu, lv) = (luminance(u), luminance(v));
-                    let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
-                    let var = layer.variance.map_or(0.0, |v| v[i].max(0.0)) * ratio * ratio;
-                    for (p, value) in
-                        [u.x, u.y, u.z, lu, if var.is_finite() { var } else { 0.0 }].into_iter().enumerate()
-                    {
-                        planes[p * w + x] = value;
-                    }
-                }
-            }
+            isa.run(Demodulate { layers, live: &live, albedo: &film.albedo.pixels, w, y: row0 + r, row })
         });
         for pass in 0..run {
             let rows = b0.saturating_sub(rest[pass as usize])..(b1 + rest[pass as usize]).min(h);
@@ -501,16 +491,55 @@ impl Inlined for Row<'_, '_> {
     }
 }
 
+/// One row of the working buffer from the layers ([`filter_in_bands`]): per live layer its
+/// illumination (demodulated by the albedo), that illumination's luminance, and its variance
+/// (the layer's, scaled by the squared ratio of the luminances). A job [`Isa::run`] compiles
+/// for its build, in flat loops over the row's pixels.
+struct Demodulate<'p, 'a> {
+    layers: &'p [FilterInput<'a>],
+    live: &'p [usize],
+    albedo: &'p [Vec3],
+    w: usize,
+    y: usize,
+    row: &'p mut [f32],
+}
+
+impl Inlined for Demodulate<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let (w, y) = (self.w, self.y);
+        let albedo = &self.albedo[y * w..(y + 1) * w];
+        for (c, &li) in self.live.iter().enumerate() {
+            let layer = self.layers[li];
+            let pixels = &layer.image.pixels[y * w..(y + 1) * w];
+            let planes = &mut self.row[c * PLANES * w..(c + 1) * PLANES * w];
+            let (pr, rest) = planes.split_at_mut(w);
+            let (pg, rest) = rest.split_at_mut(w);
+            let (pb, rest) = rest.split_at_mut(w);
+            let (pl, pv) = rest.split_at_mut(w);
+            let variance = |x: usize| layer.variance.map_or(0.0, |v| v[y * w + x].max(0.0));
+            for x in 0..w {
+                let (v, a) = (pixels[x], albedo[x].max(Vec3::ZERO));
+                let u = demodulate(v, a);
+                let (lu, lv) = (luminance(u), luminance(v));
+                let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
+                let var = variance(x) * ratio * ratio;
+                (pr[x], pg[x], pb[x], pl[x]) = (u.x, u.y, u.z, lu);
+                pv[x] = if var.is_finite() { var } else { 0.0 };
+            }
+        }
+    }
+}
+
 /// The illumination that albedo `a` turned into `v`: `v / a` per channel, and where a channel
 /// of the albedo is (nearly) black, so that its light cannot be seen, the grey light
 /// `lum(v) / lum(a)`. Multiplied back by `a`, that channel's change vanishes anyway; the
 /// estimate keeps the luminance of a red surface's light comparable with a grey one's.
 #[inline(always)]
 fn demodulate(v: Vec3, a: Vec3) -> Vec3 {
-    if a.min_element() >= MIN_ALBEDO {
-        // Every channel seen: one vector division.
-        return Vec3::from(Vec3A::from(v) / Vec3A::from(a));
-    }
+    // Without a branch, so a row's loop vectorises: where every channel is seen, `v / a`.
     let grey = luminance(v) / luminance(a).max(MIN_ALBEDO);
     Vec3::select(a.cmpge(Vec3::splat(MIN_ALBEDO)), v / a.max(Vec3::splat(MIN_ALBEDO)), Vec3::splat(grey))
 }
@@ -799,7 +828,7 @@ impl Pass<'_> {
                     let centre = dx == 0 && dy == 0;
                     for j in 0..n {
                         let kwj = if centre || kc[j] == kq[j] { kw } else { 0.0 };
-                        sm[j] += kwj * vq[j];
+                        sm[j] = kwj.mul_add(vq[j], sm[j]);
                         wt[j] += kwj;
                     }
                     if blur {
@@ -997,8 +1026,8 @@ fn geometry(hk: f32, sigma_n: f32, inv_dist: f32, guides: TapGuides, geo: &mut [
         (&nxq[..n], &nyq[..n], &nzq[..n], &zc[..n], &zq[..n], &idz[..n], &mut e[..n]);
     for j in 0..n {
         geo[j] = if kc[j] == kq[j] { hk } else { 0.0 };
-        let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
-        e[j] = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
+        let dot = nzc[j].mul_add(nzq[j], nyc[j].mul_add(nyq[j], nxc[j] * nxq[j]));
+        e[j] = sigma_n.mul_add(1.0 - dot, (zc[j] - zq[j]).abs() * idz[j] * inv_dist);
     }
 }
 
@@ -1025,13 +1054,13 @@ fn accumulate_one(
     let (ar, ag, ab, av, aw) = (&mut ar[..n], &mut ag[..n], &mut ab[..n], &mut av[..n], &mut aw[..n]);
     for j in 0..n {
         let geo = if kc[j] == kq[j] { hk } else { 0.0 };
-        let dot = nxc[j] * nxq[j] + nyc[j] * nyq[j] + nzc[j] * nzq[j];
-        let e = sigma_n * (1.0 - dot) + (zc[j] - zq[j]).abs() * idz[j] * inv_dist;
+        let dot = nzc[j].mul_add(nzq[j], nyc[j].mul_add(nyq[j], nxc[j] * nxq[j]));
+        let e = sigma_n.mul_add(1.0 - dot, (zc[j] - zq[j]).abs() * idz[j] * inv_dist);
         let k = tap_weight(geo, e, (lc[j], lq[j]), isg[j]);
-        ar[j] += k * (rq[j] - rc[j]);
-        ag[j] += k * (gq[j] - gc[j]);
-        ab[j] += k * (bq[j] - bc[j]);
-        av[j] += k * k * vq[j];
+        ar[j] = k.mul_add(rq[j] - rc[j], ar[j]);
+        ag[j] = k.mul_add(gq[j] - gc[j], ag[j]);
+        ab[j] = k.mul_add(bq[j] - bc[j], ab[j]);
+        av[j] = (k * k).mul_add(vq[j], av[j]);
         aw[j] += k;
     }
 }
@@ -1052,10 +1081,10 @@ fn accumulate(
     let (ar, ag, ab, av, aw) = (&mut ar[..n], &mut ag[..n], &mut ab[..n], &mut av[..n], &mut aw[..n]);
     for j in 0..n {
         let k = tap_weight(geo[j], e[j], (lc[j], lq[j]), isg[j]);
-        ar[j] += k * (rq[j] - rc[j]);
-        ag[j] += k * (gq[j] - gc[j]);
-        ab[j] += k * (bq[j] - bc[j]);
-        av[j] += k * k * vq[j];
+        ar[j] = k.mul_add(rq[j] - rc[j], ar[j]);
+        ag[j] = k.mul_add(gq[j] - gc[j], ag[j]);
+        ab[j] = k.mul_add(bq[j] - bc[j], ab[j]);
+        av[j] = (k * k).mul_add(vq[j], av[j]);
         aw[j] += k;
     }
 }
@@ -1094,7 +1123,7 @@ fn accumulate_linear(
     {
         let (vq, av, aw) = (&vq[..n], &mut av[..n], &mut aw[..n]);
         for j in 0..n {
-            av[j] += k[j] * k[j] * vq[j];
+            av[j] = (k[j] * k[j]).mul_add(vq[j], av[j]);
             aw[j] += k[j];
         }
     }
@@ -1117,7 +1146,7 @@ fn accumulate_linear(
     if dx != 0.0 && dy != 0.0 {
         let (sxy, d) = (&mut sxy[..n], dx * dy);
         for j in 0..n {
-            sxy[j] += k[j] * d;
+            sxy[j] = k[j].mul_add(d, sxy[j]);
         }
     }
 }
@@ -1130,8 +1159,8 @@ fn weight_moments(k: &[f32], d: f32, [s, ss]: [&mut [f32]; 2]) {
     let n = k.len();
     let (s, ss, dd) = (&mut s[..n], &mut ss[..n], d * d);
     for j in 0..n {
-        s[j] += k[j] * d;
-        ss[j] += k[j] * dd;
+        s[j] = k[j].mul_add(d, s[j]);
+        ss[j] = k[j].mul_add(dd, ss[j]);
     }
 }
 
@@ -1151,12 +1180,12 @@ fn differences<const X: bool, const Y: bool>(
         (&c[..n], &q[..n], &mut sum[..n], &mut along_x[..n], &mut along_y[..n]);
     for j in 0..n {
         let d = q[j] - c[j];
-        sum[j] += k[j] * d;
+        sum[j] = k[j].mul_add(d, sum[j]);
         if X {
-            along_x[j] += k[j] * dx * d;
+            along_x[j] = (k[j] * dx).mul_add(d, along_x[j]);
         }
         if Y {
-            along_y[j] += k[j] * dy * d;
+            along_y[j] = (k[j] * dy).mul_add(d, along_y[j]);
         }
     }
 }
@@ -1177,7 +1206,7 @@ fn tap_weights((geo, e, isg): (&[f32], &[f32], &[f32]), lc: &[f32], lq: &[f32], 
 /// `geo 2^-(e + |Δl| isg)`.
 #[inline(always)]
 fn tap_weight(geo: f32, e: f32, (lc, lq): (f32, f32), isg: f32) -> f32 {
-    geo * exp2_neg(e + (lc - lq).abs() * isg)
+    geo * exp2_neg((lc - lq).abs().mul_add(isg, e))
 }
 
 /// `2^-t` for `t >= 0` (NaN and anything above 125 give about 2^-125), to a relative error
@@ -1194,7 +1223,7 @@ fn exp2_neg(t: f32) -> f32 {
     let i = m.to_bits().wrapping_sub(MAGIC.to_bits());
     let f = t - (m - MAGIC);
     // 2^-f for f in [-1/2, 1/2].
-    let p = 1.0 + f * (-0.693_316_6 + f * (0.241_924_8 + f * -0.054_602_28));
+    let p = f.mul_add(f.mul_add(f.mul_add(-0.054_602_28, 0.241_924_8), -0.693_316_6), 1.0);
     p * f32::from_bits((127 - i) << 23)
 }
 

@@ -44,14 +44,17 @@ pub const RADIUS: usize = 7;
 /// of the samples `share`: `(A, B)`. A pixel whose halves are not both sampled gets its mean
 /// in both.
 pub fn halves(u: &Image, half: &Image, share: &[f32]) -> (Image, Image) {
-    let (mut a, mut b) = (u.clone(), u.clone());
-    a.pixels.par_iter_mut().zip(&mut b.pixels).zip(&half.pixels).zip(share).for_each(|(((a, b), &h), &s)| {
-        if s > 0.0 && s < 1.0 {
-            *b = h / s;
-            *a = (*a - h) / (1.0 - s);
-        }
-    });
-    (a, b)
+    // Both written in one parallel step (not two copies of the mean made first, one thread's
+    // copying while the other waited).
+    let (a, b) = u
+        .pixels
+        .par_iter()
+        .zip(&half.pixels)
+        .zip(share)
+        .map(|((&u, &h), &s)| if s > 0.0 && s < 1.0 { ((u - h) / (1.0 - s), h / s) } else { (u, u) })
+        .unzip();
+    let image = |pixels| Image { width: u.width, height: u.height, pixels };
+    (image(a), image(b))
 }
 
 /// The estimated errors `(e_U, e_F)` of a pixel (module docs), from the halves `a`, `b`, their

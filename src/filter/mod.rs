@@ -758,11 +758,18 @@ pub fn composite<'a>(
     }
     let layers: Vec<FilterInput> = filtered.iter().map(|&c| layer(c)).collect();
     let mut images = filter_layers(&layers, kernel, film, stops);
-    let mut out = film.components[Emitted].clone();
-    for c in [Direct, Caustic, Indirect] {
-        let image = filtered.iter().position(|&f| f == c).map_or(&film.components[c], |i| &images[i]);
-        out.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
-    }
+    let [direct, caustic, indirect] = [Direct, Caustic, Indirect]
+        .map(|c| filtered.iter().position(|&f| f == c).map_or(&film.components[c], |i| &images[i]));
+    // The sum in one parallel step, in the order emitted, direct, caustic, indirect.
+    let emitted = &film.components[Emitted];
+    let out = Image {
+        width: emitted.width,
+        height: emitted.height,
+        pixels: (0..emitted.pixels.len())
+            .into_par_iter()
+            .map(|i| emitted.pixels[i] + direct.pixels[i] + caustic.pixels[i] + indirect.pixels[i])
+            .collect(),
+    };
     // The filtered indirect layer is handed out, not copied.
     let indirect = filtered.iter().position(|&f| f == Indirect).map(|i| images.swap_remove(i));
     (Cow::Owned(out), indirect)

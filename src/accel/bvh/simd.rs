@@ -80,7 +80,9 @@ impl BoxTest for Portable {
     }
 }
 
-/// Proof that this CPU has AVX and AVX2: obtained only from [`Avx2::detect`].
+/// Proof that this CPU has AVX, AVX2 and FMA: obtained only from [`Avx2::detect`]. (Every CPU
+/// with AVX2 has FMA; the builds use it only where code asks for `mul_add`, which the portable
+/// build computes by a call, to the same bits.)
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, Debug)]
 pub struct Avx2 {
@@ -91,8 +93,10 @@ pub struct Avx2 {
 impl Avx2 {
     /// The proof, when this CPU has the features.
     pub fn detect() -> Option<Avx2> {
-        (std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"))
-            .then_some(Avx2 { _detected: () })
+        (std::is_x86_feature_detected!("avx")
+            && std::is_x86_feature_detected!("avx2")
+            && std::is_x86_feature_detected!("fma"))
+        .then_some(Avx2 { _detected: () })
     }
 
     /// Whether this CPU runs 256-bit vectors at full width ([`runs_256_bits_whole`]).
@@ -104,14 +108,14 @@ impl Avx2 {
 
     /// The closest hit, by a traversal compiled for AVX2.
     pub fn intersect<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
-        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2 and FMA, all that
         // `intersect_avx2` is compiled for.
         unsafe { intersect_avx2::<N>(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX2.
     pub fn occluded<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
-        // SAFETY: as in `intersect`: AVX and AVX2 were detected.
+        // SAFETY: as in `intersect`: AVX, AVX2 and FMA were detected.
         unsafe { occluded_avx2::<N>(self, bvh, ray, filter) }
     }
 }
@@ -136,13 +140,13 @@ fn runs_256_bits_whole(vendor: [u32; 3], signature: u32) -> bool {
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
+#[target_feature(enable = "avx,avx2,fma")]
 fn intersect_avx2<const N: usize>(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
     bvh.intersect_with::<Avx2, N>(ray, filter, k)
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
+#[target_feature(enable = "avx,avx2,fma")]
 fn occluded_avx2<const N: usize>(k: Avx2, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
     bvh.occluded_with::<Avx2, N>(ray, filter, k)
 }
@@ -205,7 +209,7 @@ impl BoxTest for Avx2 {
     }
 }
 
-/// Proof that this CPU has AVX-512 F and VL besides AVX and AVX2: obtained only from
+/// Proof that this CPU has AVX-512 F and VL besides AVX, AVX2 and FMA: obtained only from
 /// [`Avx512::detect`].
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, Debug)]
@@ -225,20 +229,20 @@ impl Avx512 {
     /// The closest hit, by a traversal compiled for AVX-512 (32 vector registers, so the
     /// ray's values stay in registers beside the triangle test's).
     pub fn intersect<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
-        // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2, FMA, AVX-512 F and VL, all
         // that `intersect_avx512` is compiled for.
         unsafe { intersect_avx512::<N>(self, bvh, ray, filter) }
     }
 
     /// Any hit, by a traversal compiled for AVX-512.
     pub fn occluded<const N: usize>(self, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
-        // SAFETY: as in `intersect`: AVX, AVX2, AVX-512 F and VL were detected.
+        // SAFETY: as in `intersect`: AVX, AVX2, FMA, AVX-512 F and VL were detected.
         unsafe { occluded_avx512::<N>(self, bvh, ray, filter) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx,avx2,fma,avx512f,avx512vl")]
 fn intersect_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> Option<Hit> {
     bvh.intersect_with::<Avx512, N>(ray, filter, k)
 }
@@ -254,17 +258,17 @@ pub trait Inlined {
 
 #[cfg(target_arch = "x86_64")]
 impl Avx2 {
-    /// `job`, compiled for AVX and AVX2 as far as it inlines (see [`Inlined`]).
+    /// `job`, compiled for AVX, AVX2 and FMA as far as it inlines (see [`Inlined`]).
     #[inline(always)]
     pub fn run<J: Inlined>(self, job: J) -> J::Output {
-        // SAFETY: `self` exists only when `detect` found AVX and AVX2, all that `run_avx2` is
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2 and FMA, all that `run_avx2` is
         // compiled for.
         unsafe { run_avx2(job) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
+#[target_feature(enable = "avx,avx2,fma")]
 fn run_avx2<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
@@ -277,20 +281,20 @@ impl Avx512 {
     /// build's bit for bit.
     #[inline(always)]
     pub fn run<J: Inlined>(self, job: J) -> J::Output {
-        // SAFETY: `self` exists only when `detect` found AVX, AVX2, AVX-512 F and VL, all that
+        // SAFETY: `self` exists only when `detect` found AVX, AVX2, FMA, AVX-512 F and VL, all that
         // `run_avx512` is compiled for.
         unsafe { run_avx512(job) }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx,avx2,fma,avx512f,avx512vl")]
 fn run_avx512<J: Inlined>(job: J) -> J::Output {
     job.run()
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx,avx2,fma,avx512f,avx512vl")]
 fn occluded_avx512<const N: usize>(k: Avx512, bvh: &Bvh8, ray: &Ray, filter: Filter) -> bool {
     bvh.occluded_with::<Avx512, N>(ray, filter, k)
 }
