@@ -31,7 +31,7 @@
 //! would pile weight onto the border). Every output pixel is computed on its own from the
 //! previous pass, so the result is the same for any number of threads.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::accel::bvh::simd::{Inlined, Isa};
@@ -360,7 +360,8 @@ fn filter_in_bands(
     let live: Vec<usize> = (0..layers.len())
         .filter(|&i| a.strength(layers[i].component).1 > 0 && !layers[i].image.is_black())
         .collect();
-    // Copied in parallel: the copies were a third of the time one thread worked alone.
+    // Copied in parallel: copies made by the calling thread alone (here, of the halves and of
+    // the sum of the layers) were two fifths of its time while the pool's threads waited.
     let mut out: Vec<Image> = layers
         .iter()
         .map(|l| Image { pixels: l.image.pixels.par_iter().copied().collect(), ..*l.image })
@@ -407,7 +408,24 @@ fn filter_in_bands(
         let row0 = b0.saturating_sub(reach);
         let held = row0..(b1 + reach).min(h);
         cur[..held.len() * k * PLANES * w].par_chunks_mut(k * PLANES * w).enumerate().for_each(|(r, row)| {
-            isa.run(Demodulate { layers, live: &live, albedo: &film.albedo.pixels, w, y: row0 + r, row })
+            let y = row0 + r;
+            for (c, &li) in live.iter().enumerate() {
+                let layer = layers[li];
+                let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
+                for x in 0..w {
+                    let i = y * w + x;
+                    let (v, a) = (layer.image.pixels[i], albedo(i));
+                    let u = demodulate(v, a);
+                    let (lu, lv) = (luminance(u), luminance(v));
+                    let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
+                    let var = layer.variance.map_or(0.0, |v| v[i].max(0.0)) * ratio * ratio;
+                    for (p, value) in
+                        [u.x, u.y, u.z, lu, if var.is_finite() { var } else { 0.0 }].into_iter().enumerate()
+                    {
+                        planes[p * w + x] = value;
+                    }
+                }
+            }
         });
         for pass in 0..run {
             let rows = b0.saturating_sub(rest[pass as usize])..(b1 + rest[pass as usize]).min(h);
@@ -491,55 +509,16 @@ impl Inlined for Row<'_, '_> {
     }
 }
 
-/// One row of the working buffer from the layers ([`filter_in_bands`]): per live layer its
-/// illumination (demodulated by the albedo), that illumination's luminance, and its variance
-/// (the layer's, scaled by the squared ratio of the luminances). A job [`Isa::run`] compiles
-/// for its build, in flat loops over the row's pixels.
-struct Demodulate<'p, 'a> {
-    layers: &'p [FilterInput<'a>],
-    live: &'p [usize],
-    albedo: &'p [Vec3],
-    w: usize,
-    y: usize,
-    row: &'p mut [f32],
-}
-
-impl Inlined for Demodulate<'_, '_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn run(self) {
-        let (w, y) = (self.w, self.y);
-        let albedo = &self.albedo[y * w..(y + 1) * w];
-        for (c, &li) in self.live.iter().enumerate() {
-            let layer = self.layers[li];
-            let pixels = &layer.image.pixels[y * w..(y + 1) * w];
-            let planes = &mut self.row[c * PLANES * w..(c + 1) * PLANES * w];
-            let (pr, rest) = planes.split_at_mut(w);
-            let (pg, rest) = rest.split_at_mut(w);
-            let (pb, rest) = rest.split_at_mut(w);
-            let (pl, pv) = rest.split_at_mut(w);
-            let variance = |x: usize| layer.variance.map_or(0.0, |v| v[y * w + x].max(0.0));
-            for x in 0..w {
-                let (v, a) = (pixels[x], albedo[x].max(Vec3::ZERO));
-                let u = demodulate(v, a);
-                let (lu, lv) = (luminance(u), luminance(v));
-                let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
-                let var = variance(x) * ratio * ratio;
-                (pr[x], pg[x], pb[x], pl[x]) = (u.x, u.y, u.z, lu);
-                pv[x] = if var.is_finite() { var } else { 0.0 };
-            }
-        }
-    }
-}
-
 /// The illumination that albedo `a` turned into `v`: `v / a` per channel, and where a channel
 /// of the albedo is (nearly) black, so that its light cannot be seen, the grey light
 /// `lum(v) / lum(a)`. Multiplied back by `a`, that channel's change vanishes anyway; the
 /// estimate keeps the luminance of a red surface's light comparable with a grey one's.
 #[inline(always)]
 fn demodulate(v: Vec3, a: Vec3) -> Vec3 {
-    // Without a branch, so a row's loop vectorises: where every channel is seen, `v / a`.
+    if a.min_element() >= MIN_ALBEDO {
+        // Every channel seen: one vector division.
+        return Vec3::from(Vec3A::from(v) / Vec3A::from(a));
+    }
     let grey = luminance(v) / luminance(a).max(MIN_ALBEDO);
     Vec3::select(a.cmpge(Vec3::splat(MIN_ALBEDO)), v / a.max(Vec3::splat(MIN_ALBEDO)), Vec3::splat(grey))
 }
