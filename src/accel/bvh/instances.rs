@@ -51,15 +51,16 @@ impl Instances {
                 Some(&m) => m,
                 None => {
                     // The build leaves out degenerate triangles.
+                    use rayon::iter::ParallelIterator;
                     let pair = mesh.indices.len() >= options.quad_min;
-                    let mut prims =
-                        super::mesh_prims(mesh.indices.len() as u32, 0, pair, |t| mesh.local_triangle(t));
-                    let pair = pair && super::keep_quads(&mut prims);
+                    let mut prims: Vec<_> =
+                        super::mesh_prims(mesh.indices.len() as u32, 0, pair, |t| mesh.local_triangle(t))
+                            .collect();
+                    let options = if pair { super::settle_quads(&mut prims, options) } else { options };
                     if prims.len() > super::wide::MAX_PRIMS as usize {
                         return Err(TooLarge(prims.len()));
                     }
-                    meshes
-                        .push(build::build(prims, if pair { super::quad_options(options) } else { options }));
+                    meshes.push(build::build(prims, options));
                     by_arrays.insert(mesh.arrays(), meshes.len() as u32 - 1);
                     meshes.len() as u32 - 1
                 }

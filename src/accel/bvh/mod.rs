@@ -148,17 +148,14 @@ pub(super) fn degenerate(v: &[Vec3; 3]) -> bool {
 /// (docs/RESULTS.md, the BVH's section).
 pub const QUAD_MIN: usize = 1 << 18;
 
-/// The build settings for a tree of quads: a block of them costs two triangle tests, so a
-/// traversal step costs half as much beside it.
-pub(super) fn quad_options(options: BuildOptions) -> BuildOptions {
-    BuildOptions { traversal_cost: options.traversal_cost * 0.5, ..options }
-}
-
-/// Keeps `prims`' quads where at least two thirds of their triangles are in one (a quad lane
-/// takes 64 bytes, a triangle's 48: at half the triangles paired the bytes are even, and each
-/// block of quads tests twice); otherwise splits them back into triangles. Returns whether
-/// quads are kept.
-pub(super) fn keep_quads(prims: &mut Vec<Prim>) -> bool {
+/// The build settings for a tree of `prims`, which may hold quads: keeps the quads where at
+/// least two thirds of the triangles are in one (a quad lane takes 64 bytes, a triangle's 48:
+/// at half the triangles paired the bytes are even, and each block of quads tests twice), with
+/// the traversal cost halved (a block of quads costs two triangle tests, so a traversal step
+/// costs half as much beside it); otherwise splits them back into triangles and keeps
+/// `options`.
+pub(super) fn settle_quads(prims: &mut Vec<Prim>, options: BuildOptions) -> BuildOptions {
+    let with_quads = BuildOptions { traversal_cost: options.traversal_cost * 0.5, ..options };
     let (mut quads, mut triangles) = (0usize, 0usize);
     for p in prims.iter() {
         match p {
@@ -168,11 +165,11 @@ pub(super) fn keep_quads(prims: &mut Vec<Prim>) -> bool {
         }
     }
     if quads == 0 {
-        return false;
+        return options;
     }
     // 2 quads / (2 quads + triangles) >= 2 / 3.
     if quads >= triangles {
-        return true;
+        return with_quads;
     }
     *prims = prims
         .iter()
@@ -189,46 +186,35 @@ pub(super) fn keep_quads(prims: &mut Vec<Prim>) -> bool {
             out
         })
         .collect();
-    false
+    options
 }
 
 /// The triangles of a mesh of `count` triangles (`triangle(t)` the vertices of triangle `t`) as
-/// primitives of shape `shape`: with `pair`, each even triangle and the next as a
+/// primitives of shape `shape`, in order: with `pair`, each even triangle and the next as a
 /// [`Prim::Quad`] where they share an edge, as meshes made of quads have them.
 pub(super) fn mesh_prims(
     count: u32,
     shape: u32,
     pair: bool,
-    triangle: impl Fn(u32) -> [Vec3; 3] + Sync,
-) -> Vec<Prim> {
+    triangle: impl Fn(u32) -> [Vec3; 3] + Sync + Send,
+) -> impl rayon::iter::ParallelIterator<Item = Prim> {
     use rayon::prelude::*;
-    if !pair {
-        return (0..count)
-            .into_par_iter()
-            .map(|t| Prim::Triangle { v: triangle(t), shape, prim: t })
-            .collect();
-    }
-    (0..count.div_ceil(2))
-        .into_par_iter()
-        .flat_map_iter(|pair| {
-            let t = 2 * pair;
-            let mut out = arrayvec::ArrayVec::<Prim, 2>::new();
-            let a = triangle(t);
-            if t + 1 == count {
+    (0..count.div_ceil(2)).into_par_iter().flat_map_iter(move |pair_index| {
+        let t = 2 * pair_index;
+        let mut out = arrayvec::ArrayVec::<Prim, 2>::new();
+        let a = triangle(t);
+        let b = (t + 1 < count).then(|| triangle(t + 1));
+        match b.and_then(|b| if pair { Prim::quad(a, b, shape, t) } else { None }) {
+            Some(q) => out.push(q),
+            None => {
                 out.push(Prim::Triangle { v: a, shape, prim: t });
-                return out;
-            }
-            let b = triangle(t + 1);
-            match Prim::quad(a, b, shape, t) {
-                Some(q) => out.push(q),
-                None => {
-                    out.push(Prim::Triangle { v: a, shape, prim: t });
+                if let Some(b) = b {
                     out.push(Prim::Triangle { v: b, shape, prim: t + 1 });
                 }
             }
-            out
-        })
-        .collect()
+        }
+        out
+    })
 }
 
 /// The BVH over a scene: the binary SAH tree and its 8-wide collapse, which rays traverse.
@@ -347,9 +333,12 @@ impl Bvh {
                 // Instances go to the second level.
                 Geometry::Triangles(mesh) if mesh.instance.is_some() => {}
                 Geometry::Triangles(mesh) => {
-                    // Every triangle, paired where it can be; the build leaves out the
-                    // degenerate ones.
-                    prims.extend(mesh_prims(mesh.indices.len() as u32, s as u32, pair, |t| mesh.triangle(t)));
+                    // Every triangle, paired where it can be, written in place; the build
+                    // leaves out the degenerate ones.
+                    use rayon::prelude::*;
+                    prims.par_extend(mesh_prims(mesh.indices.len() as u32, s as u32, pair, |t| {
+                        mesh.triangle(t)
+                    }));
                 }
             }
         }
@@ -360,7 +349,7 @@ impl Bvh {
             BuildOptions { max_leaf: options.max_leaf.clamp(1, wide::MAX_LEAF as usize), ..options };
         let cutouts = Cutouts::new(scene).map(std::sync::Arc::new);
         let instances = instances::Instances::new(scene, options, cutouts.as_deref())?.map(Box::new);
-        let first = if pair && keep_quads(&mut prims) { quad_options(options) } else { options };
+        let first = if pair { settle_quads(&mut prims, options) } else { options };
         let mut bvh = Bvh { instances, ..build::build(prims, first) };
         if let Some(c) = &cutouts {
             bvh.wide.mark_cutouts(|shape| c.cuts(shape));
