@@ -360,11 +360,21 @@ fn filter_in_bands(
     let live: Vec<usize> = (0..layers.len())
         .filter(|&i| a.strength(layers[i].component).1 > 0 && !layers[i].image.is_black())
         .collect();
-    // Copied in parallel, as are the halves and the final sum: copies by the calling thread
-    // alone, while the pool's threads waited, were two fifths of its time (perf, 256x256).
+    // The layers left as they are copied in parallel, as are the halves and the final sum:
+    // copies by the calling thread alone, while the pool's threads waited, were two fifths of
+    // its time (perf, 256x256).
     let mut out: Vec<Image> = layers
         .iter()
-        .map(|l| Image { pixels: l.image.pixels.par_iter().copied().collect(), ..*l.image })
+        .enumerate()
+        .map(|(i, l)| {
+            // A live layer's every row is written by its multiply-back, from its input.
+            let pixels = if live.contains(&i) {
+                vec![Vec3::ZERO; l.image.pixels.len()]
+            } else {
+                l.image.pixels.par_iter().copied().collect()
+            };
+            Image { pixels, ..*l.image }
+        })
         .collect();
     if live.is_empty() || w == 0 || h == 0 {
         return out;
@@ -436,19 +446,20 @@ fn filter_in_bands(
         // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
         // first made again as it was (bounded by `bound`).
         for (c, &li) in live.iter().enumerate() {
-            let variance = layers[li].variance;
+            let (variance, input) = (layers[li].variance, &layers[li].image.pixels);
             let image = &mut out[li];
             // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
             let cur = if (run - strengths[c].1.min(run)).is_multiple_of(2) { &cur } else { &next };
             image.pixels[b0 * w..b1 * w].par_chunks_mut(w).enumerate().for_each(|(r, row)| {
                 let y = b0 + r;
                 let base = ((y - row0) * k + c) * PLANES * w;
-                for (x, px) in row.iter_mut().enumerate() {
+                for (x, o) in row.iter_mut().enumerate() {
                     let i = y * w + x;
+                    let px = &input[i];
                     let albedo = albedo(i);
                     let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
                     let change = albedo * (last - demodulate(*px, albedo));
-                    *px += match (bound, variance) {
+                    let change = match (bound, variance) {
                         (Some(k), Some(v)) => {
                             let lum = luminance(*px);
                             let scale = if lum > 0.0 { (*px / lum).max(Vec3::ONE) } else { Vec3::ONE };
@@ -457,6 +468,7 @@ fn filter_in_bands(
                         }
                         _ => change,
                     };
+                    *o = *px + change;
                 }
             });
         }

@@ -58,24 +58,23 @@ pub fn halves(u: &Image, half: &Image, share: &[f32]) -> (Image, Image) {
 }
 
 /// The estimated errors `(e_U, e_F)` of a pixel (module docs), from the halves `a`, `b`, their
-/// filtered `fa`, `fb` and the second half's share `s`; none when a half has no samples.
-fn errors(a: Vec3, b: Vec3, fa: Vec3, fb: Vec3, s: f32) -> Option<(f64, f64)> {
-    if !(s > 0.0 && s < 1.0) {
-        return None;
-    }
-    let sq = |v: Vec3| v.as_dvec3().length_squared();
-    let s = s as f64;
+/// filtered `fa`, `fb` and the second half's share `s`; none when a half has no samples or an
+/// error is not finite. In f32: the same loop in f64 took twice as long (the window's sums
+/// are of these, in f32 too: [`window_sums`]).
+#[inline(always)]
+fn errors(a: Vec3, b: Vec3, fa: Vec3, fb: Vec3, s: f32) -> Option<(f32, f32)> {
+    let sq = |v: Vec3| v.length_squared();
     let ab = sq(a - b);
     let d = sq(fa - fb);
     let e_a = sq(fa - b) - ab * (1.0 - s);
     let e_b = sq(fb - a) - ab * s;
     let e_f = (e_a - d * s + e_b - d * (1.0 - s)) / 2.0 + d * s * (1.0 - s);
     let e_u = ab * s * (1.0 - s);
-    (e_u.is_finite() && e_f.is_finite()).then_some((e_u, e_f))
+    (s > 0.0 && s < 1.0 && e_u.is_finite() && e_f.is_finite()).then_some((e_u, e_f))
 }
 
 /// Sums of each plane of `v` (row-major, `w` by `h`) over the window around each pixel,
-/// clipped at the borders, handed row by row to `row(sums, out)` with the row of `out`, in f64.
+/// clipped at the borders, handed row by row to `row(sums, out)` with the row of `out`, in f32.
 ///
 /// Each window is summed from its own pixels only (no running sums, whose subtraction would
 /// carry one bright pixel's rounding across the image), with three additions a pixel and a
@@ -88,7 +87,7 @@ fn window_sums<const N: usize>(
     w: usize,
     h: usize,
     out: &mut [f32],
-    row: impl Fn([&[f64]; N], &mut [f32]) + Sync,
+    row: impl Fn([&[f32]; N], &mut [f32]) + Sync,
 ) {
     const L: usize = 2 * RADIUS + 1;
     if w == 0 {
@@ -99,7 +98,7 @@ fn window_sums<const N: usize>(
     let plane_row =
         |k: usize, p: usize| (p >= RADIUS && p - RADIUS < h).then(|| &v[k][(p - RADIUS) * w..][..w]);
     out.par_chunks_mut(L * w).enumerate().for_each_init(
-        || (vec![0.0f64; L * N * w], vec![0.0f64; L * N * w], Line::new(N, w)),
+        || (vec![0.0f32; L * N * w], vec![0.0f32; L * N * w], Line::new(N, w)),
         |(suffix, prefix, line), (band, rows)| {
             let (first, n) = (band * L, rows.len() / w);
             let at = |i: usize, k: usize| (i * N + k) * w;
@@ -134,11 +133,11 @@ fn window_sums<const N: usize>(
 }
 
 /// `out = before + row`, either absent counting as zeros.
-fn add_row(out: &mut [f64], before: Option<&[f64]>, row: Option<&[f32]>) {
+fn add_row(out: &mut [f32], before: Option<&[f32]>, row: Option<&[f32]>) {
     match (before, row) {
-        (Some(b), Some(r)) => out.iter_mut().zip(b).zip(r).for_each(|((o, &b), &r)| *o = b + r as f64),
+        (Some(b), Some(r)) => out.iter_mut().zip(b).zip(r).for_each(|((o, &b), &r)| *o = b + r),
         (Some(b), None) => out.copy_from_slice(b),
-        (None, Some(r)) => out.iter_mut().zip(r).for_each(|(o, &r)| *o = r as f64),
+        (None, Some(r)) => out.copy_from_slice(r),
         (None, None) => out.fill(0.0),
     }
 }
@@ -148,10 +147,10 @@ fn add_row(out: &mut [f64], before: Option<&[f64]>, row: Option<&[f32]>) {
 struct Line {
     n: usize,
     w: usize,
-    columns: Vec<f64>,
-    suffix: Vec<f64>,
-    prefix: Vec<f64>,
-    sums: Vec<f64>,
+    columns: Vec<f32>,
+    suffix: Vec<f32>,
+    prefix: Vec<f32>,
+    sums: Vec<f32>,
 }
 
 impl Line {
@@ -168,7 +167,7 @@ impl Line {
     }
 
     /// Plane `k`'s columns, without the zeros either side.
-    fn column(&mut self, k: usize) -> &mut [f64] {
+    fn column(&mut self, k: usize) -> &mut [f32] {
         let padded = self.w + 2 * RADIUS;
         &mut self.columns[k * padded + RADIUS..][..self.w]
     }
@@ -232,15 +231,19 @@ pub fn blend(u: &Image, (a, b): (&Image, &Image), (fa, fb): (Image, &Image), sha
 /// sampled halves (adaptive sampling stopped them early: the check cannot speak there, and the
 /// pixels it stopped were the clean ones).
 fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Image), share: &[f32]) -> Plane {
-    // Per pixel e_U, e_F and whether it counts (module docs), plane by plane.
-    let (mut e_u, mut e_f, mut checked) = (Plane::zeroed(w * h), Plane::zeroed(w * h), Plane::zeroed(w * h));
-    e_u.par_iter_mut().zip(&mut *e_f).zip(&mut *checked).enumerate().for_each(|(i, ((u, f), c))| {
-        // Stored as f32, summed as f64; a pixel whose errors f32 cannot hold counts in no
-        // sum, as one whose halves are not both sampled.
-        if let Some((eu, ef)) = errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i]) {
-            if (eu as f32).is_finite() && (ef as f32).is_finite() {
-                (*u, *f, *c) = (eu as f32, ef as f32, 1.0);
-            }
+    // Per pixel e_U, e_F and whether it counts (module docs), plane by plane, row by row.
+    let (mut e_u, mut e_f, mut checked) =
+        (Plane::overwritten(w * h), Plane::overwritten(w * h), Plane::overwritten(w * h));
+    let rows = e_u.par_chunks_mut(w).zip(e_f.par_chunks_mut(w)).zip(checked.par_chunks_mut(w));
+    rows.enumerate().for_each(|(y, ((eu, ef), c))| {
+        let r = y * w..(y + 1) * w;
+        let (a, b, share) = (&a.pixels[r.clone()], &b.pixels[r.clone()], &share[r.clone()]);
+        let (fa, fb) = (&fa.pixels[r.clone()], &fb.pixels[r]);
+        for x in 0..eu.len() {
+            (eu[x], ef[x], c[x]) = match errors(a[x], b[x], fa[x], fb[x], share[x]) {
+                Some((u, f)) => (u, f, 1.0),
+                None => (0.0, 0.0, 0.0),
+            };
         }
     });
     let mut weights = Plane::overwritten(w * h);
@@ -248,7 +251,7 @@ fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Ima
         for (((o, &u), &f), &checked) in out.iter_mut().zip(u).zip(f).zip(checked) {
             *o = match (checked > 0.0, u > 0.0) {
                 (false, _) => 0.0,
-                (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0) as f32,
+                (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0),
                 (true, false) => 1.0,
             };
         }
@@ -330,7 +333,7 @@ mod tests {
                             if let Some((eu, ef)) =
                                 errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i])
                             {
-                                (u, f, n) = (u + eu, f + ef, n + 1);
+                                (u, f, n) = (u + eu as f64, f + ef as f64, n + 1);
                             }
                         }
                     }
@@ -358,8 +361,8 @@ mod tests {
                 (0..2).map(|k| (0..w * h).map(|i| noise(i, 3 + k)).collect()).collect();
             for which in 0..2 {
                 let mut sums = vec![0.0f32; w * h];
-                window_sums([&planes[0], &planes[1]], w, h, &mut sums, |s: [&[f64]; 2], out| {
-                    out.iter_mut().zip(s[which]).for_each(|(o, s)| *o = *s as f32)
+                window_sums([&planes[0], &planes[1]], w, h, &mut sums, |s: [&[f32]; 2], out| {
+                    out.iter_mut().zip(s[which]).for_each(|(o, s)| *o = *s)
                 });
                 for y in 0..h {
                     for x in 0..w {

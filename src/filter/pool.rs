@@ -37,7 +37,8 @@ enum Store {
 const MAPPED_MIN: usize = 32 << 20;
 
 impl Plane {
-    /// `n` zeros.
+    /// `n` zeros (the pool's tests; the filter writes its planes whole).
+    #[cfg(test)]
     pub fn zeroed(n: usize) -> Plane {
         Plane::of(n, true)
     }

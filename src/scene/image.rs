@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::scene::limits;
 
@@ -46,7 +47,7 @@ impl Image {
 
     /// Whether every pixel is exactly zero (a layer with no light: a filter leaves it as it is).
     pub fn is_black(&self) -> bool {
-        self.pixels.iter().all(|p| *p == Vec3::ZERO)
+        self.pixels.par_iter().all(|p| *p == Vec3::ZERO)
     }
 
     /// The mean over all pixels, per channel (accumulated in f64).
