@@ -251,7 +251,16 @@ fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Ima
         for (((o, &u), &f), &checked) in out.iter_mut().zip(u).zip(f).zip(checked) {
             *o = match (checked > 0.0, u > 0.0) {
                 (false, _) => 0.0,
-                (true, true) => (2.0 * (1.0 - f / u)).clamp(0.0, 1.0),
+                // Sums past the largest float (errors of radiance near 1e18) can give
+                // infinity over infinity: the unfiltered image there.
+                (true, true) => {
+                    let weight = 2.0 * (1.0 - f / u);
+                    if weight.is_nan() {
+                        0.0
+                    } else {
+                        weight.clamp(0.0, 1.0)
+                    }
+                }
                 (true, false) => 1.0,
             };
         }
@@ -350,6 +359,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn windows_whose_sums_pass_the_largest_float_keep_the_image_finite() {
+        let (w, h) = (20u32, 20u32);
+        let share = vec![0.5; (w * h) as usize];
+        // Halves about 2e18 apart in every channel: each pixel's errors fit in f32 (about
+        // 3e36), a window's sums of them do not.
+        let a = image(w, h, |i| Vec3::splat(1e18 * (1.0 + noise(i, 7))));
+        let b = image(w, h, |i| -a.pixels[i]);
+        let u = image(w, h, |i| (a.pixels[i] + b.pixels[i]) / 2.0);
+        let f = image(w, h, |_| Vec3::ONE);
+        let got = weights(w as usize, h as usize, (&a, &b), (&f, &f), &share);
+        assert!(got.iter().all(|w| (0.0..=1.0).contains(w)), "every weight in [0, 1]");
+        let out = blend(&u, (&a, &b), (f.clone(), &f), &share);
+        assert!(out.pixels.iter().all(|p| p.is_finite()), "every pixel finite");
     }
 
     #[test]
