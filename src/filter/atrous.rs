@@ -455,20 +455,20 @@ fn filter_in_bands(
                 let base = ((y - row0) * k + c) * PLANES * w;
                 for (x, o) in row.iter_mut().enumerate() {
                     let i = y * w + x;
-                    let px = &input[i];
+                    let px = input[i];
                     let albedo = albedo(i);
                     let last = Vec3::new(cur[base + x], cur[base + w + x], cur[base + 2 * w + x]);
-                    let change = albedo * (last - demodulate(*px, albedo));
+                    let change = albedo * (last - demodulate(px, albedo));
                     let change = match (bound, variance) {
                         (Some(k), Some(v)) => {
-                            let lum = luminance(*px);
-                            let scale = if lum > 0.0 { (*px / lum).max(Vec3::ONE) } else { Vec3::ONE };
+                            let lum = luminance(px);
+                            let scale = if lum > 0.0 { (px / lum).max(Vec3::ONE) } else { Vec3::ONE };
                             let limit = k * v[i].max(0.0).sqrt() * scale;
                             change.clamp(-limit, limit)
                         }
                         _ => change,
                     };
-                    *o = *px + change;
+                    *o = px + change;
                 }
             });
         }

@@ -277,8 +277,9 @@ fn run_avx2<J: Inlined>(job: J) -> J::Output {
 impl Avx512 {
     /// `job`, compiled for AVX-512 F and VL as far as it inlines: the path loop runs through
     /// it ([`Isa`]), where 32 vector registers hold what 16 spill to the stack. The
-    /// arithmetic is the same (no fused multiply-add), so the results equal the portable
-    /// build's bit for bit.
+    /// arithmetic is the same (fused only where the code asks for `mul_add`, which the
+    /// portable build computes to the same bits), so the results equal the portable build's
+    /// bit for bit.
     #[inline(always)]
     pub fn run<J: Inlined>(self, job: J) -> J::Output {
         // SAFETY: `self` exists only when `detect` found AVX, AVX2, FMA, AVX-512 F and VL, all that
