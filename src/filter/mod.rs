@@ -321,9 +321,10 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
         .enumerate()
         .filter_map(|(i, l)| {
             // Without a pixel of two sampled halves (1 spp) there is nothing to check; a layer
-            // that is zero everywhere (no caustics in the scene) is left as it is, unhalved.
+            // that is zero everywhere (no caustics in the scene), or that has no passes
+            // (`direct_passes=0`), is left as it is, unhalved.
             let (half, share) = l.halves.filter(|(_, share)| share.iter().any(|&s| s > 0.0 && s < 1.0))?;
-            if l.image.is_black() {
+            if l.image.is_black() || a.strength(l.component).1 == 0 {
                 return None;
             }
             Some(Halved {
