@@ -1009,6 +1009,54 @@ mod tests {
         }
     }
 
+    /// A layer given no passes (`direct_passes=0`) comes back as it went in, bit for bit, though
+    /// it has halves (it is neither filtered nor checked), while the indirect light beside it
+    /// is filtered.
+    #[test]
+    fn a_layer_with_no_passes_is_left_as_it_is() {
+        let (w, h) = (24u32, 20u32);
+        let n = (w * h) as usize;
+        let mut state = 7u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / 16_777_216.0
+        };
+        let mut film = Film::new(w, h);
+        // Shares of the samples in the second half that are not powers of two, so that the
+        // halves' mix rounds.
+        film.half_share = (0..n).map(|_| 0.2 + 0.6 * next()).collect();
+        for c in [Direct, Indirect] {
+            film.component_half[c] = Image::new(w, h);
+        }
+        for i in 0..n {
+            film.object[i] = (i % 5 / 3) as f32;
+            film.normal.pixels[i] = Vec3::Z;
+            film.depth[i] = 1.0;
+            film.coverage[i] = 1.0;
+            film.albedo.pixels[i] = Vec3::new(0.7, 0.5, 0.3);
+            let s = film.half_share[i];
+            for c in [Direct, Indirect] {
+                let (a, b) = (Vec3::new(next(), next(), next()), Vec3::new(next(), next(), next()));
+                film.components[c].pixels[i] = (1.0 - s) * a + s * b;
+                film.component_half[c].pixels[i] = s * b;
+                film.component_variance[c][i] = 0.05;
+            }
+        }
+        let layer = |c: Component| FilterInput {
+            image: &film.components[c],
+            variance: Some(&film.component_variance[c]),
+            component: Some(c),
+            halves: Some((&film.component_half[c], &film.half_share)),
+            stops_from: None,
+        };
+        let k = Method::parse("atrous:taps=3:passes=2:direct_passes=0").expect("kernel");
+        let out = filter_layers(&[layer(Direct), layer(Indirect)], &k, &film, &EdgeStops::default());
+        assert_eq!(out[0], film.components[Direct]);
+        assert_ne!(out[1], film.components[Indirect]);
+    }
+
     /// The weights are scaled by a power of two before they sum (L4): weights of 1e38, whose
     /// sums overflowed, give the image their ratios give, bit for bit, and so do values near
     /// the largest float, whose weighted sums overflowed (a constant 3e38 came out infinite).
