@@ -876,15 +876,20 @@ mod tests {
     /// The row-vectorised fast paths against the per-pixel definition, on random images with
     /// random objects, normals and depths, for every kernel and every combination of stops, on
     /// sizes below, at and above the kernel width.
-    #[test]
-    fn fast_paths_equal_the_definition() {
-        let mut state = 0x1234_5678u32;
-        let mut next = move || {
+    /// Numbers in [0, 1) from a xorshift generator.
+    fn stream(seed: u32) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
             state ^= state << 13;
             state ^= state >> 17;
             state ^= state << 5;
             (state >> 8) as f32 / 16_777_216.0
-        };
+        }
+    }
+
+    #[test]
+    fn fast_paths_equal_the_definition() {
+        let mut next = stream(0x1234_5678);
         for (w, h) in [(1, 1), (2, 5), (5, 3), (6, 6), (37, 11)] {
             let mut img = Image::new(w, h);
             let mut film = Film::new(w, h);
@@ -961,13 +966,7 @@ mod tests {
     #[test]
     fn components_leave_emitted_light_alone() {
         let (w, h) = (21u32, 13u32);
-        let mut state = 99u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            (state >> 8) as f32 / 16_777_216.0
-        };
+        let mut next = stream(99);
         let mut film = Film::new(w, h);
         for i in 0..(w * h) as usize {
             film.object[i] = (i % 7 / 4) as f32;
@@ -1016,16 +1015,9 @@ mod tests {
     fn a_layer_with_no_passes_is_left_as_it_is() {
         let (w, h) = (24u32, 20u32);
         let n = (w * h) as usize;
-        let mut state = 7u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            (state >> 8) as f32 / 16_777_216.0
-        };
+        let mut next = stream(7);
         let mut film = Film::new(w, h);
-        // Shares of the samples in the second half that are not powers of two, so that the
-        // halves' mix rounds.
+        // The second half's share of the samples, from a fifth to four fifths.
         film.half_share = (0..n).map(|_| 0.2 + 0.6 * next()).collect();
         for c in [Direct, Indirect] {
             film.component_half[c] = Image::new(w, h);
