@@ -321,10 +321,10 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
         .enumerate()
         .filter_map(|(i, l)| {
             // Without a pixel of two sampled halves (1 spp) there is nothing to check; a layer
-            // that is zero everywhere (no caustics in the scene), or that has no passes
-            // (`direct_passes=0`), is left as it is, unhalved.
+            // the filter does not change ([`Atrous::changes`]: zero everywhere, or no passes)
+            // is left as it is, unhalved.
             let (half, share) = l.halves.filter(|(_, share)| share.iter().any(|&s| s > 0.0 && s < 1.0))?;
-            if l.image.is_black() || a.strength(l.component).1 == 0 {
+            if !a.changes(l) {
                 return None;
             }
             Some(Halved {
@@ -873,9 +873,6 @@ mod tests {
         }
     }
 
-    /// The row-vectorised fast paths against the per-pixel definition, on random images with
-    /// random objects, normals and depths, for every kernel and every combination of stops, on
-    /// sizes below, at and above the kernel width.
     /// Numbers in [0, 1) from a xorshift generator.
     fn stream(seed: u32) -> impl FnMut() -> f32 {
         let mut state = seed;
@@ -887,6 +884,9 @@ mod tests {
         }
     }
 
+    /// The row-vectorised fast paths against the per-pixel definition, on random images with
+    /// random objects, normals and depths, for every kernel and every combination of stops, on
+    /// sizes below, at and above the kernel width.
     #[test]
     fn fast_paths_equal_the_definition() {
         let mut next = stream(0x1234_5678);
