@@ -41,6 +41,8 @@ fn noisy_film(width: u32, height: u32) -> Film {
 }
 
 fn bench(c: &mut Criterion) {
+    // The command line's pool: its main thread among the pool's threads.
+    lightsplit::accel::join_global_pool();
     for (w, h) in [(256, 256), (3840, 2160)] {
         let film = noisy_film(w, h);
         let mut group = c.benchmark_group(format!("filter/{w}x{h}"));

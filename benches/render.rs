@@ -13,6 +13,8 @@ use lightsplit::render::surface::FaceNormals;
 use lightsplit::scene;
 
 fn bench(c: &mut Criterion) {
+    // The command line's pool: its main thread among the pool's threads.
+    lightsplit::accel::join_global_pool();
     let mut group = c.benchmark_group("path sample");
     const SAMPLES: u64 = 4096;
     group.throughput(Throughput::Elements(SAMPLES));

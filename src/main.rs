@@ -75,6 +75,7 @@ fn print_line(line: std::fmt::Arguments) -> Result<(), Failure> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    lightsplit::accel::join_global_pool();
     remove_temporaries_on_signals();
     let result = match cli.command {
         Command::Render(args) => cmd::render::render_command(args),

@@ -72,6 +72,20 @@ pub fn thread_pool(n: usize) -> Result<rayon::ThreadPool, AccelError> {
     rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| AccelError::Threads(n, e.to_string()))
 }
 
+/// Makes the calling thread one of the global pool's threads (rayon's `use_current_thread`):
+/// for a program's main thread, called first, before anything runs in parallel. A parallel
+/// step the caller starts then runs in the pool as a step within it does: the caller takes
+/// part and the other threads steal from it. From outside the pool, each step was handed over
+/// while the caller slept, a wake-up of both sides per step; a 256x256 `--denoise`, about 27
+/// such steps, took 1.1x as long (docs/RESULTS.md, "The main thread in the pool"). The pool
+/// keeps its size (one thread a core, the caller among them). Once a global pool runs, later
+/// calls leave it as it is: it stays a pool, only the hand-over costs more.
+pub fn join_global_pool() {
+    // Its one error: a global pool already built (or no thread to start, which leaves rayon
+    // to start the pool when first used, as without this call).
+    let _ = rayon::ThreadPoolBuilder::new().use_current_thread().build_global();
+}
+
 /// The backends a render can choose at run time.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -272,4 +286,41 @@ pub fn build_embree_with(
         }
     }
     builder.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    /// The calling thread becomes the global pool's thread 0, the pool one thread a core. Run in
+    /// a process of its own (this test binary again, with this test alone), since in the test
+    /// process other tests may have started the global pool first.
+    #[test]
+    fn the_calling_thread_joins_the_global_pool() {
+        const CHILD: &str = "LIGHTSPLIT_TEST_POOL_CHILD";
+        if std::env::var_os(CHILD).is_some() {
+            assert_eq!(rayon::current_thread_index(), None);
+            super::join_global_pool();
+            assert_eq!(rayon::current_thread_index(), Some(0));
+            let cores = std::thread::available_parallelism().map_or(1, usize::from);
+            assert_eq!(rayon::current_num_threads(), cores);
+            // A parallel step from this thread runs on the pool's threads, this one among them.
+            let mut on: Vec<Option<usize>> = vec![None; 64];
+            rayon::iter::ParallelIterator::for_each(
+                rayon::iter::IntoParallelRefMutIterator::par_iter_mut(&mut on),
+                |t| *t = rayon::current_thread_index(),
+            );
+            assert!(on.iter().all(|t| t.is_some_and(|i| i < cores)));
+            return;
+        }
+        let exe = std::env::current_exe().expect("the test binary");
+        let name = "accel::tests::the_calling_thread_joins_the_global_pool";
+        let out = std::process::Command::new(exe)
+            .args(["--exact", name, "--test-threads", "1"])
+            .env(CHILD, "1")
+            .output()
+            .expect("the test binary runs");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+        // The child ran this test, not none.
+        assert!(stdout.contains("1 passed"), "{stdout}");
+    }
 }
