@@ -500,8 +500,9 @@ fn info_explains_every_scene() {
 }
 
 /// `bench-accel` over several scenes measures each (one JSON object a line, a scene each, with the
-/// BVH's exact bytes and its tree) and draws the scaling plot; a plot that is not a PNG, or
-/// `--embree-settings` with several scenes, is refused before anything is measured.
+/// BVH's exact bytes and its tree, and Embree's settings, those a render uses) and draws the
+/// scaling plot; a plot that is not a PNG, or `--embree-settings` with several scenes, is
+/// refused before anything is measured.
 #[test]
 fn bench_accel_measures_several_scenes_and_plots_them() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -537,7 +538,30 @@ fn bench_accel_measures_several_scenes_and_plots_them() {
         assert!(leaves > 0 && bytes > 0, "{r}");
         assert!((per_leaf * leaves as f64 - r["triangles"].as_f64().expect("n")).abs() < 1e-6, "{r}");
         assert_eq!(r["rows"].as_array().expect("rows").len(), 6, "{r}");
+        // Embree is measured as a render builds it: one shape of triangles, robust at `high`.
+        assert_eq!(r["embree_build"], serde_json::json!({"robust": true, "quality": "high"}), "{r}");
     }
+    // Two shapes: the two-level build (`low`) a render of them uses.
+    let two = dir.path().join("two.toml");
+    let body = std::fs::read_to_string(&scenes[0]).expect("read");
+    std::fs::write(&two, format!("{body}[[shape]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 0.5\n"))
+        .expect("write");
+    let out = lightsplit(&[
+        "bench-accel",
+        two.to_str().expect("utf8"),
+        "--rays",
+        "500",
+        "--seconds",
+        "0.001",
+        "--rounds",
+        "1",
+        "--threads",
+        "1",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(report["embree_build"], serde_json::json!({"robust": true, "quality": "low"}), "{report}");
     let png = image::open(&plot).expect("the plot is a PNG");
     assert!(png.width() > 100 && png.height() > 100);
 

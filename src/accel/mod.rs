@@ -195,13 +195,14 @@ impl BuildHints {
     }
 }
 
-/// Builds Embree's BVH over every shape of `scene`; geometry IDs are shape indices. Meshes are
-/// shared with Embree, not copied. `threads` limits Embree's build threads.
+/// Builds Embree's BVH over every shape of `scene` with the settings a render of it uses
+/// ([`BuildHints::for_scene`]); geometry IDs are shape indices. Meshes are shared with Embree,
+/// not copied. `threads` limits Embree's build threads.
 pub fn build_embree(
     scene: &crate::scene::Scene,
     threads: Option<usize>,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
-    build_embree_with(scene, threads, BuildHints::default())
+    build_embree_with(scene, threads, BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene)))
 }
 
 /// The environment variable whose value is appended to Embree's device configuration, e.g.

@@ -61,6 +61,10 @@ pub struct BenchAccelReport {
     pub ray_counts: [usize; 3],
     /// Build time of each backend (the best of three builds), by backend name.
     pub build_seconds: std::collections::BTreeMap<String, f64>,
+    /// Embree's scene settings: a render's of this scene ([`accel::BuildHints::for_scene`]).
+    /// Until 2026-12-07 Embree was measured robust at build quality `high` whatever the scene,
+    /// which a scene of several shapes renders at `low` (docs/RESULTS.md, "Other scenes").
+    pub embree_build: accel::BuildHints,
     /// The BVH's wide tree: nodes, leaves, fill and bytes.
     pub bvh_tree: crate::accel::bvh::wide::WideStats,
     /// The BVH's slab test (`avx512`, `avx2` or `portable`).
@@ -193,6 +197,7 @@ pub fn bench_accel(
         build_seconds: [(Backend::Embree.to_string(), embree_build), (Backend::Bvh.to_string(), bvh_build)]
             .into_iter()
             .collect(),
+        embree_build: accel::BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene)),
         bvh_tree: bvh.stats(),
         bvh_isa: bvh.isa().name(),
         bvh_bytes: bvh.bytes(),
@@ -216,10 +221,12 @@ impl BenchAccelReport {
         let build = |b: Backend| self.build_seconds.get(&b.to_string()).copied().unwrap_or(0.0);
         let (be, bb) = (build(Backend::Embree), build(Backend::Bvh));
         out += &format!(
-            "build        embree {:>9.4} s   bvh {:>9.4} s   bvh/embree time {:>5.2}x\n",
+            "build        embree {:>9.4} s   bvh {:>9.4} s   bvh/embree time {:>5.2}x   (embree {}, quality {}, as a render builds it)\n",
             be,
             bb,
-            bb / be.max(1e-12)
+            bb / be.max(1e-12),
+            if self.embree_build.robust { "robust" } else { "not robust" },
+            self.embree_build.quality.name()
         );
         let t = &self.bvh_tree;
         out += &format!(
