@@ -76,11 +76,11 @@ pub fn thread_pool(n: usize) -> Result<rayon::ThreadPool, AccelError> {
 /// for a program's main thread, called first, before anything runs in parallel. A parallel
 /// step the caller starts then runs in the pool as a step within it does: the caller takes
 /// part and the other threads steal from it. From outside the pool, each step was handed over
-/// while the caller slept, a wake-up of both sides per step; a 256x256 `--denoise`, about 27
-/// such steps, took 1.1x as long (at 3840x2160, where a step is long, criterion measured it
-/// 1.045x faster that way: docs/RESULTS.md, "The main thread in the pool"). The pool keeps its
-/// size (one thread a core, the caller among them). Once a global pool runs, later calls
-/// leave it as it is: it stays a pool, only the hand-over costs more.
+/// while the caller slept, a wake-up of both sides per step: a 256x256 `--denoise`, about 27
+/// such steps, took 1.1x as long from outside. At 3840x2160, where a step is long, criterion
+/// measured the reverse, 1.045x as long in the pool (docs/RESULTS.md, "The main thread in the
+/// pool"). The pool keeps its size (one thread a core, the caller among them). Once a global
+/// pool runs, later calls leave it as it is: it stays a pool, only the hand-over costs more.
 pub fn join_global_pool() {
     // Its one error: a global pool already built (or no thread to start, which leaves rayon
     // to start the pool when first used, as without this call).

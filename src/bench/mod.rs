@@ -124,10 +124,12 @@ pub fn bench_accel(
     options: &BenchAccelOptions,
     progress: &dyn Fn(usize, usize),
 ) -> Result<BenchAccelReport, accel::AccelError> {
+    // Embree built as a render of the scene builds it.
+    let hints = accel::BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene));
     // Memory first, one fresh build of each backend, each dropped before the next.
     let mut resident_growth_bytes = std::collections::BTreeMap::new();
     let growth = [
-        (Backend::Embree, resident_growth(|| accel::build_embree(scene, None))?),
+        (Backend::Embree, resident_growth(|| accel::build_embree_with(scene, None, hints))?),
         (Backend::Bvh, resident_growth(|| Bvh::new(scene))?),
     ];
     for (backend, grew) in growth {
@@ -138,7 +140,7 @@ pub fn bench_accel(
 
     let (embree, embree_build) = best_of(3, || {
         let start = Instant::now();
-        let e = accel::build_embree(scene, None);
+        let e = accel::build_embree_with(scene, None, hints);
         (e, start.elapsed().as_secs_f64())
     });
     let embree = embree?;
@@ -197,7 +199,7 @@ pub fn bench_accel(
         build_seconds: [(Backend::Embree.to_string(), embree_build), (Backend::Bvh.to_string(), bvh_build)]
             .into_iter()
             .collect(),
-        embree_build: accel::BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene)),
+        embree_build: hints,
         bvh_tree: bvh.stats(),
         bvh_isa: bvh.isa().name(),
         bvh_bytes: bvh.bytes(),
