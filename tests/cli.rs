@@ -546,19 +546,9 @@ fn bench_accel_measures_several_scenes_and_plots_them() {
     let body = std::fs::read_to_string(&scenes[0]).expect("read");
     std::fs::write(&two, format!("{body}[[shape]]\ntype = \"sphere\"\ncenter = [0, 3, 0]\nradius = 0.5\n"))
         .expect("write");
-    let out = lightsplit(&[
-        "bench-accel",
-        two.to_str().expect("utf8"),
-        "--rays",
-        "500",
-        "--seconds",
-        "0.001",
-        "--rounds",
-        "1",
-        "--threads",
-        "1",
-        "--json",
-    ]);
+    let mut args = vec!["bench-accel", two.to_str().expect("utf8")];
+    args.extend(&tail[..tail.len() - 1]);
+    let out = lightsplit(&args);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     assert_eq!(report["embree_build"], serde_json::json!({"robust": true, "quality": "low"}), "{report}");

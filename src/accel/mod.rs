@@ -194,6 +194,11 @@ impl BuildHints {
             quality: if analysis.shapes > 1 { BuildQuality::Low } else { BuildQuality::High },
         }
     }
+
+    /// [`Self::for_scene`] from the scene itself, for a caller without its analysis.
+    pub fn of(scene: &crate::scene::Scene) -> BuildHints {
+        BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene))
+    }
 }
 
 /// Builds Embree's BVH over every shape of `scene` with the settings a render of it uses
@@ -203,7 +208,7 @@ pub fn build_embree(
     scene: &crate::scene::Scene,
     threads: Option<usize>,
 ) -> Result<embree::CommittedScene, embree::EmbreeError> {
-    build_embree_with(scene, threads, BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene)))
+    build_embree_with(scene, threads, BuildHints::of(scene))
 }
 
 /// The environment variable whose value is appended to Embree's device configuration, e.g.
@@ -292,6 +297,8 @@ pub fn build_embree_with(
 
 #[cfg(test)]
 mod tests {
+    use rayon::prelude::*;
+
     /// The calling thread becomes the global pool's thread 0, the pool one thread a core. Run in
     /// a process of its own (this test binary again, with this test alone), since in the test
     /// process other tests may have started the global pool first.
@@ -306,10 +313,7 @@ mod tests {
             assert_eq!(rayon::current_num_threads(), cores);
             // A parallel step from this thread runs on the pool's threads, this one among them.
             let mut on: Vec<Option<usize>> = vec![None; 64];
-            rayon::iter::ParallelIterator::for_each(
-                rayon::iter::IntoParallelRefMutIterator::par_iter_mut(&mut on),
-                |t| *t = rayon::current_thread_index(),
-            );
+            on.par_iter_mut().for_each(|t| *t = rayon::current_thread_index());
             assert!(on.iter().all(|t| t.is_some_and(|i| i < cores)));
             return;
         }

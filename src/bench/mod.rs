@@ -125,7 +125,7 @@ pub fn bench_accel(
     progress: &dyn Fn(usize, usize),
 ) -> Result<BenchAccelReport, accel::AccelError> {
     // Embree built as a render of the scene builds it.
-    let hints = accel::BuildHints::for_scene(&crate::scene::analysis::Analysis::of(scene));
+    let hints = accel::BuildHints::of(scene);
     // Memory first, one fresh build of each backend, each dropped before the next.
     let mut resident_growth_bytes = std::collections::BTreeMap::new();
     let growth = [
