@@ -2,12 +2,13 @@
 //! (component split, guides) that the output and its filter read, so a render fills only those,
 //! and the filtered film written to its file.
 
+use std::borrow::Cow;
 use std::path::Path;
 use std::time::Instant;
 
 use crate::component::Component;
 use crate::film::{self, Film, Format, Image};
-use crate::filter::{composite, EdgeStops, Reads, Setting, Target};
+use crate::filter::{composite, EdgeStops, Pixels, Reads, Setting, Target};
 use crate::render::Outputs;
 
 /// A layer of a render, as a single-image output (PNG, HDR) shows it; an EXR holds them all.
@@ -160,15 +161,18 @@ impl Layer {
         self,
         film: &'a Film,
         final_image: &'a Image,
-        filtered: Option<&'a Image>,
-    ) -> Result<&'a Image, OutputError> {
-        Ok(match self {
+        filtered: Option<&Pixels>,
+    ) -> Result<Cow<'a, Image>, OutputError> {
+        Ok(Cow::Borrowed(match self {
             Layer::Final => final_image,
             Layer::Raw => &film.raw,
             Layer::Component(c) => &film.components[c],
-            Layer::IndirectFiltered => filtered.ok_or(OutputError::NoFilteredIndirect)?,
+            Layer::IndirectFiltered => {
+                let filtered = filtered.ok_or(OutputError::NoFilteredIndirect)?;
+                return Ok(Cow::Owned(filtered.to_image(film.width, film.height)));
+            }
             Layer::Albedo => &film.albedo,
-        })
+        }))
     }
 }
 
@@ -192,8 +196,8 @@ pub fn write(
     let (final_image, filtered) = composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
     let seconds = start.elapsed().as_secs_f64();
     // Finite values whose sums overflow: an error, never an image of infinities.
-    let overflowing = |image: &Image| image.pixels.iter().filter(|p| !p.is_finite()).count();
-    let bad = overflowing(&final_image) + filtered.as_ref().map_or(0, overflowing);
+    let overflowing = |pixels: &[glam::Vec3]| pixels.iter().filter(|p| !p.is_finite()).count();
+    let bad = overflowing(&final_image.pixels) + filtered.as_ref().map_or(0, |f| overflowing(f));
     if bad > 0 {
         return Err(OutputError::Overflow(bad));
     }
@@ -202,12 +206,13 @@ pub fn write(
         match film::Format::from_path(path)? {
             film::Format::Exr => {
                 let final_image = final_image.into_owned();
+                let filtered = filtered.map(|f| f.to_image(film.width, film.height));
                 film::write_film(film, final_image, filtered, path, exposure, meta)?
             }
             _ => film::write_with(&final_image, path, exposure, meta)?,
         }
     } else {
-        film::write_with(layer.image(&film, &final_image, filtered.as_ref())?, path, exposure, meta)?;
+        film::write_with(&*layer.image(&film, &final_image, filtered.as_ref())?, path, exposure, meta)?;
     }
     Ok(seconds)
 }

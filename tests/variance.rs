@@ -141,7 +141,7 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
         .enumerate()
         .flat_map(|(n, &i)| {
             (0..2).map(move |h| FilterInput {
-                image: &agreed.components[split[i]],
+                image: &agreed.components[split[i]].pixels,
                 variance: Some(&doubled[i]),
                 component: Some(split[i]),
                 halves: None,
@@ -155,11 +155,11 @@ fn the_filter_keeps_what_the_halves_say_lowers_the_error() {
         let image = match live.iter().position(|&l| l == i) {
             Some(n) => {
                 assert!(halves[2 * n] == halves[2 * n + 1], "the halves' filtered images differ");
-                &halves[2 * n]
+                &halves[2 * n][..]
             }
-            None => &agreeing.components[c],
+            None => &agreeing.components[c].pixels[..],
         };
-        whole.pixels.iter_mut().zip(&image.pixels).for_each(|(o, p)| *o += *p);
+        whole.pixels.iter_mut().zip(image).for_each(|(o, p)| *o += *p);
     }
     let kept = composite(&agreeing, Some(method), setting.target, &setting.stops).0.into_owned();
     assert_ne!(kept.pixels, agreeing.raw.pixels, "nothing filtered");

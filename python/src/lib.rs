@@ -14,7 +14,7 @@ use lightsplit::accel::Backend;
 use lightsplit::error::Classify;
 use lightsplit::film::layers::LAYERS;
 use lightsplit::film::{self, Film, Format, Image, Metadata, Sums};
-use lightsplit::filter::{composite, Overrides, Setting};
+use lightsplit::filter::{composite, Overrides, Pixels, Setting};
 use lightsplit::job::{Job, Request};
 use lightsplit::output::{self, Layer};
 use lightsplit::part;
@@ -388,7 +388,7 @@ impl Scene {
 struct Render {
     film: Film,
     final_image: Image,
-    filtered: Option<Image>,
+    filtered: Option<Pixels>,
     setting: Setting,
     meta: Metadata,
     stats: RenderStats,
@@ -471,7 +471,7 @@ impl Render {
             };
         if let Some(f) = &self.filtered {
             for (c, channel) in ["R", "G", "B"].iter().enumerate() {
-                add("indirect_filtered", channel, f.pixels.iter().map(|p| p[c]).collect());
+                add("indirect_filtered", channel, f.iter().map(|p| p[c]).collect());
             }
         }
         for (layer, values) in self.film.layers() {

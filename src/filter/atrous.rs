@@ -39,7 +39,7 @@ use crate::component::Component;
 use crate::film::{Film, Image};
 use crate::math::luminance;
 
-use super::pool::Plane;
+use super::pool::{Pixels, Plane};
 
 /// The à-trous filter's settings; [`Atrous::default`] holds the measured defaults.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -231,7 +231,7 @@ impl Atrous {
     /// Whether this filter changes `layer` at all: not when the layer has no passes or is zero
     /// everywhere (no caustics in the scene); such a layer is left as it is.
     pub(super) fn changes(&self, layer: &FilterInput) -> bool {
-        self.strength(layer.component).1 > 0 && !layer.image.is_black()
+        self.strength(layer.component).1 > 0 && layer.image.par_iter().any(|p| *p != Vec3::ZERO)
     }
 
     /// The 1-D kernel, centre in the middle.
@@ -255,7 +255,8 @@ fn whole(key: &str, v: f32) -> Result<u32, String> {
 /// One layer to filter: an image of means and the variance of each pixel's mean luminance.
 #[derive(Clone, Copy)]
 pub struct FilterInput<'a> {
-    pub image: &'a Image,
+    /// The layer's pixels, the film's size.
+    pub image: &'a [Vec3],
     /// Without it (an old film), the colour stop sees no noise and nothing is smoothed.
     pub variance: Option<&'a [f32]>,
     /// The light-path component the layer holds, if it is one: [`Atrous::direct`] and
@@ -264,7 +265,7 @@ pub struct FilterInput<'a> {
     /// The layer's second half and its share of the samples ([`crate::film::Film::half`],
     /// [`crate::film::Film::half_share`]), when the film has them: the filter is then checked
     /// against the layer's own noise ([`super::cross`]).
-    pub halves: Option<(&'a Image, &'a [f32])>,
+    pub halves: Option<(&'a [Vec3], &'a [f32])>,
     /// The layer of the same call (an index into its layers) whose luminance at a tap the
     /// colour stop compares with the centre's own: the other half of its samples, whose noise
     /// is independent of this half's, so a tap's weight does not follow the value it adds. The
@@ -277,7 +278,7 @@ pub struct FilterInput<'a> {
 impl<'a> FilterInput<'a> {
     /// A layer that is no particular component.
     pub fn new(image: &'a Image, variance: Option<&'a [f32]>) -> FilterInput<'a> {
-        FilterInput { image, variance, component: None, halves: None, stops_from: None }
+        FilterInput { image: &image.pixels, variance, component: None, halves: None, stops_from: None }
     }
 }
 
@@ -307,13 +308,13 @@ const RIDGE_NOISE: f32 = 32.0;
 /// the layers must have the film's size. The passes run in the best build this CPU has: AVX-512
 /// was the same time as AVX2 on a Zen 5 machine and about 5% faster at 256x256 on a Zen 4 one
 /// (docs/RESULTS.md, "On a Zen 4 machine").
-pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+pub fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Pixels> {
     filter_with(Isa::best(), layers, film, a, pure)
 }
 
 /// [`filter`] with the passes in the build `isa`, in bands of rows when the working buffers
 /// of the whole image would be large ([`band_rows`]).
-fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+fn filter_with(isa: Isa, layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Pixels> {
     filter_in_bands(isa, layers, film, a, pure, None)
 }
 
@@ -360,24 +361,23 @@ fn filter_in_bands(
     a: &Atrous,
     pure: bool,
     band: Option<usize>,
-) -> Vec<Image> {
+) -> Vec<Pixels> {
     let (w, h) = (film.width as usize, film.height as usize);
     // Layers that are zero everywhere, or have no passes, stay as they are.
     let live: Vec<usize> = (0..layers.len()).filter(|&i| a.changes(&layers[i])).collect();
     // The layers left as they are copied in parallel, as are the halves and the final sum:
     // copies by the calling thread alone, while the pool's threads waited, were two fifths of
     // its time (perf, 256x256).
-    let mut out: Vec<Image> = layers
+    let mut out: Vec<Pixels> = layers
         .iter()
         .enumerate()
         .map(|(i, l)| {
             // A live layer's every row is written by its multiply-back, from its input.
-            let pixels = if live.contains(&i) {
-                vec![Vec3::ZERO; l.image.pixels.len()]
+            if live.contains(&i) {
+                Pixels::overwritten(l.image.len())
             } else {
-                l.image.pixels.par_iter().copied().collect()
-            };
-            Image { pixels, ..*l.image }
+                Pixels::copy_of(l.image)
+            }
         })
         .collect();
     if live.is_empty() || w == 0 || h == 0 {
@@ -428,7 +428,7 @@ fn filter_in_bands(
                 let planes = &mut row[c * PLANES * w..(c + 1) * PLANES * w];
                 for x in 0..w {
                     let i = y * w + x;
-                    let (v, a) = (layer.image.pixels[i], albedo(i));
+                    let (v, a) = (layer.image[i], albedo(i));
                     let u = demodulate(v, a);
                     let (lu, lv) = (luminance(u), luminance(v));
                     let ratio = if lv > 0.0 { lu / lv } else { 1.0 / luminance(a).max(MIN_ALBEDO) };
@@ -450,11 +450,11 @@ fn filter_in_bands(
         // Multiplied back, as a change to the input: out = in + albedo (u_last - u_first), the
         // first made again as it was (bounded by `bound`).
         for (c, &li) in live.iter().enumerate() {
-            let (variance, input) = (layers[li].variance, &layers[li].image.pixels);
+            let (variance, input) = (layers[li].variance, layers[li].image);
             let image = &mut out[li];
             // The buffer the layer's last pass wrote: `cur` after an even number of passes since.
             let cur = if (run - strengths[c].1.min(run)).is_multiple_of(2) { &cur } else { &next };
-            image.pixels[b0 * w..b1 * w].par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            image[b0 * w..b1 * w].par_chunks_mut(w).enumerate().for_each(|(r, row)| {
                 let y = b0 + r;
                 let base = ((y - row0) * k + c) * PLANES * w;
                 for (x, o) in row.iter_mut().enumerate() {
@@ -1241,6 +1241,11 @@ fn exp2_neg(t: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// [`super::filter`]'s layers as images of the film's size.
+    fn filter(layers: &[FilterInput], film: &Film, a: &Atrous, pure: bool) -> Vec<Image> {
+        super::filter(layers, film, a, pure).iter().map(|p| p.to_image(film.width, film.height)).collect()
+    }
+
     /// A xorshift stream in [0, 1).
     fn stream(seed: u32) -> impl FnMut() -> f32 {
         let mut state = seed.max(1);
@@ -1868,9 +1873,9 @@ mod tests {
             };
             let together = filter(
                 &[
-                    layer(&direct, Component::Direct),
-                    layer(&caustic, Component::Caustic),
-                    layer(&indirect, Component::Indirect),
+                    layer(&direct.pixels, Component::Direct),
+                    layer(&caustic.pixels, Component::Caustic),
+                    layer(&indirect.pixels, Component::Indirect),
                 ],
                 &film,
                 &a,

@@ -31,9 +31,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::film::Image;
-
-use super::pool::Plane;
+use super::pool::{Pixels, Plane};
 
 /// The window's half-width: 15x15 pixels (of 9 and 15, and of four weightings, the one never
 /// above the unfiltered error on the four models; docs/RESULTS.md).
@@ -43,18 +41,16 @@ pub const RADIUS: usize = 7;
 /// (its sum over the second half's samples, divided by all the samples) and that half's share
 /// of the samples `share`: `(A, B)`. A pixel whose halves are not both sampled gets its mean
 /// in both.
-pub fn halves(u: &Image, half: &Image, share: &[f32]) -> (Image, Image) {
+pub fn halves(u: &[Vec3], half: &[Vec3], share: &[f32]) -> (Pixels, Pixels) {
     // Both written in one parallel step (not two copies of the mean made first, one thread's
     // copying while the other waited).
-    let (a, b) = u
-        .pixels
-        .par_iter()
-        .zip(&half.pixels)
-        .zip(share)
-        .map(|((&u, &h), &s)| if s > 0.0 && s < 1.0 { ((u - h) / (1.0 - s), h / s) } else { (u, u) })
-        .unzip();
-    let image = |pixels| Image { width: u.width, height: u.height, pixels };
-    (image(a), image(b))
+    let (mut a, mut b) = (Pixels::overwritten(u.len()), Pixels::overwritten(u.len()));
+    a.par_iter_mut().zip(b.par_iter_mut()).zip(u).zip(half).zip(share).for_each(
+        |((((a, b), &u), &h), &s)| {
+            (*a, *b) = if s > 0.0 && s < 1.0 { ((u - h) / (1.0 - s), h / s) } else { (u, u) };
+        },
+    );
+    (a, b)
 }
 
 /// The estimated errors `(e_U, e_F)` of a pixel (module docs), from the halves `a`, `b`, their
@@ -213,14 +209,20 @@ impl Line {
 /// filtered images `fa`, `fb` and the second half's share of the samples `share`. Written
 /// over `fa`, whose buffer is the result: a fresh image's pages were a fault each to write,
 /// a third of this step's time.
-pub fn blend(u: &Image, (a, b): (&Image, &Image), (fa, fb): (Image, &Image), share: &[f32]) -> Image {
-    let weights = weights(u.width as usize, u.height as usize, (a, b), (&fa, fb), share);
+pub fn blend(
+    u: &[Vec3],
+    (a, b): (&[Vec3], &[Vec3]),
+    (fa, fb): (Pixels, &[Vec3]),
+    share: &[f32],
+    w: u32,
+) -> Pixels {
+    let weights = weights(w as usize, (a, b), (&fa, fb), share);
     let mut out = fa;
-    out.pixels.par_iter_mut().enumerate().for_each(|(i, o)| {
+    out.par_iter_mut().enumerate().for_each(|(i, o)| {
         let s = share[i].clamp(0.0, 1.0);
-        let u = u.pixels[i];
+        let u = u[i];
         // (1 - s) F_A + s F_B, exactly F_A where the two agree.
-        let f = *o + s * (fb.pixels[i] - *o);
+        let f = *o + s * (fb[i] - *o);
         // All of the filtered image exactly where it is kept whole.
         *o = if weights[i] == 1.0 { f } else { u + weights[i] * (f - u) };
     });
@@ -230,15 +232,16 @@ pub fn blend(u: &Image, (a, b): (&Image, &Image), (fa, fb): (Image, &Image), sha
 /// Each pixel's weight of the filtered image ([`blend`]): 0 in a window without a pixel of two
 /// sampled halves (adaptive sampling stopped them early: the check cannot speak there, and the
 /// pixels it stopped were the clean ones).
-fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Image), share: &[f32]) -> Plane {
+fn weights(w: usize, (a, b): (&[Vec3], &[Vec3]), (fa, fb): (&[Vec3], &[Vec3]), share: &[f32]) -> Plane {
+    let h = a.len() / w.max(1);
     // Per pixel e_U, e_F and whether it counts (module docs), plane by plane, row by row.
     let (mut e_u, mut e_f, mut checked) =
         (Plane::overwritten(w * h), Plane::overwritten(w * h), Plane::overwritten(w * h));
     let rows = e_u.par_chunks_mut(w).zip(e_f.par_chunks_mut(w)).zip(checked.par_chunks_mut(w));
     rows.enumerate().for_each(|(y, ((eu, ef), c))| {
         let r = y * w..(y + 1) * w;
-        let (a, b, share) = (&a.pixels[r.clone()], &b.pixels[r.clone()], &share[r.clone()]);
-        let (fa, fb) = (&fa.pixels[r.clone()], &fb.pixels[r]);
+        let (a, b, share) = (&a[r.clone()], &b[r.clone()], &share[r.clone()]);
+        let (fa, fb) = (&fa[r.clone()], &fb[r]);
         for x in 0..eu.len() {
             (eu[x], ef[x], c[x]) = match errors(a[x], b[x], fa[x], fb[x], share[x]) {
                 Some((u, f)) => (u, f, 1.0),
@@ -272,8 +275,8 @@ fn weights(w: usize, h: usize, (a, b): (&Image, &Image), (fa, fb): (&Image, &Ima
 mod tests {
     use super::*;
 
-    fn image(w: u32, h: u32, f: impl Fn(usize) -> Vec3) -> Image {
-        Image { width: w, height: h, pixels: (0..(w * h) as usize).map(f).collect() }
+    fn image(w: u32, h: u32, f: impl Fn(usize) -> Vec3) -> Pixels {
+        Pixels::copy_of(&(0..(w * h) as usize).map(f).collect::<Vec<_>>())
     }
 
     /// A small generator for noise.
@@ -291,9 +294,9 @@ mod tests {
         let u = image(2, 1, |_| (3.0 * a + b) / 4.0);
         let half = image(2, 1, |_| b / 4.0);
         let (ha, hb) = halves(&u, &half, &[0.25, 0.0]);
-        assert!(ha.pixels[0].abs_diff_eq(a, 1e-5) && hb.pixels[0].abs_diff_eq(b, 1e-5));
+        assert!(ha[0].abs_diff_eq(a, 1e-5) && hb[0].abs_diff_eq(b, 1e-5));
         // No second half: the mean in both.
-        assert_eq!((ha.pixels[1], hb.pixels[1]), (u.pixels[1], u.pixels[1]));
+        assert_eq!((ha[1], hb[1]), (u[1], u[1]));
     }
 
     #[test]
@@ -303,21 +306,21 @@ mod tests {
         // Halves of equal size, each the truth plus independent noise.
         let a = image(w, h, |i| truth(i) + Vec3::splat(noise(i, 1)));
         let b = image(w, h, |i| truth(i) + Vec3::splat(noise(i, 2)));
-        let u = image(w, h, |i| (a.pixels[i] + b.pixels[i]) / 2.0);
+        let u = image(w, h, |i| (a[i] + b[i]) / 2.0);
         let share = vec![0.5; (w * h) as usize];
         // A perfect filter: the truth, from either half.
         let t = image(w, h, truth);
-        let kept = blend(&u, (&a, &b), (t.clone(), &t), &share);
+        let kept = blend(&u, (&a, &b), (t.clone(), &t), &share, w);
         assert_eq!(kept, t, "a filter that removes all the noise is kept whole");
         // A filter that returns a constant far from the truth (all bias).
         let off = image(w, h, |_| Vec3::splat(3.0));
-        assert_eq!(blend(&u, (&a, &b), (off.clone(), &off), &share), u, "all bias: not kept");
+        assert_eq!(blend(&u, (&a, &b), (off.clone(), &off), &share, w), u, "all bias: not kept");
         // Without measured noise (equal halves), the filtered image is kept.
-        let same = blend(&t, (&t, &t), (off.clone(), &off), &share);
+        let same = blend(&t, (&t, &t), (off.clone(), &off), &share, w);
         assert_eq!(same, off);
         // Without a pixel of two sampled halves the check cannot speak: the unfiltered image.
         let none = vec![0.0; share.len()];
-        assert_eq!(blend(&u, (&a, &b), (t.clone(), &t), &none), u);
+        assert_eq!(blend(&u, (&a, &b), (t.clone(), &t), &none, w), u);
     }
 
     #[test]
@@ -332,16 +335,14 @@ mod tests {
         // Every pixel checked, then a band of pixels whose second half is empty.
         for unchecked in [0, 9] {
             let share: Vec<f32> = (0..w * h).map(|i| if i % w < unchecked { 0.0 } else { 0.5 }).collect();
-            let got = weights(w, h, (&a, &b), (&fa, &fb), &share);
+            let got = weights(w, (&a, &b), (&fa, &fb), &share);
             for y in 0..h {
                 for x in 0..w {
                     let (mut u, mut f, mut n) = (0.0f64, 0.0f64, 0);
                     for yy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
                         for xx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
                             let i = yy * w + xx;
-                            if let Some((eu, ef)) =
-                                errors(a.pixels[i], b.pixels[i], fa.pixels[i], fb.pixels[i], share[i])
-                            {
+                            if let Some((eu, ef)) = errors(a[i], b[i], fa[i], fb[i], share[i]) {
                                 (u, f, n) = (u + eu as f64, f + ef as f64, n + 1);
                             }
                         }
@@ -368,13 +369,13 @@ mod tests {
         // Halves about 2e18 apart in every channel: each pixel's errors fit in f32 (about
         // 3e36), a window's sums of them do not.
         let a = image(w, h, |i| Vec3::splat(1e18 * (1.0 + noise(i, 7))));
-        let b = image(w, h, |i| -a.pixels[i]);
-        let u = image(w, h, |i| (a.pixels[i] + b.pixels[i]) / 2.0);
+        let b = image(w, h, |i| -a[i]);
+        let u = image(w, h, |i| (a[i] + b[i]) / 2.0);
         let f = image(w, h, |_| Vec3::ONE);
-        let got = weights(w as usize, h as usize, (&a, &b), (&f, &f), &share);
+        let got = weights(w as usize, (&a, &b), (&f, &f), &share);
         assert!(got.iter().all(|w| (0.0..=1.0).contains(w)), "every weight in [0, 1]");
-        let out = blend(&u, (&a, &b), (f.clone(), &f), &share);
-        assert!(out.pixels.iter().all(|p| p.is_finite()), "every pixel finite");
+        let out = blend(&u, (&a, &b), (f.clone(), &f), &share, w);
+        assert!(out.iter().all(|p| p.is_finite()), "every pixel finite");
     }
 
     #[test]

@@ -18,6 +18,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use atrous::{Atrous, FilterInput, Strength};
+pub use pool::Pixels;
 pub use section::Overrides;
 
 use crate::component::Component::{self, Caustic, Direct, Emitted, Indirect};
@@ -277,19 +278,22 @@ impl EdgeStops {
 /// filter, [`filter_layers`].
 pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) -> Image {
     match Plan::of(method) {
-        Plan::Local(window) => local(image, &window, film, stops),
+        Plan::Local(window) => local(&image.pixels, (image.width, image.height), &window, film, stops)
+            .to_image(image.width, image.height),
         Plan::Wavelet(a) => {
             let mut out = atrous::filter(&[FilterInput::new(image, None)], film, a, stops.pure);
-            out.pop().unwrap_or_else(|| image.clone())
+            out.pop().map_or_else(|| image.clone(), |p| p.to_image(image.width, image.height))
         }
     }
 }
 
 /// Filters each layer: the paper's filters one by one, à-trous with each layer's variance and
 /// the guides' geometry shared (its object stop is always on; `stops.pure` also applies).
-pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Image> {
+pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops: &EdgeStops) -> Vec<Pixels> {
     match Plan::of(method) {
-        Plan::Local(window) => layers.iter().map(|l| local(l.image, &window, film, stops)).collect(),
+        Plan::Local(window) => {
+            layers.iter().map(|l| local(l.image, (film.width, film.height), &window, film, stops)).collect()
+        }
         Plan::Wavelet(a) if a.cross && layers.iter().any(|l| l.halves.is_some()) => {
             checked(layers, film, a, stops)
         }
@@ -299,7 +303,7 @@ pub fn filter_layers(layers: &[FilterInput], method: &Method, film: &Film, stops
 
 /// À-trous on `layers`, each layer with halves filtered half by half and kept only where that
 /// says it lowers the error ([`cross`]). All the images are filtered in one call.
-fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -> Vec<Image> {
+fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -> Vec<Pixels> {
     // Each half's variance: the whole's over the half's share of the samples.
     let scaled = |variance: Option<&[f32]>, share: &[f32], second: bool| -> Option<pool::Plane> {
         let v = variance?;
@@ -312,7 +316,7 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
     };
     struct Halved<'a> {
         layer: usize,
-        halves: (Image, Image),
+        halves: (Pixels, Pixels),
         variances: (Option<pool::Plane>, Option<pool::Plane>),
         share: &'a [f32],
     }
@@ -370,8 +374,10 @@ fn checked(layers: &[FilterInput], film: &Film, a: &Atrous, stops: &EdgeStops) -
         .iter()
         .enumerate()
         .map(|(i, l)| match checked.next_if(|(h, _)| h.layer == i) {
-            Some((h, (fa, fb))) => cross::blend(l.image, (&h.halves.0, &h.halves.1), (fa, &fb), h.share),
-            None => whole.next().unwrap_or_else(|| l.image.clone()),
+            Some((h, (fa, fb))) => {
+                cross::blend(l.image, (&h.halves.0, &h.halves.1), (fa, &fb), h.share, film.width)
+            }
+            None => whole.next().unwrap_or_else(|| Pixels::copy_of(l.image)),
         })
         .collect()
 }
@@ -418,15 +424,14 @@ impl Window {
 /// pass over the row per kernel tap, or one median network over nine shifted rows, loops the
 /// compiler vectorises. The border columns, and the edge-aware median, go pixel by pixel through
 /// [`Filter::pixel`], the plain definition that tests compare the fast paths with.
-fn local(image: &Image, window: &Window, film: &Film, stops: &EdgeStops) -> Image {
-    let f = Filter::new(image, window, film, stops);
-    let w = image.width as usize;
-    let mut out = Image::new(image.width, image.height);
+fn local(image: &[Vec3], (w, h): (u32, u32), window: &Window, film: &Film, stops: &EdgeStops) -> Pixels {
+    let f = Filter::new(image, (w as usize, h as usize), window, film, stops);
+    let w = w as usize;
+    let mut out = Pixels::overwritten(image.len());
     if w == 0 {
         return out;
     }
-    let flat: &mut [f32] = bytemuck::cast_slice_mut(&mut out.pixels);
-    flat.par_chunks_mut(3 * w).enumerate().for_each_init(
+    out.floats_mut().par_chunks_mut(3 * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new()),
         |(scratch, count), (y, row)| f.row(y, row, scratch, count),
     );
@@ -435,7 +440,10 @@ fn local(image: &Image, window: &Window, film: &Film, stops: &EdgeStops) -> Imag
 
 /// One pass of a local filter, ready to run row by row.
 struct Filter<'a> {
-    image: &'a Image,
+    image: &'a [Vec3],
+    /// The image's width and height.
+    w: usize,
+    h: usize,
     flat: &'a [f32],
     window: &'a Window,
     film: &'a Film,
@@ -446,10 +454,18 @@ struct Filter<'a> {
 }
 
 impl<'a> Filter<'a> {
-    fn new(image: &'a Image, window: &'a Window, film: &'a Film, stops: &EdgeStops) -> Self {
+    fn new(
+        image: &'a [Vec3],
+        (w, h): (usize, usize),
+        window: &'a Window,
+        film: &'a Film,
+        stops: &EdgeStops,
+    ) -> Self {
         Filter {
             image,
-            flat: bytemuck::cast_slice(&image.pixels),
+            w,
+            h,
+            flat: bytemuck::cast_slice(image),
             window,
             film,
             stops: *stops,
@@ -520,7 +536,7 @@ impl<'a> Filter<'a> {
     /// The filtered value of pixel (x, y), by the definition: every neighbour of the window
     /// (borders replicated) that passes the stops, weighted, divided by the weights used.
     fn pixel(&self, x: usize, y: usize) -> Vec3 {
-        let (w, h) = (self.image.width as i64, self.image.height as i64);
+        let (w, h) = (self.w as i64, self.h as i64);
         let r = self.radius as i64;
         let centre = y * w as usize + x;
         let mut window = [Vec3::ZERO; 9];
@@ -533,11 +549,11 @@ impl<'a> Filter<'a> {
                 let take = !self.edge_aware || self.same_surface(centre, n);
                 match self.window {
                     Window::Convolution { weights, .. } if take => {
-                        acc += self.image.pixels[n] * weights[k];
+                        acc += self.image[n] * weights[k];
                         weight_sum += weights[k];
                     }
                     Window::Median3 if take => {
-                        window[used] = self.image.pixels[n];
+                        window[used] = self.image[n];
                         used += 1;
                     }
                     _ => {}
@@ -548,15 +564,14 @@ impl<'a> Filter<'a> {
         match self.window {
             // Divided by the weights actually used, so energy is kept at edges.
             Window::Convolution { .. } if weight_sum > 0.0 => acc / weight_sum,
-            Window::Convolution { .. } => self.image.pixels[centre],
+            Window::Convolution { .. } => self.image[centre],
             Window::Median3 => median(&mut window[..used]),
         }
     }
 
     /// Output row `y` (as floats), with scratch buffers for the edge-aware stops.
     fn row(&self, y: usize, out: &mut [f32], scratch: &mut Vec<f32>, count: &mut Vec<f32>) {
-        let w = self.image.width as usize;
-        let h = self.image.height as usize;
+        let (w, h) = (self.w, self.h);
         let r = self.radius;
         // The pixels that the fast path computes: a full window without clamping columns.
         let interior = if w > 2 * r { r..w - r } else { 0..0 };
@@ -720,13 +735,13 @@ pub fn composite<'a>(
     kernel: Option<&Method>,
     target: Target,
     stops: &EdgeStops,
-) -> (Cow<'a, Image>, Option<Image>) {
+) -> (Cow<'a, Image>, Option<Pixels>) {
     let Some(kernel) = kernel else { return (Cow::Borrowed(&film.raw), None) };
     let layer = |c: Component| FilterInput {
-        image: &film.components[c],
+        image: &film.components[c].pixels,
         variance: (!film.component_variance[c].is_empty()).then(|| film.component_variance[c].as_slice()),
         component: Some(c),
-        halves: film.has_halves().then(|| (&film.component_half[c], film.half_share.as_slice())),
+        halves: film.has_halves().then(|| (&film.component_half[c].pixels[..], film.half_share.as_slice())),
         stops_from: None,
     };
     let filtered: &[Component] = match target {
@@ -738,9 +753,9 @@ pub fn composite<'a>(
             };
             let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
             let mut out = filter_layers(&[FilterInput::new(&aov.image, variance)], kernel, film, stops);
-            let filtered = out.pop().unwrap_or_else(|| aov.image.clone());
+            let filtered = out.pop().unwrap_or_else(|| Pixels::copy_of(&aov.image.pixels));
             let mut image = film.raw.clone();
-            for ((o, a), f) in image.pixels.iter_mut().zip(&aov.image.pixels).zip(&filtered.pixels) {
+            for ((o, a), f) in image.pixels.iter_mut().zip(&aov.image.pixels).zip(filtered.iter()) {
                 *o += *f - *a;
             }
             return (Cow::Owned(image), None);
@@ -752,15 +767,18 @@ pub fn composite<'a>(
     };
     if filtered.is_empty() {
         let variance = (!film.variance.is_empty()).then_some(film.variance.as_slice());
-        let halves = film.has_halves().then_some((&film.half, film.half_share.as_slice()));
+        let halves = film.has_halves().then_some((&film.half.pixels[..], film.half_share.as_slice()));
         let input = FilterInput { halves, ..FilterInput::new(&film.raw, variance) };
         let mut out = filter_layers(&[input], kernel, film, stops);
-        return (Cow::Owned(out.pop().unwrap_or_else(|| film.raw.clone())), None);
+        let image =
+            out.pop().map_or_else(|| film.raw.clone(), |p| p.to_image(film.raw.width, film.raw.height));
+        return (Cow::Owned(image), None);
     }
     let layers: Vec<FilterInput> = filtered.iter().map(|&c| layer(c)).collect();
     let mut images = filter_layers(&layers, kernel, film, stops);
-    let [direct, caustic, indirect] = [Direct, Caustic, Indirect]
-        .map(|c| filtered.iter().position(|&f| f == c).map_or(&film.components[c], |i| &images[i]));
+    let [direct, caustic, indirect] = [Direct, Caustic, Indirect].map(|c| {
+        filtered.iter().position(|&f| f == c).map_or(&film.components[c].pixels[..], |i| &images[i][..])
+    });
     // The sum in one parallel step, in the order emitted, direct, caustic, indirect.
     let emitted = &film.components[Emitted];
     let out = Image {
@@ -768,7 +786,7 @@ pub fn composite<'a>(
         height: emitted.height,
         pixels: (0..emitted.pixels.len())
             .into_par_iter()
-            .map(|i| emitted.pixels[i] + direct.pixels[i] + caustic.pixels[i] + indirect.pixels[i])
+            .map(|i| emitted.pixels[i] + direct[i] + caustic[i] + indirect[i])
             .collect(),
     };
     // The filtered indirect layer is handed out, not copied.
@@ -916,7 +934,7 @@ mod tests {
                 for stops in &stop_sets {
                     let fast = filter(&img, &k, &film, stops);
                     let Plan::Local(window) = Plan::of(&k) else { panic!("{k:?} is not local") };
-                    let f = Filter::new(&img, &window, &film, stops);
+                    let f = Filter::new(&img.pixels, (w as usize, h as usize), &window, &film, stops);
                     for y in 0..h as usize {
                         for x in 0..w as usize {
                             let want = f.pixel(x, y);
@@ -1003,7 +1021,7 @@ mod tests {
         assert_ne!(indirect, noisy.components[Indirect]);
         assert_ne!(direct[0], noisy.components[Direct]);
         for i in 0..(w * h) as usize {
-            let want = noisy.components[Emitted].pixels[i] + direct[0].pixels[i] + indirect.pixels[i];
+            let want = noisy.components[Emitted].pixels[i] + direct[0][i] + indirect[i];
             assert!((out.pixels[i] - want).abs().max_element() < 1e-5, "{i}");
         }
     }
@@ -1037,10 +1055,10 @@ mod tests {
             }
         }
         let layer = |c: Component| FilterInput {
-            image: &film.components[c],
+            image: &film.components[c].pixels,
             variance: Some(&film.component_variance[c]),
             component: Some(c),
-            halves: Some((&film.component_half[c], &film.half_share)),
+            halves: Some((&film.component_half[c].pixels, &film.half_share)),
             stops_from: None,
         };
         let k = Method::parse("atrous:taps=3:passes=2:direct_passes=0").expect("kernel");
