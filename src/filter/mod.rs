@@ -278,8 +278,13 @@ impl EdgeStops {
 /// filter, [`filter_layers`].
 pub fn filter(image: &Image, method: &Method, film: &Film, stops: &EdgeStops) -> Image {
     match Plan::of(method) {
-        Plan::Local(window) => local(&image.pixels, (image.width, image.height), &window, film, stops)
-            .to_image(image.width, image.height),
+        Plan::Local(window) => {
+            // Written straight into the image returned (not a pooled one copied).
+            let mut out = Image::new(image.width, image.height);
+            let size = (image.width, image.height);
+            local_into(&image.pixels, size, &window, film, stops, bytemuck::cast_slice_mut(&mut out.pixels));
+            out
+        }
         Plan::Wavelet(a) => {
             let mut out = atrous::filter(&[FilterInput::new(image, None)], film, a, stops.pure);
             out.pop().map_or_else(|| image.clone(), |p| p.to_image(image.width, image.height))
@@ -424,18 +429,30 @@ impl Window {
 /// pass over the row per kernel tap, or one median network over nine shifted rows, loops the
 /// compiler vectorises. The border columns, and the edge-aware median, go pixel by pixel through
 /// [`Filter::pixel`], the plain definition that tests compare the fast paths with.
-fn local(image: &[Vec3], (w, h): (u32, u32), window: &Window, film: &Film, stops: &EdgeStops) -> Pixels {
+fn local(image: &[Vec3], size: (u32, u32), window: &Window, film: &Film, stops: &EdgeStops) -> Pixels {
+    let mut out = Pixels::overwritten(image.len());
+    local_into(image, size, window, film, stops, out.floats_mut());
+    out
+}
+
+/// [`local`] into `out`, three floats a pixel, every one written.
+fn local_into(
+    image: &[Vec3],
+    (w, h): (u32, u32),
+    window: &Window,
+    film: &Film,
+    stops: &EdgeStops,
+    out: &mut [f32],
+) {
     let f = Filter::new(image, (w as usize, h as usize), window, film, stops);
     let w = w as usize;
-    let mut out = Pixels::overwritten(image.len());
     if w == 0 {
-        return out;
+        return;
     }
-    out.floats_mut().par_chunks_mut(3 * w).enumerate().for_each_init(
+    out.par_chunks_mut(3 * w).enumerate().for_each_init(
         || (Vec::new(), Vec::new()),
         |(scratch, count), (y, row)| f.row(y, row, scratch, count),
     );
-    out
 }
 
 /// One pass of a local filter, ready to run row by row.
