@@ -403,8 +403,12 @@ impl Render {
     /// writing.
     fn new(film: Film, setting: Setting, meta: Metadata, stats: RenderStats, threads: usize) -> Render {
         let start = std::time::Instant::now();
-        let (final_image, filtered) =
-            composite(&film, setting.method.as_ref(), setting.target, &setting.stops);
+        // On a pool thread: a Python thread is none, and each of the filter's parallel steps
+        // started from outside the pool is a hand-over (0.90x the filter's seconds at 256x256
+        // in the pool; docs/RESULTS.md, "The filter's images from its pool").
+        let (final_image, filtered) = lightsplit::accel::in_pool(|| {
+            composite(&film, setting.method.as_ref(), setting.target, &setting.stops)
+        });
         let final_image = final_image.into_owned();
         let filter_seconds = if setting.method.is_some() { start.elapsed().as_secs_f64() } else { 0.0 };
         Render { film, final_image, filtered, setting, meta, stats, filter_seconds, threads, part: None }
@@ -589,11 +593,13 @@ impl Render {
             }
             return py.detach(|| part::write(&path, &held.1, &held.0).map_err(py_error));
         }
-        py.detach(|| {
-            output::write(self.film.clone(), &self.setting, &path, Layer::Final, exposure, &meta)
-                .map(|_| ())
-                .map_err(py_error)
-        })
+        // Filtered again on a pool thread, as [`Render::new`] filters.
+        let written = py.detach(|| {
+            lightsplit::accel::in_pool(|| {
+                output::write(self.film.clone(), &self.setting, &path, Layer::Final, exposure, &meta)
+            })
+        });
+        written.map(|_| ()).map_err(py_error)
     }
 
     /// This render filtered again with `filter` (a method as `--filter` takes it) on

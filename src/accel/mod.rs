@@ -87,6 +87,14 @@ pub fn join_global_pool() {
     let _ = rayon::ThreadPoolBuilder::new().use_current_thread().build_global();
 }
 
+/// Runs `op` on one of the global pool's threads while the caller waits, and returns what it
+/// returns: the parallel steps `op` starts then begin inside the pool, one hand-over for the
+/// whole call instead of one a step ([`join_global_pool`]). For callers that cannot join the
+/// pool, the Python module's threads. From inside the pool, `op` runs where it is.
+pub fn in_pool<R: Send>(op: impl FnOnce() -> R + Send) -> R {
+    rayon::join(op, || ()).0
+}
+
 /// The backends a render can choose at run time.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -298,6 +306,21 @@ pub fn build_embree_with(
 #[cfg(test)]
 mod tests {
     use rayon::prelude::*;
+
+    /// `in_pool` from outside the pool runs on one of its threads, from inside where it is.
+    #[test]
+    fn in_pool_runs_on_a_pool_thread_or_where_it_is() {
+        use super::in_pool;
+        // From a thread of no pool: on one of the global pool's, with the value returned.
+        let outside = std::thread::spawn(|| in_pool(|| (rayon::current_thread_index(), 7))).join();
+        let Ok((index, value)) = outside else { panic!("in_pool panicked") };
+        assert!(index.is_some(), "not run on a pool thread");
+        assert_eq!(value, 7);
+        // From inside the pool: on the caller's own thread.
+        let (here, there) =
+            rayon::scope(|_| (std::thread::current().id(), in_pool(|| std::thread::current().id())));
+        assert_eq!(here, there);
+    }
 
     /// The calling thread becomes the global pool's thread 0, the pool one thread a core. Run in
     /// a process of its own (this test binary again, with this test alone), since in the test
