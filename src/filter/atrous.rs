@@ -231,7 +231,7 @@ impl Atrous {
     /// Whether this filter changes `layer` at all: not when the layer has no passes or is zero
     /// everywhere (no caustics in the scene); such a layer is left as it is.
     pub(super) fn changes(&self, layer: &FilterInput) -> bool {
-        self.strength(layer.component).1 > 0 && layer.image.par_iter().any(|p| *p != Vec3::ZERO)
+        self.strength(layer.component).1 > 0 && !crate::scene::image::all_black(layer.image)
     }
 
     /// The 1-D kernel, centre in the middle.

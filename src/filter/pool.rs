@@ -38,7 +38,7 @@ enum Store {
     Mapped(crate::accel::bvh::pages::Pages<f32>),
 }
 
-/// Planes of at least this many bytes are never kept, and get huge pages.
+/// Planes of at least this many bytes are never kept, and get huge pages (but [`Pixels`]).
 const MAPPED_MIN: usize = 32 << 20;
 
 impl Plane {
@@ -58,15 +58,20 @@ impl Plane {
     /// [`Plane::overwritten`], in ordinary memory whatever its size: a plane too large to
     /// keep is a fresh allocation, never a mapping of its own.
     fn heap(n: usize) -> Plane {
-        if n * size_of::<f32>() >= MAPPED_MIN {
-            return Plane(Store::Heap(vec![0.0; n]));
-        }
-        Plane::of(n, false)
+        Plane::of_in(n, false, false)
     }
 
     fn of(n: usize, zeroed: bool) -> Plane {
+        Plane::of_in(n, zeroed, true)
+    }
+
+    /// `n` floats, zeroed or not; from [`MAPPED_MIN`] never kept, and `mapped` in huge pages.
+    fn of_in(n: usize, zeroed: bool, mapped: bool) -> Plane {
         if n * size_of::<f32>() >= MAPPED_MIN {
-            return Plane(Store::Mapped(crate::accel::bvh::pages::Pages::zeroed(n)));
+            return Plane(match mapped {
+                true => Store::Mapped(crate::accel::bvh::pages::Pages::zeroed(n)),
+                false => Store::Heap(vec![0.0; n]),
+            });
         }
         match take(n) {
             Some(mut v) => {
@@ -98,7 +103,8 @@ impl Drop for Plane {
         let Store::Heap(v) = &mut self.0 else { return };
         let v = std::mem::take(v);
         let size = v.capacity() * size_of::<f32>();
-        if size == 0 {
+        // Too large to keep (an image of [`Pixels`] that size is on the heap, not mapped).
+        if size == 0 || size >= MAPPED_MIN {
             return;
         }
         let mut pool = lock();

@@ -47,7 +47,7 @@ impl Image {
 
     /// Whether every pixel is exactly zero (a layer with no light: a filter leaves it as it is).
     pub fn is_black(&self) -> bool {
-        self.pixels.par_iter().all(|p| *p == Vec3::ZERO)
+        all_black(&self.pixels)
     }
 
     /// The mean over all pixels, per channel (accumulated in f64).
@@ -69,6 +69,11 @@ pub type Channels = Vec<(String, Vec<f32>)>;
 /// Named 32-bit whole-number channels, in writing order (a part file keeps its f64 sums in
 /// two such channels each, bit for bit).
 pub type Words = Vec<(String, Vec<u32>)>;
+
+/// Whether every one of `pixels` is exactly zero ([`Image::is_black`] of any image's pixels).
+pub fn all_black(pixels: &[Vec3]) -> bool {
+    pixels.par_iter().all(|p| *p == Vec3::ZERO)
+}
 
 /// Reads every channel of an EXR's first layer, by name, with the image size: the whole-number
 /// (`u32`) channels converted to floats as the others are.
