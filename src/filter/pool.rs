@@ -2,14 +2,19 @@
 //! planes; freshly allocated, every 4 KB page of them is a page fault when first written and
 //! an unmapping when freed, which took about a third of a warm call (docs/RESULTS.md, the
 //! denoising section). A plane taken here reuses one that an earlier call, or an earlier step
-//! of this one, gave back; planes are given back when dropped, as long as the pool holds at
-//! most [`KEEP_BYTES`], so a process that filtered a 4K image does not keep its gigabytes.
-//! Planes too large to keep (from [`MAPPED_MIN`]: a 4K image's) are mapped in transparent huge
-//! pages instead, one fault for 2 MB rather than for 4 KB: at 4K the kernel's page faults and
-//! zeroing took three quarters of a call (docs/RESULTS.md).
+//! of this one, gave back; planes are given back when dropped, and the pool keeps up to
+//! [`KEEP_BYTES`] of them for as long as the process runs.
+//!
+//! Planes too large for that (from [`MAPPED_MIN`]: a 4K image's) are mapped in transparent huge
+//! pages, one fault for 2 MB rather than for 4 KB, and are kept only for [`KEEP_LARGE`] after
+//! they were given back, then freed by a thread of the pool's own: a call that follows within
+//! that time (the next frame of a sequence, criterion's next iteration) takes them again
+//! without a page fault, while a process that filtered one 4K image does not keep its
+//! gigabytes. At 4K, fresh pages took about an eighth of a warm call (docs/RESULTS.md).
 
 use std::ops::{Deref, DerefMut};
-use std::sync::Mutex;
+use std::sync::{Condvar, Mutex, OnceLock};
+use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -19,26 +24,97 @@ use crate::film::Image;
 /// The most the pool keeps between uses: a 512x512 `--denoise`'s planes, about 80 MB.
 pub const KEEP_BYTES: usize = 96 << 20;
 
-/// Planes given back and not yet taken again, and the bytes they hold.
-static POOL: Mutex<(Vec<Vec<f32>>, usize)> = Mutex::new((Vec::new(), 0));
+/// How long a plane of [`MAPPED_MIN`] or more is kept after it was given back.
+pub const KEEP_LARGE: Duration = Duration::from_secs(3);
 
-fn lock() -> std::sync::MutexGuard<'static, (Vec<Vec<f32>>, usize)> {
+/// Planes given back and not yet taken again: the small ones and the bytes they hold, and the
+/// large ones with the moment each was given back.
+struct Pool {
+    small: Vec<Vec<f32>>,
+    bytes: usize,
+    large: Vec<(Store, Instant)>,
+}
+
+static POOL: Mutex<Pool> = Mutex::new(Pool { small: Vec::new(), bytes: 0, large: Vec::new() });
+/// Wakes the thread that frees the large planes ([`free_large_planes`]) when one is given back.
+static GIVEN_BACK: Condvar = Condvar::new();
+/// Whether that thread runs; without it, large planes are freed when given back.
+static FREEING: OnceLock<bool> = OnceLock::new();
+
+fn lock() -> std::sync::MutexGuard<'static, Pool> {
     // A poisoned lock only means another thread panicked while holding it; the planes in it
     // are whole either way.
     POOL.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// The pool's thread: frees each large plane [`KEEP_LARGE`] after it was given back, sleeping
+/// until the next one is due or one is given back.
+fn free_large_planes() {
+    let mut pool = lock();
+    loop {
+        let now = Instant::now();
+        let (due, kept): (Vec<_>, Vec<_>) =
+            pool.large.drain(..).partition(|(_, at)| now.duration_since(*at) >= KEEP_LARGE);
+        pool.large = kept;
+        let next = pool.large.iter().map(|(_, at)| *at + KEEP_LARGE).min();
+        if !due.is_empty() {
+            // Unmapped outside the lock.
+            drop(pool);
+            drop(due);
+            pool = lock();
+            continue;
+        }
+        pool = match next {
+            Some(at) => {
+                GIVEN_BACK
+                    .wait_timeout(pool, at.saturating_duration_since(now))
+                    .unwrap_or_else(|e| e.into_inner())
+                    .0
+            }
+            None => GIVEN_BACK.wait(pool).unwrap_or_else(|e| e.into_inner()),
+        };
+    }
+}
+
+/// Whether large planes are kept: the freeing thread is running (started on first use).
+fn keeps_large() -> bool {
+    *FREEING.get_or_init(|| {
+        std::thread::Builder::new().name("lightsplit-pool".into()).spawn(free_large_planes).is_ok()
+    })
+}
+
 /// A plane of `f32` taken from the pool (or allocated when none there is large enough), set to
 /// zero, and given back to the pool when dropped.
-pub struct Plane(Store);
+pub struct Plane {
+    store: Store,
+    /// The floats in use: a plane taken again may be longer than asked for.
+    len: usize,
+}
 
 enum Store {
     Heap(Vec<f32>),
-    /// A plane larger than the pool keeps, in huge pages where the system gives them.
+    /// A large plane, in huge pages where the system gives them.
     Mapped(crate::accel::bvh::pages::Pages<f32>),
 }
 
-/// Planes of at least this many bytes are never kept, and get huge pages (but [`Pixels`]).
+impl Store {
+    fn floats(&self) -> &[f32] {
+        match self {
+            Store::Heap(v) => v,
+            Store::Mapped(p) => p,
+        }
+    }
+
+    fn floats_mut(&mut self) -> &mut [f32] {
+        match self {
+            Store::Heap(v) => v,
+            Store::Mapped(p) => p,
+        }
+    }
+}
+
+/// Planes of at least this many bytes are kept only for [`KEEP_LARGE`], and get huge pages
+/// (but [`Pixels`]).
 const MAPPED_MIN: usize = 32 << 20;
 
 impl Plane {
@@ -55,8 +131,8 @@ impl Plane {
         Plane::of(n, false)
     }
 
-    /// [`Plane::overwritten`], in ordinary memory whatever its size: a plane too large to
-    /// keep is a fresh allocation, never a mapping of its own.
+    /// [`Plane::overwritten`], in ordinary memory whatever its size: a large plane is an
+    /// allocation of the heap, never a mapping of its own.
     fn heap(n: usize) -> Plane {
         Plane::of_in(n, false, false)
     }
@@ -65,24 +141,32 @@ impl Plane {
         Plane::of_in(n, zeroed, true)
     }
 
-    /// `n` floats, zeroed or not; from [`MAPPED_MIN`] never kept, and `mapped` in huge pages.
+    /// `n` floats, zeroed or not; from [`MAPPED_MIN`] `mapped` in huge pages.
     fn of_in(n: usize, zeroed: bool, mapped: bool) -> Plane {
         if n * size_of::<f32>() >= MAPPED_MIN {
-            return Plane(match mapped {
+            if let Some(mut store) = take_large(n, mapped) {
+                if zeroed {
+                    store.floats_mut()[..n].fill(0.0);
+                }
+                return Plane { store, len: n };
+            }
+            // New memory from the system is zero already.
+            let store = match mapped {
                 true => Store::Mapped(crate::accel::bvh::pages::Pages::zeroed(n)),
                 false => Store::Heap(vec![0.0; n]),
-            });
+            };
+            return Plane { store, len: n };
         }
         match take(n) {
             Some(mut v) => {
                 // Zeroed: every value written again; else only those past the old length.
                 v.truncate(if zeroed { 0 } else { n });
                 v.resize(n, 0.0);
-                Plane(Store::Heap(v))
+                Plane { store: Store::Heap(v), len: n }
             }
             // New memory from the system is zero already: its pages are touched (and faulted
             // in) only by whichever threads write them first, not all here, by this one.
-            None => Plane(Store::Heap(vec![0.0; n])),
+            None => Plane { store: Store::Heap(vec![0.0; n]), len: n },
         }
     }
 }
@@ -91,27 +175,46 @@ impl Plane {
 /// unspecified).
 fn take(n: usize) -> Option<Vec<f32>> {
     let mut pool = lock();
-    let (planes, bytes) = &mut *pool;
-    let best = planes.iter().enumerate().filter(|(_, v)| v.capacity() >= n).min_by_key(|(_, v)| v.capacity());
-    let v = planes.swap_remove(best?.0);
-    *bytes -= v.capacity() * size_of::<f32>();
+    let best =
+        pool.small.iter().enumerate().filter(|(_, v)| v.capacity() >= n).min_by_key(|(_, v)| v.capacity());
+    let best = best?.0;
+    let v = pool.small.swap_remove(best);
+    pool.bytes -= v.capacity() * size_of::<f32>();
     Some(v)
+}
+
+/// The smallest large plane kept that holds `n` floats, mapped or on the heap as asked.
+fn take_large(n: usize, mapped: bool) -> Option<Store> {
+    let mut pool = lock();
+    let best = (pool.large.iter().enumerate())
+        .filter(|(_, (s, _))| matches!(s, Store::Mapped(_)) == mapped && s.floats().len() >= n)
+        .min_by_key(|(_, (s, _))| s.floats().len());
+    let best = best?.0;
+    Some(pool.large.swap_remove(best).0)
 }
 
 impl Drop for Plane {
     fn drop(&mut self) {
-        let Store::Heap(v) = &mut self.0 else { return };
-        let v = std::mem::take(v);
-        let size = v.capacity() * size_of::<f32>();
-        // Too large to keep (an image of [`Pixels`] that size is on the heap, not mapped).
-        if size == 0 || size >= MAPPED_MIN {
+        let store = std::mem::replace(&mut self.store, Store::Heap(Vec::new()));
+        let size = match &store {
+            Store::Heap(v) => v.capacity(),
+            Store::Mapped(p) => p.len(),
+        } * size_of::<f32>();
+        if size == 0 {
             return;
         }
+        if size >= MAPPED_MIN {
+            if keeps_large() {
+                lock().large.push((store, Instant::now()));
+                GIVEN_BACK.notify_all();
+            }
+            return;
+        }
+        let Store::Heap(v) = store else { return };
         let mut pool = lock();
-        let (planes, bytes) = &mut *pool;
-        if *bytes + size <= KEEP_BYTES {
-            *bytes += size;
-            planes.push(v);
+        if pool.bytes + size <= KEEP_BYTES {
+            pool.bytes += size;
+            pool.small.push(v);
         }
     }
 }
@@ -119,19 +222,14 @@ impl Drop for Plane {
 impl Deref for Plane {
     type Target = [f32];
     fn deref(&self) -> &[f32] {
-        match &self.0 {
-            Store::Heap(v) => v,
-            Store::Mapped(p) => p,
-        }
+        &self.store.floats()[..self.len]
     }
 }
 
 impl DerefMut for Plane {
     fn deref_mut(&mut self) -> &mut [f32] {
-        match &mut self.0 {
-            Store::Heap(v) => v,
-            Store::Mapped(p) => p,
-        }
+        let len = self.len;
+        &mut self.store.floats_mut()[..len]
     }
 }
 
@@ -238,13 +336,44 @@ mod tests {
     }
 
     #[test]
-    fn a_plane_too_large_to_keep_is_zeros_and_holds_its_values() {
+    fn a_large_plane_is_zeros_and_holds_its_values() {
         let n = MAPPED_MIN / size_of::<f32>() + 5;
         let mut p = Plane::zeroed(n);
         assert_eq!(p.len(), n);
         assert!(p.iter().all(|&v| v == 0.0));
         p.iter_mut().enumerate().for_each(|(i, v)| *v = i as f32);
         assert!(p.iter().enumerate().all(|(i, &v)| v == i as f32));
+    }
+
+    #[test]
+    fn a_large_plane_taken_again_has_its_length_and_zeros_when_asked() {
+        // Large planes of several lengths, written and given back, then taken again: each has
+        // the length asked for, and is all zeros when asked to be, whichever plane it reuses.
+        let n = MAPPED_MIN / size_of::<f32>() + 1000;
+        for (m, mapped) in [(n + 77, true), (n, true), (n + 9, false), (n, false)] {
+            let mut p = Plane::of_in(m, false, mapped);
+            assert_eq!(p.len(), m);
+            p.iter_mut().for_each(|v| *v = 3.0);
+        }
+        for (m, mapped) in [(n + 5, true), (n + 3, false), (n, true)] {
+            let p = Plane::of_in(m, true, mapped);
+            assert_eq!(p.len(), m);
+            assert!(p.iter().all(|&v| v == 0.0), "a large plane of {m} is not all zeros");
+        }
+    }
+
+    #[test]
+    fn large_planes_are_freed_after_their_time() {
+        drop(Plane::overwritten(MAPPED_MIN / size_of::<f32>() + 1));
+        std::thread::sleep(KEEP_LARGE + Duration::from_secs(2));
+        // The freeing thread woke when each was due: none kept is older than its time (other
+        // tests give planes back meanwhile), with a second's leeway for a busy machine.
+        let oldest = lock().large.iter().map(|(_, at)| at.elapsed()).max();
+        assert!(keeps_large(), "the pool's thread did not start");
+        assert!(
+            oldest.is_none_or(|age| age < KEEP_LARGE + Duration::from_secs(1)),
+            "a large plane kept {oldest:?}"
+        );
     }
 
     #[test]
@@ -255,7 +384,7 @@ mod tests {
         let planes: Vec<Plane> = (0..count).map(|_| Plane::zeroed(n)).collect();
         drop(planes);
         // (Other tests take and give back planes meanwhile; the limit holds at every moment.)
-        let bytes = lock().1;
+        let bytes = lock().bytes;
         assert!(bytes <= KEEP_BYTES, "the pool holds {bytes} bytes, above {KEEP_BYTES}");
     }
 
@@ -272,11 +401,11 @@ mod tests {
     }
 
     #[test]
-    fn pixels_too_large_to_keep_are_never_mapped() {
+    fn large_pixels_are_never_mapped() {
         let n = MAPPED_MIN / (3 * size_of::<f32>()) + 1;
         let mut p = Pixels::overwritten(n);
         assert_eq!(p.len(), n);
-        assert!(matches!(p.0 .0, Store::Heap(_)), "a large image in a mapping of its own");
+        assert!(matches!(p.0.store, Store::Heap(_)), "a large image in a mapping of its own");
         p[n - 1] = Vec3::X;
         assert_eq!(p[n - 1], Vec3::X);
     }
