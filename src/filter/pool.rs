@@ -5,9 +5,9 @@
 //! of this one, gave back; planes are given back when dropped, and the pool keeps up to
 //! [`KEEP_BYTES`] of them for as long as the process runs.
 //!
-//! Planes too large for that (from [`MAPPED_MIN`]: a 4K image's) are mapped in transparent huge
-//! pages, one fault for 2 MB rather than for 4 KB, and are kept only for [`KEEP_LARGE`] after
-//! they were given back, then freed by a thread of the pool's own: a call that follows within
+//! Planes too large for that (from [`MAPPED_MIN`]: a 4K image's, even of one float a pixel) are
+//! mapped in transparent huge pages, one fault for 2 MB rather than for 4 KB (but [`Pixels`],
+//! which stay in ordinary pages), and are kept only for [`KEEP_LARGE`] after each was given back, then freed by a thread of the pool's own: a call that follows within
 //! that time (the next frame of a sequence, criterion's next iteration) takes them again
 //! without a page fault, while a process that filtered one 4K image does not keep its
 //! gigabytes. At 4K, fresh pages took about an eighth of a warm call (docs/RESULTS.md).
@@ -83,8 +83,8 @@ fn keeps_large() -> bool {
     })
 }
 
-/// A plane of `f32` taken from the pool (or allocated when none there is large enough), set to
-/// zero, and given back to the pool when dropped.
+/// A plane of `f32` taken from the pool (or allocated when none there is large enough), zeroed
+/// or of unspecified values as asked, and given back to the pool when dropped.
 pub struct Plane {
     store: Store,
     /// The floats in use: a plane taken again may be longer than asked for.
@@ -114,8 +114,8 @@ impl Store {
 }
 
 /// Planes of at least this many bytes are kept only for [`KEEP_LARGE`], and get huge pages
-/// (but [`Pixels`]).
-const MAPPED_MIN: usize = 32 << 20;
+/// (but [`Pixels`]): a 4K image's plane of one float a pixel (33.2 MB) and more.
+const MAPPED_MIN: usize = 16 << 20;
 
 impl Plane {
     /// `n` zeros (the pool's tests; the filter writes its planes whole).
@@ -183,11 +183,14 @@ fn take(n: usize) -> Option<Vec<f32>> {
     Some(v)
 }
 
-/// The smallest large plane kept that holds `n` floats, mapped or on the heap as asked.
+/// The smallest large plane kept that holds `n` floats, mapped or on the heap as asked, and
+/// no more than a quarter larger: a request does not hold a plane that a larger one would
+/// need, which would then be allocated afresh beside it.
 fn take_large(n: usize, mapped: bool) -> Option<Store> {
     let mut pool = lock();
+    let fits = |len: usize| len >= n && len <= n + n / 4;
     let best = (pool.large.iter().enumerate())
-        .filter(|(_, (s, _))| matches!(s, Store::Mapped(_)) == mapped && s.floats().len() >= n)
+        .filter(|(_, (s, _))| matches!(s, Store::Mapped(_)) == mapped && fits(s.floats().len()))
         .min_by_key(|(_, (s, _))| s.floats().len());
     let best = best?.0;
     Some(pool.large.swap_remove(best).0)
@@ -335,8 +338,22 @@ mod tests {
         }
     }
 
+    /// Held by every test that takes or gives back large planes, so that no other test takes
+    /// the plane one of them gave back.
+    static LARGE: Mutex<()> = Mutex::new(());
+
+    fn large_lock() -> std::sync::MutexGuard<'static, ()> {
+        LARGE.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Whether the pool keeps the large plane whose floats start at `at`.
+    fn kept(at: *const f32) -> bool {
+        lock().large.iter().any(|(s, _)| std::ptr::eq(s.floats().as_ptr(), at))
+    }
+
     #[test]
     fn a_large_plane_is_zeros_and_holds_its_values() {
+        let _large = large_lock();
         let n = MAPPED_MIN / size_of::<f32>() + 5;
         let mut p = Plane::zeroed(n);
         assert_eq!(p.len(), n);
@@ -347,6 +364,7 @@ mod tests {
 
     #[test]
     fn a_large_plane_taken_again_has_its_length_and_zeros_when_asked() {
+        let _large = large_lock();
         // Large planes of several lengths, written and given back, then taken again: each has
         // the length asked for, and is all zeros when asked to be, whichever plane it reuses.
         let n = MAPPED_MIN / size_of::<f32>() + 1000;
@@ -363,17 +381,27 @@ mod tests {
     }
 
     #[test]
-    fn large_planes_are_freed_after_their_time() {
-        drop(Plane::overwritten(MAPPED_MIN / size_of::<f32>() + 1));
-        std::thread::sleep(KEEP_LARGE + Duration::from_secs(2));
-        // The freeing thread woke when each was due: none kept is older than its time (other
-        // tests give planes back meanwhile), with a second's leeway for a busy machine.
-        let oldest = lock().large.iter().map(|(_, at)| at.elapsed()).max();
+    fn a_large_plane_is_taken_again_then_freed_after_its_time() {
+        let _large = large_lock();
         assert!(keeps_large(), "the pool's thread did not start");
-        assert!(
-            oldest.is_none_or(|age| age < KEEP_LARGE + Duration::from_secs(1)),
-            "a large plane kept {oldest:?}"
-        );
+        let n = 3 * MAPPED_MIN / size_of::<f32>() + 11;
+        let p = Plane::overwritten(n);
+        let at = p.as_ptr();
+        drop(p);
+        // Taken again at once: the same memory, its values left as they were.
+        let p = Plane::overwritten(n - 7);
+        assert!(std::ptr::eq(p.as_ptr(), at), "a large plane given back was not taken again");
+        // A request of twice its size does not take it, nor one it is far too large for.
+        drop(p);
+        for m in [2 * n, n / 2] {
+            let q = Plane::overwritten(m);
+            assert!(!std::ptr::eq(q.as_ptr(), at), "a plane of {n} taken for {m}");
+        }
+        std::thread::sleep(KEEP_LARGE / 3);
+        assert!(kept(at), "a large plane freed before its time");
+        // Freed once its time has passed, with a second of leeway for a busy machine.
+        std::thread::sleep(KEEP_LARGE + Duration::from_secs(1));
+        assert!(!kept(at), "a large plane kept past its time");
     }
 
     #[test]
@@ -402,6 +430,7 @@ mod tests {
 
     #[test]
     fn large_pixels_are_never_mapped() {
+        let _large = large_lock();
         let n = MAPPED_MIN / (3 * size_of::<f32>()) + 1;
         let mut p = Pixels::overwritten(n);
         assert_eq!(p.len(), n);
