@@ -5,12 +5,13 @@
 //! of this one, gave back; planes are given back when dropped, and the pool keeps up to
 //! [`KEEP_BYTES`] of them for as long as the process runs.
 //!
-//! Planes too large for that (from [`MAPPED_MIN`]: a 4K image's, even of one float a pixel) are
-//! mapped in transparent huge pages, one fault for 2 MB rather than for 4 KB (but [`Pixels`],
-//! which stay in ordinary pages), and are kept only for [`KEEP_LARGE`] after each was given back, then freed by a thread of the pool's own: a call that follows within
-//! that time (the next frame of a sequence, criterion's next iteration) takes them again
-//! without a page fault, while a process that filtered one 4K image does not keep its
-//! gigabytes. At 4K, fresh pages took about an eighth of a warm call (docs/RESULTS.md).
+//! Planes too large for that (from [`MAPPED_MIN`]: a 4K image's, even of one float a pixel)
+//! are mapped in transparent huge pages, one fault for 2 MB rather than for 4 KB (but
+//! [`Pixels`], which stay in ordinary pages), and are kept only for [`KEEP_LARGE`] after each
+//! was given back, then freed by a thread of the pool's own: a call that follows within that
+//! time (the next frame of a sequence, criterion's next iteration) takes them again without a
+//! page fault, while a process that filtered one 4K image does not keep its gigabytes. At 4K,
+//! fresh pages took about an eighth of a warm call (docs/RESULTS.md).
 
 use std::ops::{Deref, DerefMut};
 use std::sync::{Condvar, Mutex, OnceLock};
@@ -144,16 +145,16 @@ impl Plane {
     /// `n` floats, zeroed or not; from [`MAPPED_MIN`] `mapped` in huge pages.
     fn of_in(n: usize, zeroed: bool, mapped: bool) -> Plane {
         if n * size_of::<f32>() >= MAPPED_MIN {
-            if let Some(mut store) = take_large(n, mapped) {
-                if zeroed {
-                    store.floats_mut()[..n].fill(0.0);
+            let store = match take_large(n, mapped) {
+                Some(mut store) => {
+                    if zeroed {
+                        store.floats_mut()[..n].fill(0.0);
+                    }
+                    store
                 }
-                return Plane { store, len: n };
-            }
-            // New memory from the system is zero already.
-            let store = match mapped {
-                true => Store::Mapped(crate::accel::bvh::pages::Pages::zeroed(n)),
-                false => Store::Heap(vec![0.0; n]),
+                // New memory from the system is zero already.
+                None if mapped => Store::Mapped(crate::accel::bvh::pages::Pages::zeroed(n)),
+                None => Store::Heap(vec![0.0; n]),
             };
             return Plane { store, len: n };
         }
